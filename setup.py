@@ -1,0 +1,44 @@
+"""Installs tolerance_ros with pip (no ROS needed) or with colcon in a ROS 2 workspace (ament_python)."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "tolerance_ros"
+
+
+def share(subdir, pattern):
+    files = sorted(f for f in glob(f"{subdir}/{pattern}"))
+    return (f"share/{PACKAGE}/{subdir}", files) if files else None
+
+
+data_files = [
+    ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+    (f"share/{PACKAGE}", ["package.xml"]),
+]
+for subdir, pattern in (("config", "*.yaml"), ("config/robots", "*.*"), ("config/budgets", "*.*"),
+                        ("config/campaigns", "*.*"), ("config/data", "*.*"), ("launch", "*.py"),
+                        ("schemas", "*.json")):
+    entry = share(subdir, pattern)
+    if entry:
+        data_files.append(entry)
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+    data_files=data_files,
+    python_requires=">=3.10",
+    install_requires=["numpy>=1.24", "scipy>=1.10", "PyYAML>=6", "matplotlib>=3.6", "pin>=2.7", "rosbags>=0.10"],
+    extras_require={"test": ["pytest>=7", "hypothesis>=6", "jsonschema>=4", "example-robot-data>=4"]},
+    zip_safe=False,
+    maintainer="tolerance_ros maintainers",
+    maintainer_email="maintainers@tolerance-ros.dev",
+    description="Kinematic error models, precision analysis and tolerance allocation for robot arms, with ROS 2 nodes",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "tolerance-ros = tolerance_ros.cli:main",
+        ],
+    },
+)

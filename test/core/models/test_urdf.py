@@ -1,0 +1,131 @@
+"""URDF chains: our batched FK and Jacobian against pinocchio on real URDFs from example-robot-data."""
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from helpers import example_urdf, pose_difference
+from tolerance_ros.core.models import ModelError, URDFChain, load_robot
+
+CASES = [("ur5_robot.urdf", None), ("panda.urdf", "panda_hand")]
+
+
+def _pin_fk(xml_text, tip, chain, q):
+    """Pose of ``tip`` from pinocchio for our chain configurations q (n, dof)."""
+    model = pin.buildModelFromXML(xml_text)
+    data = model.createData()
+    fid = model.getFrameId(tip)
+    out = []
+    for qk in q:
+        cfg = pin.neutral(model)
+        for k, jname in enumerate(chain.joint_names):
+            jid = model.getJointId(jname)
+            iq = model.idx_qs[jid]
+            if model.joints[jid].nq == 2:
+                cfg[iq:iq + 2] = (np.cos(qk[k]), np.sin(qk[k]))
+            else:
+                cfg[iq] = qk[k]
+        pin.framesForwardKinematics(model, data, cfg)
+        out.append(data.oMf[fid].homogeneous.copy())
+    return np.array(out)
+
+
+def _perturbed_xml(text, joint, field, h):
+    root = ET.fromstring(text)
+    j = next(e for e in root.findall("joint") if e.get("name") == joint)
+    org = j.find("origin")
+    if org is None:
+        org = ET.SubElement(j, "origin")
+    key, idx = ("xyz", "xyz".index(field)) if field in "xyz" else ("rpy", ("roll", "pitch", "yaw").index(field))
+    vals = [float(v) for v in (org.get(key) or "0 0 0").split()]
+    vals[idx] += h
+    org.set(key, " ".join(repr(v) for v in vals))
+    return ET.tostring(root, encoding="unicode")
+
+
+@pytest.mark.parametrize("name, tip", CASES)
+def test_fk_matches_pinocchio(name, tip):
+    path = example_urdf(name)
+    chain = URDFChain(path, tip_link=tip)
+    q = chain.sample_joints(8, 1)
+    ref = _pin_fk(path.read_text(), chain.tip_link, chain, q)
+    assert np.allclose(chain.fk(q), ref, atol=1e-12)
+
+
+@pytest.mark.parametrize("name, tip", CASES)
+def test_jacobian_matches_differences_of_pinocchio_fk_on_edited_urdf(name, tip):
+    """Each origin component is perturbed in the URDF text itself and the file re-parsed by pinocchio."""
+    path = example_urdf(name)
+    text = path.read_text()
+    chain = URDFChain(path, tip_link=tip)
+    q = chain.sample_joints(3, 2)
+    J = chain.error_jacobian(q).J
+    h = 1e-6
+    for c, pname in enumerate(chain.param_names):
+        joint, field = pname.rsplit(".", 1)
+        if field == "offset":
+            k = chain.joint_names.index(joint)
+            e = np.zeros(chain.dof)
+            e[k] = h
+            Tp = _pin_fk(text, chain.tip_link, chain, q + e)
+            Tm = _pin_fk(text, chain.tip_link, chain, q - e)
+        else:
+            Tp = _pin_fk(_perturbed_xml(text, joint, field, h), chain.tip_link, chain, q)
+            Tm = _pin_fk(_perturbed_xml(text, joint, field, -h), chain.tip_link, chain, q)
+        ref = pose_difference(Tp, Tm) / (2 * h)
+        assert np.allclose(J[:, :, c], ref, atol=1e-7), pname
+
+
+def test_offset_columns_are_pinocchio_joint_jacobian():
+    path = example_urdf("ur5_robot.urdf")
+    chain = URDFChain(path)
+    model = pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    fid = model.getFrameId(chain.tip_link)
+    q = chain.sample_joints(4, 5)
+    J = chain.error_jacobian(q).J
+    offsets = [chain.param_names.index(f"{j}.offset") for j in chain.joint_names]
+    for k in range(4):
+        pin.computeJointJacobians(model, data, chain.pinocchio_configuration(q[k]))
+        pin.updateFramePlacements(model, data)
+        Jp = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        cols = [model.idx_vs[model.getJointId(j)] for j in chain.joint_names]
+        assert np.allclose(Jp[:, cols], J[k][:, offsets], atol=1e-12)
+
+
+def test_names_units_and_limits():
+    chain = URDFChain(example_urdf("ur5_robot.urdf"))
+    assert chain.param_names[:7] == tuple(f"shoulder_pan_joint.{f}" for f in
+                                          ("x", "y", "z", "roll", "pitch", "yaw", "offset"))
+    assert chain.param_units[:7] == ("m", "m", "m", "rad", "rad", "rad", "rad")
+    assert chain.joint_limits.shape == (6, 2)
+    assert np.all(chain.joint_limits[:, 0] < chain.joint_limits[:, 1])
+
+
+def test_branching_urdf_needs_a_tip_and_names_the_branch():
+    path = example_urdf("anymal-kinova.urdf")
+    with pytest.raises(ModelError, match="not a serial chain"):
+        URDFChain(path)
+    chain = URDFChain(path, tip_link="LF_FOOT")
+    assert chain.dof == 3
+
+
+def test_bad_urdf_inputs(tmp_path):
+    with pytest.raises(ModelError, match="tip_link"):
+        URDFChain(example_urdf("ur5_robot.urdf"), tip_link="no_such_link")
+    with pytest.raises(ModelError, match="file not found"):
+        URDFChain(tmp_path / "missing.urdf")
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'/>")
+    with pytest.raises(ModelError, match="urdf"):
+        URDFChain(bad)
+
+
+def test_yaml_robot_file_with_relative_urdf(tmp_path):
+    src = example_urdf("ur5_robot.urdf")
+    (tmp_path / "ur5.urdf").write_text(src.read_text())
+    cfg = tmp_path / "ur5.yaml"
+    cfg.write_text("name: ur5\nkind: urdf\nurdf: ur5.urdf\ntip_link: tool0\n")
+    model = load_robot(cfg)
+    assert model.name == "ur5" and model.dof == 6

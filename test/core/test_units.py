@@ -1,0 +1,32 @@
+"""Unit parsing."""
+import math
+
+import pytest
+
+from tolerance_ros.core.units import UnitError, parse_number, parse_quantity
+
+
+@pytest.mark.parametrize("text, kind, si", [("1.4mm", "length", 1.4e-3), ("1.4 mm", "length", 1.4e-3),
+                                            ("0.0014", "length", 0.0014), ("2um", "length", 2e-6),
+                                            ("0.3mrad", "angle", 3e-4), ("1deg", "angle", math.pi / 180),
+                                            (".5m", "length", 0.5), ("1e-3m", "length", 1e-3)])
+def test_parse_quantity(text, kind, si):
+    assert parse_quantity(text, kind) == pytest.approx(si)
+
+
+@pytest.mark.parametrize("text", ["1.4 furlong", "mm", "abc", "1.4mm mm", "nan", "inf"])
+def test_parse_quantity_rejects(text):
+    with pytest.raises(UnitError):
+        parse_quantity(text, "length", field="--limit")
+
+
+@pytest.mark.parametrize("text, value", [("pi/2", math.pi / 2), ("-pi", -math.pi), (" 2*pi/3 ", 2 * math.pi / 3),
+                                         (3, 3.0), ("1e-3", 1e-3)])
+def test_parse_number(text, value):
+    assert parse_number(text, "f") == pytest.approx(value)
+
+
+@pytest.mark.parametrize("text", ["__import__('os')", "pi/0", "e", True, None, "1/", float("nan")])
+def test_parse_number_rejects_everything_else(text):
+    with pytest.raises(UnitError, match="f"):
+        parse_number(text, "f")

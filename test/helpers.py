@@ -1,0 +1,47 @@
+"""Reference computations shared by the tests: finite differences, random chains, example URDFs."""
+from __future__ import annotations
+
+import importlib.metadata
+from pathlib import Path
+
+import numpy as np
+
+from tolerance_ros.core.models import DHChain
+from tolerance_ros.core.models.base import matrix_log_vec, transform
+
+
+def pose_difference(Tp, Tm):
+    """(n, 6) [dp; dphi] taking poses Tm to Tp (dphi in the base frame)."""
+    dp = Tp[:, :3, 3] - Tm[:, :3, 3]
+    dphi = matrix_log_vec(np.einsum("nij,nkj->nik", Tp[:, :3, :3], Tm[:, :3, :3]))
+    return np.concatenate([dp, dphi], axis=1)
+
+
+def fd_jacobian(fk, p0, h=1e-6):
+    """(n, 6, p) central finite differences of ``fk(params) -> (n, 4, 4)`` around ``p0``."""
+    cols = []
+    for j in range(len(p0)):
+        e = np.zeros(len(p0))
+        e[j] = h
+        cols.append(pose_difference(fk(p0 + e), fk(p0 - e)) / (2 * h))
+    return np.stack(cols, axis=2)
+
+
+def example_urdf(name: str) -> Path:
+    """Path of a URDF shipped by the PyPI package example-robot-data (e.g. 'ur5_robot.urdf')."""
+    for f in importlib.metadata.files("example-robot-data") or []:
+        if str(f).endswith("/" + name):
+            return Path(f.locate())
+    raise FileNotFoundError(name)
+
+
+def random_dh(rng, dof=None, convention=None):
+    """A random D-H chain with nonzero a and alpha, some prismatic joints, base and tool."""
+    dof = dof or int(rng.integers(1, 8))
+    types = ["prismatic" if rng.random() < 0.3 else "revolute" for _ in range(dof)]
+    limits = [[-np.pi, np.pi] if t == "revolute" else [-0.2, 0.3] for t in types]
+    return DHChain("random", a=rng.uniform(-0.5, 0.5, dof), alpha=rng.uniform(-np.pi, np.pi, dof),
+                   d=rng.uniform(-0.5, 0.5, dof), theta=rng.uniform(-np.pi, np.pi, dof), joint_types=types,
+                   joint_limits=limits, convention=convention or ("standard" if rng.random() < 0.5 else "modified"),
+                   base=transform(rng.uniform(-1, 1, 3), rng.uniform(-np.pi, np.pi, 3)),
+                   tool=transform(rng.uniform(-0.2, 0.2, 3), rng.uniform(-np.pi, np.pi, 3)))

@@ -1,0 +1,234 @@
+"""The mechanism interface shared by every model: serial D-H chains, URDF chains, the 3-PUPS platform.
+
+Conventions (SI, REP 103):
+- joints ``q``: ``(n, dof)`` array, rad for revolute joints, m for prismatic joints;
+- poses: ``(n, 4, 4)`` homogeneous transforms of the end effector in the base frame, metres;
+- parameter errors ``dx``: ``(p,)`` or ``(n, p)`` deviations from nominal, m or rad per parameter;
+- the parameter-error Jacobian ``J``: ``(n, 6, p)``, rows 0-2 the position error (m per unit of the
+  parameter), rows 3-5 the orientation error as a small rotation vector in the base frame
+  (rad per unit), so that ``T_actual ~ (I + [[dphi]x, dp; 0, 0]) T_nominal`` with ``[dp; dphi] = J dx``.
+"""
+from __future__ import annotations
+
+import copy
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+REVOLUTE = "revolute"
+PRISMATIC = "prismatic"
+UNIT_OF_KIND = {"length": "m", "angle": "rad"}
+
+
+class ModelError(ValueError):
+    """An invalid mechanism model or an invalid input to one; the message names the field."""
+
+
+@dataclass(frozen=True)
+class ErrorJacobian:
+    """Parameter-error Jacobian with the names and units of its columns.
+
+    J : (n, 6, p) array; rows 0-2 position (m per unit), rows 3-5 orientation (rad per unit).
+    names : parameter names, one per column.
+    units : 'm' or 'rad', the unit of each parameter.
+    """
+
+    J: np.ndarray
+    names: tuple
+    units: tuple
+
+    @property
+    def position(self) -> np.ndarray:
+        """(n, 3, p) position rows."""
+        return self.J[:, :3, :]
+
+    @property
+    def orientation(self) -> np.ndarray:
+        """(n, 3, p) orientation rows."""
+        return self.J[:, 3:, :]
+
+    def select(self, rows: str = "position") -> np.ndarray:
+        """Rows for an error criterion: 'position' (3), 'orientation' (3) or 'pose' (6)."""
+        if rows == "position":
+            return self.position
+        if rows == "orientation":
+            return self.orientation
+        if rows == "pose":
+            return self.J
+        raise ValueError(f"rows: expected 'position', 'orientation' or 'pose', got {rows!r}")
+
+
+class Mechanism(ABC):
+    """A mechanism with named joints and named kinematic parameters.
+
+    Subclasses set ``name``, ``joint_names``, ``joint_types``, ``joint_limits`` ((dof, 2), SI),
+    ``param_names``, ``param_kinds`` ('length' or 'angle') and ``nominal`` ((p,), SI), and implement
+    ``fk_and_jacobian``.
+    """
+
+    name: str
+    joint_names: tuple
+    joint_types: tuple
+    joint_limits: np.ndarray
+    param_names: tuple
+    param_kinds: tuple
+    nominal: np.ndarray
+
+    @property
+    def dof(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+    @property
+    def param_units(self) -> tuple:
+        return tuple(UNIT_OF_KIND[k] for k in self.param_kinds)
+
+    @property
+    def orientation_observable(self) -> bool:
+        """True when the end effector has an orientation that errors are judged on."""
+        return True
+
+    @abstractmethod
+    def fk_and_jacobian(self, q, dx=None, jacobian: bool = True):
+        """Forward kinematics and parameter-error Jacobian.
+
+        q : (n, dof) or (dof,) joints, SI.  dx : (p,) or (n, p) parameter errors, SI, or None.
+        Returns (T (n, 4, 4), ErrorJacobian or None).
+        """
+
+    def fk(self, q, dx=None) -> np.ndarray:
+        """(n, 4, 4) end-effector poses in the base frame, metres; ``dx`` perturbs the parameters."""
+        return self.fk_and_jacobian(q, dx, jacobian=False)[0]
+
+    def error_jacobian(self, q, dx=None) -> ErrorJacobian:
+        """(n, 6, p) parameter-error Jacobian at ``q`` (see the module docstring for its rows)."""
+        return self.fk_and_jacobian(q, dx, jacobian=True)[1]
+
+    def param_index(self, names) -> np.ndarray:
+        """Column indices of the named parameters; unknown names raise ModelError."""
+        lookup = {n: i for i, n in enumerate(self.param_names)}
+        missing = [n for n in names if n not in lookup]
+        if missing:
+            raise ModelError(f"unknown parameter name(s) {missing} for robot {self.name!r}; "
+                             f"known: {list(self.param_names)}")
+        return np.array([lookup[n] for n in names], dtype=int)
+
+    def check_joints(self, q, field: str = "joints", allow_out_of_limits: bool = True) -> np.ndarray:
+        """Validate joints; return a float (n, dof) array. Raises ModelError naming the bad entry."""
+        try:
+            arr = np.asarray(q, dtype=float)
+        except (TypeError, ValueError):
+            raise ModelError(f"{field}: expected numbers") from None
+        if arr.ndim == 1:
+            arr = arr[None, :]
+        if arr.ndim != 2 or arr.shape[1] != self.dof:
+            raise ModelError(f"{field}: expected shape (n, {self.dof}) for robot {self.name!r} "
+                             f"(joints {list(self.joint_names)}), got {np.shape(q)}")
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            raise ModelError(f"{field}[{i}][{j}] ({self.joint_names[j]}): not a finite number")
+        if not allow_out_of_limits:
+            lo, hi = self.joint_limits[:, 0], self.joint_limits[:, 1]
+            out = (arr < lo - 1e-12) | (arr > hi + 1e-12)
+            if out.any():
+                i, j = np.argwhere(out)[0]
+                raise ModelError(f"{field}[{i}][{j}] ({self.joint_names[j]}) = {arr[i, j]:.6g} is outside "
+                                 f"the joint limits [{lo[j]:.6g}, {hi[j]:.6g}]")
+        return arr
+
+    def out_of_limits(self, q) -> np.ndarray:
+        """(n, dof) boolean mask of joints outside their limits."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        return (q < self.joint_limits[:, 0] - 1e-12) | (q > self.joint_limits[:, 1] + 1e-12)
+
+    def sample_joints(self, m: int, seed=0) -> np.ndarray:
+        """(m, dof) joints drawn uniformly within the joint limits (seeded)."""
+        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        lo, hi = self.joint_limits[:, 0], self.joint_limits[:, 1]
+        return lo + (hi - lo) * rng.random((int(m), self.dof))
+
+    def check_dx(self, dx, n: int) -> np.ndarray | None:
+        """Validate parameter errors: (p,) or (n, p), finite."""
+        if dx is None:
+            return None
+        arr = np.asarray(dx, dtype=float)
+        if arr.shape not in ((self.n_params,), (n, self.n_params)):
+            raise ModelError(f"dx: expected shape ({self.n_params},) or ({n}, {self.n_params}), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ModelError("dx: parameter errors must be finite")
+        return arr
+
+    def with_joint_limits(self, limits) -> "Mechanism":
+        """A copy of the model with other joint limits ((dof, 2), SI)."""
+        lim = np.asarray(limits, dtype=float)
+        if lim.shape != (self.dof, 2) or not np.all(np.isfinite(lim)) or np.any(lim[:, 0] >= lim[:, 1]):
+            raise ModelError(f"limits: expected finite (lower < upper) pairs of shape ({self.dof}, 2)")
+        out = copy.copy(self)
+        out.joint_limits = lim
+        return out
+
+    def describe(self) -> dict:
+        """Plain summary for reports and JSON."""
+        return {
+            "name": self.name,
+            "kind": type(self).__name__,
+            "joints": [{"name": n, "type": t, "limits": [float(lo), float(hi)]}
+                       for n, t, (lo, hi) in zip(self.joint_names, self.joint_types, self.joint_limits)],
+            "parameters": [{"name": n, "unit": u, "nominal": float(v)}
+                           for n, u, v in zip(self.param_names, self.param_units, self.nominal)],
+        }
+
+
+def rpy_to_matrix(rpy) -> np.ndarray:
+    """Rotation matrix R = Rz(yaw) Ry(pitch) Rx(roll) (URDF / REP 103 fixed-axis rpy), rad."""
+    r, p, y = (float(v) for v in rpy)
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def transform(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """4x4 homogeneous transform from a translation (m) and URDF rpy (rad)."""
+    T = np.eye(4)
+    T[:3, :3] = rpy_to_matrix(rpy)
+    T[:3, 3] = np.asarray(xyz, dtype=float)
+    return T
+
+
+def cross3(a, b):
+    """Cross product of (3, n) column stacks (or broadcastable (3,) vectors)."""
+    return np.stack((a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]))
+
+
+def rotation_error(R_actual, R_nominal) -> np.ndarray:
+    """(n, 3) rotation vector dphi (base frame, rad) with R_actual = exp([dphi]x) R_nominal."""
+    R = np.einsum("nij,nkj->nik", R_actual, R_nominal)
+    return matrix_log_vec(R)
+
+
+def matrix_log_vec(R) -> np.ndarray:
+    """(n, 3) rotation vectors of (n, 3, 3) rotation matrices (robust near 0 and pi)."""
+    R = np.asarray(R, dtype=float)
+    cos = np.clip((np.trace(R, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    angle = np.arccos(cos)
+    w = np.stack((R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]), axis=1)
+    sin = np.sin(angle)
+    small = angle < 1e-6
+    scale = np.where(small, 0.5 + angle ** 2 / 12.0, angle / (2.0 * np.where(small, 1.0, sin)))
+    out = w * scale[:, None]
+    near_pi = np.flatnonzero(angle > np.pi - 1e-4)
+    if near_pi.size:
+        B = (R[near_pi] + np.eye(3)) / 2.0
+        k = np.argmax(np.diagonal(B, axis1=1, axis2=2), axis=1)
+        rows = np.arange(near_pi.size)
+        axis = B[rows, :, k] / np.sqrt(np.maximum(B[rows, k, k], 1e-300))[:, None]
+        flip = np.einsum("ni,ni->n", axis, w[near_pi]) < 0
+        axis[flip] *= -1.0
+        out[near_pi] = axis * angle[near_pi, None]
+    return out

@@ -1,0 +1,263 @@
+"""Serial chains from URDF, parsed by pinocchio, with a batched analytic error model.
+
+Error parameters of each movable joint ``j`` (revolute, continuous or prismatic), in this order:
+``j.x j.y j.z`` (m) and ``j.roll j.pitch j.yaw`` (rad), the six components of the joint's fixed
+``<origin xyz rpy>`` in its parent link frame, then ``j.offset``, the joint's zero offset (rad, or m for
+a prismatic joint). Fixed joints carry no parameters of their own: to first order an error of a fixed
+origin is an error of the next movable origin, which already has all six components.
+
+pinocchio parses the file and validates the tree; the batched forward kinematics and the Jacobian are
+our own numpy code, checked against pinocchio's FK in the tests.
+"""
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from .base import PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError, cross3 as _cross, rpy_to_matrix
+
+ORIGIN_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
+
+
+def _pin():
+    try:
+        import pinocchio
+    except ImportError as exc:  # pragma: no cover - pinocchio is a hard dependency
+        raise ModelError("URDF chains need pinocchio (pip install pin)") from exc
+    return pinocchio
+
+
+def _rpy_stack(r, p, y):
+    """(3, 3, ...) rotation Rz(y) Ry(p) Rx(r) for scalar or (n,) angles."""
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def _axis_rotation(axis, angle):
+    """(3, 3, n) rotation by ``angle`` (n,) about unit ``axis`` (3,) (Rodrigues)."""
+    c, s = np.cos(angle), np.sin(angle)
+    v = 1.0 - c
+    x, y, z = axis
+    return np.array([[c + x * x * v, x * y * v - z * s, x * z * v + y * s],
+                     [y * x * v + z * s, c + y * y * v, y * z * v - x * s],
+                     [z * x * v - y * s, z * y * v + x * s, c + z * z * v]])
+
+
+def _mul(A, B):
+    """Product of a rotation stack (3, 3, n) with (3, 3) or (3, 3, n)."""
+    if B.ndim == 2:
+        return np.einsum("ikn,kj->ijn", A, B)
+    return np.einsum("ikn,kjn->ijn", A, B)
+
+
+def _apply(R, v):
+    """R (3, 3, n) times v (3,) or (3, n) -> (3, n)."""
+    if v.ndim == 1:
+        return np.einsum("ikn,k->in", R, v)
+    return np.einsum("ikn,kn->in", R, v)
+
+
+class URDFChain(Mechanism):
+    """Serial chain from ``base_link`` to ``tip_link`` of a URDF (see the module docstring)."""
+
+    def __init__(self, urdf, tip_link=None, base_link=None, name=None):
+        pin = _pin()
+        text, source = _read_urdf(urdf)
+        try:
+            model = pin.buildModelFromXML(text)
+        except Exception as exc:  # pinocchio raises plain RuntimeError / ValueError
+            raise ModelError(f"urdf ({source}): pinocchio could not parse it: {exc}") from None
+        root = ET.fromstring(text)
+        self.name = str(name or root.get("name") or "urdf_robot")
+        self.pin_model = model
+        self.source = source
+        joints_xml = {j.get("name"): j for j in root.findall("joint")}
+        tip_fid, tip_link = self._tip_frame(model, tip_link)
+        chain = []
+        jid = model.frames[tip_fid].parentJoint
+        while jid > 0:
+            chain.append(jid)
+            jid = model.parents[jid]
+        chain.reverse()
+        if not chain:
+            raise ModelError(f"tip_link: {tip_link!r} is not moved by any joint")
+        base_T = np.eye(4)
+        if base_link is not None:
+            if not model.existFrame(base_link):
+                raise ModelError(f"base_link: no link named {base_link!r} in the URDF")
+            bf = model.frames[model.getFrameId(base_link)]
+            if bf.parentJoint != 0:
+                raise ModelError(f"base_link: {base_link!r} moves with joint "
+                                 f"{model.names[bf.parentJoint]!r}; it must be fixed to the root")
+            base_T = np.linalg.inv(bf.placement.homogeneous)
+        names, types, limits, axes, origins, fixed = [], [], [], [], [], []
+        for jid in chain:
+            jname = model.names[jid]
+            jm = model.joints[jid]
+            xml = joints_xml.get(jname)
+            if xml is None:
+                raise ModelError(f"urdf: joint {jname!r} from pinocchio not found in the XML")
+            jtype = xml.get("type")
+            if jtype in ("revolute", "continuous"):
+                types.append(REVOLUTE)
+            elif jtype == "prismatic":
+                types.append(PRISMATIC)
+            else:
+                raise ModelError(f"urdf: joint {jname!r} has type {jtype!r}; only revolute, continuous "
+                                 f"and prismatic joints are supported in a serial chain")
+            if xml.find("mimic") is not None:
+                raise ModelError(f"urdf: joint {jname!r} is a mimic joint; mimic joints are not supported")
+            axis = _vector(xml.find("axis"), "xyz", (1.0, 0.0, 0.0), f"joint {jname!r} axis")
+            norm = np.linalg.norm(axis)
+            if norm < 1e-12:
+                raise ModelError(f"urdf: joint {jname!r} has a zero axis")
+            axes.append(axis / norm)
+            org = xml.find("origin")
+            xyz = _vector(org, "xyz", (0.0, 0.0, 0.0), f"joint {jname!r} origin")
+            rpy = _vector(org, "rpy", (0.0, 0.0, 0.0), f"joint {jname!r} origin")
+            origins.append(np.concatenate([xyz, rpy]))
+            O = np.eye(4)
+            O[:3, :3] = rpy_to_matrix(rpy)
+            O[:3, 3] = xyz
+            fixed.append(model.jointPlacements[jid].homogeneous @ np.linalg.inv(O))
+            iq = model.idx_qs[jid]
+            if jtype == "continuous" or jm.nq == 2:
+                limits.append((-math.pi, math.pi))
+            else:
+                lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+                if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+                    if jtype == "prismatic":
+                        raise ModelError(f"urdf: prismatic joint {jname!r} needs finite <limit lower upper>")
+                    lo, hi = -math.pi, math.pi
+                limits.append((lo, hi))
+            names.append(jname)
+        self._check_serial(model, chain, tip_link)
+        self.chain_ids = tuple(chain)
+        self.joint_names = tuple(names)
+        self.joint_types = tuple(types)
+        self.joint_limits = np.array(limits, dtype=float)
+        self.tip_link = tip_link
+        self.base_link = base_link or model.frames[0].name
+        self._axes = np.array(axes)
+        self._fixed = np.array(fixed)
+        self._fixed[0] = base_T @ self._fixed[0]
+        self._tool = model.frames[tip_fid].placement.homogeneous.copy()
+        self.param_names = tuple(f"{j}.{f}" for j in names for f in ORIGIN_FIELDS + ("offset",))
+        self.param_kinds = tuple(k for t in types for k in ("length",) * 3 + ("angle",) * 3 +
+                                 (("angle",) if t == REVOLUTE else ("length",)))
+        self.nominal = np.concatenate([np.append(o, 0.0) for o in origins])
+
+    @staticmethod
+    def _tip_frame(model, tip_link):
+        """Frame id and name of the tip; without ``tip_link`` the tree must be a chain."""
+        if tip_link is not None:
+            if not model.existFrame(tip_link):
+                raise ModelError(f"tip_link: no link or frame named {tip_link!r} in the URDF")
+            return model.getFrameId(tip_link), tip_link
+        children = {j: [] for j in range(model.njoints)}
+        for j in range(1, model.njoints):
+            children[model.parents[j]].append(j)
+        for j, ch in children.items():
+            if len(ch) > 1:
+                raise ModelError(f"urdf is not a serial chain: {model.names[j]!r} has child joints "
+                                 f"{[model.names[c] for c in ch]}; give tip_link to pick one chain")
+        last = next(j for j in range(model.njoints) if not children[j])
+        body = [f for f, fr in enumerate(model.frames) if fr.parentJoint == last and fr.type == _pin().FrameType.BODY]
+        if not body:
+            raise ModelError("urdf: cannot find the last link of the chain; give tip_link")
+        return body[-1], model.frames[body[-1]].name
+
+    @staticmethod
+    def _check_serial(model, chain, tip_link):
+        for jid in chain:
+            nq = model.joints[jid].nq
+            if nq not in (1, 2):
+                raise ModelError(f"urdf: joint {model.names[jid]!r} has {nq} configuration variables; "
+                                 f"a serial chain needs 1-DOF joints")
+
+    def fk_and_jacobian(self, q, dx=None, jacobian=True):
+        q = self.check_joints(q)
+        n, dof = q.shape
+        dx = self.check_dx(dx, n)
+        p = self.nominal if dx is None else self.nominal + dx
+        P = np.broadcast_to(p, (n, self.n_params)).T  # (p, n): one row per parameter
+        R = np.repeat(np.eye(3)[:, :, None], n, axis=2)
+        o = np.zeros((3, n))
+        lines = []
+        for k in range(dof):
+            x, y, z, roll, pitch, yaw, off = P[7 * k:7 * k + 7]
+            F = self._fixed[k]
+            RW = _mul(R, F[:3, :3])
+            oW = o + _apply(R, F[:3, 3])
+            RJ = _mul(RW, _rpy_stack(roll, pitch, yaw))
+            oJ = oW + _apply(RW, np.stack([x, y, z]))
+            w_pitch = _apply(RW, np.stack([-np.sin(yaw), np.cos(yaw), np.zeros_like(yaw)]))
+            w_joint = _apply(RJ, self._axes[k])
+            if self.joint_types[k] == REVOLUTE:
+                R = _mul(RJ, _axis_rotation(self._axes[k], q[:, k] + off))
+                o = oJ
+            else:
+                R = RJ
+                o = oJ + w_joint * (q[:, k] + off)
+            lines.append(((RW[:, 0], RW[:, 1], RW[:, 2]), (RJ[:, 0], w_pitch, RW[:, 2]), w_joint, oJ))
+        Rend = _mul(R, self._tool[:3, :3])
+        Pend = o + _apply(R, self._tool[:3, 3])
+        T = np.zeros((n, 4, 4))
+        T[:, :3, :3] = np.moveaxis(Rend, 2, 0)
+        T[:, :3, 3] = Pend.T
+        T[:, 3, 3] = 1.0
+        if not jacobian:
+            return T, None
+        Jt = np.zeros((self.n_params, 6, n))
+        for k, (shifts, turns, w_joint, oJ) in enumerate(lines):
+            c = 7 * k
+            arm = Pend - oJ
+            for i, u in enumerate(shifts):
+                Jt[c + i, :3] = u
+            for i, w in enumerate(turns):
+                Jt[c + 3 + i, :3] = _cross(w, arm)
+                Jt[c + 3 + i, 3:] = w
+            if self.joint_types[k] == REVOLUTE:
+                Jt[c + 6, :3] = _cross(w_joint, arm)
+                Jt[c + 6, 3:] = w_joint
+            else:
+                Jt[c + 6, :3] = w_joint
+        return T, ErrorJacobian(Jt.transpose(2, 1, 0), self.param_names, self.param_units)
+
+    def pinocchio_configuration(self, q) -> np.ndarray:
+        """pinocchio configuration vector for one chain configuration ``q`` (dof,); other joints neutral."""
+        pin = _pin()
+        cfg = pin.neutral(self.pin_model)
+        for k, jid in enumerate(self.chain_ids):
+            iq = self.pin_model.idx_qs[jid]
+            if self.pin_model.joints[jid].nq == 2:
+                cfg[iq:iq + 2] = (math.cos(q[k]), math.sin(q[k]))
+            else:
+                cfg[iq] = q[k]
+        return cfg
+
+
+def _read_urdf(urdf):
+    if isinstance(urdf, str) and urdf.lstrip().startswith("<"):
+        return urdf, "<string>"
+    path = Path(urdf)
+    if not path.is_file():
+        raise ModelError(f"urdf: file not found: {path}")
+    return path.read_text(), str(path)
+
+
+def _vector(elem, attr, default, field):
+    if elem is None or elem.get(attr) is None:
+        return np.array(default, dtype=float)
+    try:
+        v = np.array([float(t) for t in elem.get(attr).split()], dtype=float)
+    except ValueError:
+        raise ModelError(f"urdf: {field} {attr}={elem.get(attr)!r} is not three numbers") from None
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ModelError(f"urdf: {field} {attr}={elem.get(attr)!r} is not three finite numbers")
+    return v

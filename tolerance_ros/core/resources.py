@@ -1,0 +1,68 @@
+"""Where the shipped configuration lives: a source checkout, a pip install or a colcon install."""
+from __future__ import annotations
+
+import os
+import sys
+import sysconfig
+from pathlib import Path
+
+PACKAGE = "tolerance_ros"
+
+
+def share_dirs() -> list[Path]:
+    """Candidate ``share/tolerance_ros`` roots, most specific first."""
+    here = Path(__file__).resolve()
+    dirs = [here.parents[2]]  # source checkout: <repo>/tolerance_ros/core/resources.py
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if prefix:
+            dirs.append(Path(prefix) / "share" / PACKAGE)
+    for prefix in {sysconfig.get_path("data"), sys.prefix, getattr(sys, "base_prefix", sys.prefix)}:
+        dirs.append(Path(prefix) / "share" / PACKAGE)
+    try:
+        import site
+        dirs.append(Path(site.getuserbase()) / "share" / PACKAGE)
+    except Exception:  # pragma: no cover - site may be stripped in embedded interpreters
+        pass
+    # colcon/ament installs: <prefix>/lib/python3.x/site-packages/tolerance_ros -> <prefix>/share/...
+    for parent in here.parents:
+        if parent.name == "lib":
+            dirs.append(parent.parent / "share" / PACKAGE)
+            break
+    return [d for d in dirs]
+
+
+def config_dir() -> Path:
+    """The ``config`` directory shipped with the package."""
+    for d in share_dirs():
+        if (d / "config" / "robots").is_dir():
+            return d / "config"
+    raise FileNotFoundError("cannot find the tolerance_ros config directory; searched: "
+                            + ", ".join(str(d / "config") for d in share_dirs()))
+
+
+def resolve(kind: str, spec: str | os.PathLike, suffixes=(".yaml", ".yml")) -> Path:
+    """A file path for ``spec``: an existing path, or the name of a shipped config under ``config/<kind>``."""
+    path = Path(spec).expanduser()
+    if path.is_file():
+        return path
+    try:
+        root = config_dir() / kind
+    except FileNotFoundError:
+        root = None
+    if root is not None:
+        for suffix in ("",) + tuple(suffixes):
+            cand = root / f"{spec}{suffix}"
+            if cand.is_file():
+                return cand
+    known = sorted(p.stem for p in root.glob("*") if p.suffix in suffixes) if root and root.is_dir() else []
+    raise FileNotFoundError(f"{kind[:-1] if kind.endswith('s') else kind} {str(spec)!r}: no such file, and not a "
+                            f"shipped name (known: {', '.join(known) or 'none'})")
+
+
+def shipped(kind: str, suffixes=(".yaml", ".yml")) -> list[str]:
+    """Names of the shipped configs of a kind (e.g. 'robots')."""
+    try:
+        root = config_dir() / kind
+    except FileNotFoundError:
+        return []
+    return sorted(p.stem for p in root.glob("*") if p.suffix in suffixes)

@@ -1,0 +1,106 @@
+"""Unit parsing and conversion to SI (metres, radians).
+
+Configuration files state their units; everything inside the core is SI. Human reports may print
+millimetres, but only where they say so.
+"""
+from __future__ import annotations
+
+import ast
+import math
+import operator
+import re
+
+LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "um": 1e-6, "µm": 1e-6, "in": 0.0254}
+ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3, "urad": 1e-6, "µrad": 1e-6,
+               "arcsec": math.pi / 648000.0}
+
+_OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
+        ast.USub: operator.neg, ast.UAdd: operator.pos}
+
+
+class UnitError(ValueError):
+    """A unit name or a quantity string could not be understood."""
+
+
+def length_scale(unit: str, field: str = "units.length") -> float:
+    """Factor that converts a length in ``unit`` to metres."""
+    try:
+        return LENGTH_UNITS[str(unit).strip()]
+    except KeyError:
+        raise UnitError(f"{field}: unknown length unit {unit!r}; expected one of {sorted(LENGTH_UNITS)}") from None
+
+
+def angle_scale(unit: str, field: str = "units.angle") -> float:
+    """Factor that converts an angle in ``unit`` to radians."""
+    try:
+        return ANGLE_UNITS[str(unit).strip()]
+    except KeyError:
+        raise UnitError(f"{field}: unknown angle unit {unit!r}; expected one of {sorted(ANGLE_UNITS)}") from None
+
+
+def scale_for(kind: str, units: dict, field: str = "units") -> float:
+    """SI factor for a parameter of ``kind`` ('length' or 'angle') given a ``{length:, angle:}`` dict."""
+    if kind == "length":
+        return length_scale(units.get("length", "m"), f"{field}.length")
+    if kind == "angle":
+        return angle_scale(units.get("angle", "rad"), f"{field}.angle")
+    raise UnitError(f"{field}: unknown quantity kind {kind!r}")
+
+
+def _eval_node(node, field):
+    if isinstance(node, ast.Expression):
+        return _eval_node(node.body, field)
+    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
+        return float(node.value)
+    if isinstance(node, ast.Name) and node.id == "pi":
+        return math.pi
+    if isinstance(node, ast.BinOp) and type(node.op) in _OPS:
+        return _OPS[type(node.op)](_eval_node(node.left, field), _eval_node(node.right, field))
+    if isinstance(node, ast.UnaryOp) and type(node.op) in _OPS:
+        return _OPS[type(node.op)](_eval_node(node.operand, field))
+    raise UnitError(f"{field}: only numbers, 'pi' and + - * / are allowed")
+
+
+def parse_number(value, field: str) -> float:
+    """A finite float from a number or a small arithmetic string such as ``'-pi/2'``."""
+    if isinstance(value, bool):
+        raise UnitError(f"{field}: expected a number, got {value!r}")
+    if isinstance(value, (int, float)):
+        out = float(value)
+    elif isinstance(value, str):
+        try:
+            tree = ast.parse(value.strip(), mode="eval")
+        except SyntaxError:
+            raise UnitError(f"{field}: cannot parse {value!r} as a number") from None
+        try:
+            out = _eval_node(tree, field)
+        except ZeroDivisionError:
+            raise UnitError(f"{field}: division by zero in {value!r}") from None
+    else:
+        raise UnitError(f"{field}: expected a number, got {type(value).__name__}")
+    if not math.isfinite(out):
+        raise UnitError(f"{field}: value must be finite, got {value!r}")
+    return out
+
+
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Zµ]*)\s*$")
+
+
+def parse_quantity(text, kind: str = "length", default_unit: str | None = None, field: str = "value") -> float:
+    """Parse ``'1.4mm'``, ``'0.3 mrad'`` or a bare number into SI.
+
+    A bare number takes ``default_unit`` (SI if None).
+    """
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        number, unit = float(text), ""
+    else:
+        m = _QUANTITY.match(str(text))
+        if not m:
+            raise UnitError(f"{field}: cannot parse {text!r} as a {kind} (examples: 1.4mm, 0.0014m)")
+        number, unit = float(m.group(1)), m.group(2)
+    unit = unit or default_unit or ("m" if kind == "length" else "rad")
+    scale = length_scale(unit, field) if kind == "length" else angle_scale(unit, field)
+    value = number * scale
+    if not math.isfinite(value):
+        raise UnitError(f"{field}: value must be finite, got {text!r}")
+    return value
