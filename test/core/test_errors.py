@@ -1,0 +1,110 @@
+"""Error bounds: the exact worst case against brute force, and the ordering of the bounds."""
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from helpers import random_dh
+from tolerance_ros.core.errors import (bounds, error_norms, paper_bound, per_axis_bound, rss_bound,
+                                       worst_case_bound)
+
+
+def brute_force(J, delta):
+    S = np.array(list(itertools.product([-1.0, 1.0], repeat=J.shape[2])))
+    E = np.einsum("nkp,sp->nsk", J, S * delta)
+    return np.linalg.norm(E, axis=2).max(axis=1)
+
+
+def _degenerate(J, kind, rng):
+    p = J.shape[2]
+    if kind == "planar":
+        J[:, 2, :] = 0.0
+    elif kind == "parallel" and p >= 3:
+        J[:, :, 1] = 2.0 * J[:, :, 0]
+        J[:, :, 2] = -0.5 * J[:, :, 0]
+    elif kind == "zero":
+        J[:, :, 0] = 0.0
+    elif kind == "collinear":
+        J[:] = J[:, :, :1] * rng.uniform(-1, 1, p)
+    elif kind == "half-coplanar":
+        J[:, 2, : p // 2] = 0.0
+    return J
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 11),
+       st.sampled_from(["generic", "planar", "parallel", "zero", "collinear", "half-coplanar"]))
+def test_worst_case_equals_brute_force(seed, p, kind):
+    rng = np.random.default_rng(seed)
+    J = _degenerate(rng.standard_normal((6, 3, p)), kind, rng)
+    delta = rng.uniform(0, 1, p)
+    w, s = worst_case_bound(J, delta, return_signs=True)
+    ref = brute_force(J, delta)
+    assert np.allclose(w, ref, rtol=1e-9, atol=1e-12)
+    # The returned signs attain the bound.
+    assert np.allclose(error_norms(J, s * delta), w, rtol=1e-12, atol=1e-12)
+
+
+def test_worst_case_on_robot_jacobians_equals_brute_force():
+    rng = np.random.default_rng(3)
+    model = random_dh(rng, dof=3)
+    J = model.error_jacobian(model.sample_joints(20, rng)).position
+    delta = rng.uniform(1e-5, 1e-4, model.n_params)
+    assert np.allclose(worst_case_bound(J, delta), brute_force(J, delta), rtol=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_bound_ordering(seed):
+    rng = np.random.default_rng(seed)
+    model = random_dh(rng)
+    J = model.error_jacobian(model.sample_joints(30, rng)).position
+    delta = rng.uniform(0, 1e-3, model.n_params)
+    b = bounds(J, delta)
+    tol = 1e-12
+    assert np.all(b["rss"] <= b["worst_case"] + tol)
+    assert np.all(b["worst_case"] <= b["per_axis"] + tol)
+    assert np.all(b["paper"] <= b["worst_case"] + tol)
+
+
+def test_zero_tolerances_give_zero_bounds(gao):
+    J = gao.error_jacobian(gao.sample_joints(10, 0)).position
+    for v in bounds(J, np.zeros(gao.n_params)).values():
+        assert np.all(v == 0.0)
+
+
+def test_bounds_scale_linearly(gao):
+    J = gao.error_jacobian(gao.sample_joints(10, 0)).position
+    d = np.full(gao.n_params, 1e-4)
+    b1, b2 = bounds(J, d), bounds(J, 3 * d)
+    for k in b1:
+        assert np.allclose(b2[k], 3 * b1[k], rtol=1e-12)
+
+
+def test_single_parameter_bounds_are_column_norms(planar2r):
+    q = planar2r.sample_joints(5, 1)
+    J = planar2r.error_jacobian(q).position
+    d = np.zeros(planar2r.n_params)
+    j = planar2r.param_index(["theta1"])[0]
+    d[j] = 1e-3
+    expected = np.linalg.norm(J[:, :, j], axis=1) * 1e-3
+    for v in bounds(J, d).values():
+        assert np.allclose(v, expected)
+
+
+def test_paper_bound_is_J_delta_and_signs(planar2r):
+    J = planar2r.error_jacobian(planar2r.sample_joints(5, 1)).position
+    d = np.arange(1, planar2r.n_params + 1) * 1e-4
+    assert np.allclose(paper_bound(J, d), np.linalg.norm(J @ d, axis=1))
+    s = np.where(np.arange(planar2r.n_params) % 2 == 0, 1.0, -1.0)
+    assert np.allclose(paper_bound(J, d, s), np.linalg.norm(J @ (s * d), axis=1))
+    assert np.allclose(per_axis_bound(J, d), np.linalg.norm(np.abs(J) @ d, axis=1))
+    assert np.allclose(rss_bound(J, d), np.sqrt(((J ** 2).sum(axis=1) * d ** 2).sum(axis=1)))
+
+
+@pytest.mark.parametrize("delta", [np.full(3, -1.0), np.array([np.nan, 0, 0]), np.zeros(2)])
+def test_invalid_delta(delta):
+    with pytest.raises(ValueError, match="delta"):
+        worst_case_bound(np.ones((2, 3, 3)), delta)

@@ -1,0 +1,189 @@
+"""Tolerance budgets: a tolerance per kinematic parameter plus the design limits, saved as YAML or JSON.
+
+File format (YAML or JSON; ``units`` applies to every length and angle in the file)::
+
+    robot: gao2023_7dof              # the robot the budget belongs to
+    units: {length: mm, angle: rad}  # SI when omitted
+    limit: {position: 1.4}           # design limit(s); orientation in the angle unit, optional
+    criterion: paper                 # how the limit was judged: paper | worst-case | rss
+    tolerances: {a1: 0.0996, d1: 0.0506, alpha1: 0.0003, ...}   # +- limits per parameter
+    default: 0                       # optional: tolerance of parameters not listed
+    source: "..."                    # free text; other keys under `meta:` are kept as they are
+
+Every parameter of the robot must be listed unless ``default`` is given, so nothing is silently zero.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .resources import resolve
+from .units import UnitError, angle_scale, length_scale, parse_number
+
+_KEYS = {"robot", "units", "limit", "criterion", "tolerances", "default", "source", "meta"}
+CRITERIA = ("paper", "worst-case", "rss")
+
+
+class BudgetError(ValueError):
+    """An invalid budget file or a budget that does not fit the robot; the message names the field."""
+
+
+@dataclass
+class Budget:
+    """Tolerances (SI, +- limits) by parameter name, and the design limits (m, rad)."""
+
+    tolerances: dict
+    robot: str | None = None
+    limit_position: float | None = None
+    limit_orientation: float | None = None
+    criterion: str = "paper"
+    source: str | None = None
+    meta: dict = field(default_factory=dict)
+    default: float | None = None
+
+    def vector_for(self, model) -> np.ndarray:
+        """(p,) tolerances in the model's parameter order (SI). Unknown or missing names raise."""
+        unknown = sorted(set(self.tolerances) - set(model.param_names))
+        if unknown:
+            raise BudgetError(f"tolerances: unknown parameter name(s) {unknown} for robot {model.name!r}")
+        missing = [n for n in model.param_names if n not in self.tolerances]
+        if missing and self.default is None:
+            raise BudgetError(f"tolerances: no tolerance for {missing}; list them or set `default`")
+        return np.array([self.tolerances.get(n, self.default) for n in model.param_names], dtype=float)
+
+    @classmethod
+    def from_vector(cls, model, delta, **kw) -> "Budget":
+        """Budget from a (p,) SI tolerance vector in the model's order."""
+        return cls(tolerances={n: float(v) for n, v in zip(model.param_names, delta)}, robot=model.name, **kw)
+
+    def to_dict(self, units=None, kinds=None) -> dict:
+        """Plain dict; SI unless ``units`` ({length:, angle:}) and the per-name ``kinds`` are given."""
+        units = units or {"length": "m", "angle": "rad"}
+        ls, as_ = length_scale(units["length"]), angle_scale(units["angle"])
+        kinds = kinds or {}
+
+        def conv(name, v):
+            return float(v) / (as_ if kinds.get(name, _guess_kind(name)) == "angle" else ls)
+
+        out = {"robot": self.robot, "units": dict(units), "criterion": self.criterion, "limit": {}}
+        if self.limit_position is not None:
+            out["limit"]["position"] = self.limit_position / ls
+        if self.limit_orientation is not None:
+            out["limit"]["orientation"] = self.limit_orientation / as_
+        out["tolerances"] = {n: conv(n, v) for n, v in self.tolerances.items()}
+        if self.default is not None:
+            out["default"] = self.default
+        if self.source:
+            out["source"] = self.source
+        if self.meta:
+            out["meta"] = self.meta
+        return out
+
+    def save(self, path, units=None, kinds=None) -> Path:
+        """Write YAML (``.yaml``/``.yml``) or JSON (anything else)."""
+        path = Path(path)
+        data = self.to_dict(units, kinds)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.suffix in (".yaml", ".yml"):
+            path.write_text(yaml.safe_dump(data, sort_keys=False))
+        else:
+            path.write_text(json.dumps(data, indent=2) + "\n")
+        return path
+
+
+def budget_from_dict(data, kinds=None, field_prefix="") -> Budget:
+    """Budget from a parsed file; ``kinds`` maps parameter name -> 'length' | 'angle' (needed for units)."""
+    f = field_prefix
+    if not isinstance(data, dict):
+        raise BudgetError(f"{f or 'budget'}: expected a mapping")
+    extra = sorted(set(data) - _KEYS)
+    if extra:
+        raise BudgetError(f"{f}budget: unknown key(s) {extra}; allowed: {sorted(_KEYS)}")
+    units = data.get("units") or {}
+    if not isinstance(units, dict):
+        raise BudgetError(f"{f}units: expected a mapping like {{length: mm, angle: rad}}")
+    try:
+        ls = length_scale(units.get("length", "m"), f"{f}units.length")
+        as_ = angle_scale(units.get("angle", "rad"), f"{f}units.angle")
+    except UnitError as exc:
+        raise BudgetError(str(exc)) from None
+    tol = data.get("tolerances")
+    if not isinstance(tol, dict) or not tol:
+        raise BudgetError(f"{f}tolerances: expected a mapping of parameter name -> tolerance")
+    kinds = kinds or {}
+    scaled_units = ls != 1.0 or as_ != 1.0
+    tolerances = {}
+    for name, value in tol.items():
+        try:
+            v = parse_number(value, f"{f}tolerances.{name}")
+        except UnitError as exc:
+            raise BudgetError(str(exc)) from None
+        if v < 0:
+            raise BudgetError(f"{f}tolerances.{name}: must be >= 0, got {v}")
+        kind = kinds.get(name, _guess_kind(name))
+        if scaled_units and kind is None:
+            raise BudgetError(f"{f}tolerances.{name}: cannot tell whether it is a length or an angle")
+        tolerances[str(name)] = v * (as_ if kind == "angle" else ls)
+    limit = data.get("limit") or {}
+    if not isinstance(limit, dict):
+        raise BudgetError(f"{f}limit: expected a mapping like {{position: 1.4}}")
+    bad = sorted(set(limit) - {"position", "orientation"})
+    if bad:
+        raise BudgetError(f"{f}limit: unknown key(s) {bad}; allowed: position, orientation")
+    lp = lo = None
+    try:
+        if limit.get("position") is not None:
+            lp = parse_number(limit["position"], f"{f}limit.position") * ls
+        if limit.get("orientation") is not None:
+            lo = parse_number(limit["orientation"], f"{f}limit.orientation") * as_
+    except UnitError as exc:
+        raise BudgetError(str(exc)) from None
+    for nm, v in (("position", lp), ("orientation", lo)):
+        if v is not None and v <= 0:
+            raise BudgetError(f"{f}limit.{nm}: must be > 0")
+    criterion = data.get("criterion", "paper")
+    if criterion not in CRITERIA:
+        raise BudgetError(f"{f}criterion: expected one of {CRITERIA}, got {criterion!r}")
+    default = data.get("default")
+    if default is not None:
+        try:
+            default = parse_number(default, f"{f}default")
+        except UnitError as exc:
+            raise BudgetError(str(exc)) from None
+        if default != 0:
+            raise BudgetError(f"{f}default: only 0 is allowed (a unit-free default would be ambiguous)")
+    return Budget(tolerances=tolerances, robot=data.get("robot"), limit_position=lp, limit_orientation=lo,
+                  criterion=criterion, source=data.get("source"), meta=data.get("meta") or {}, default=default)
+
+
+def _guess_kind(name: str):
+    """Kind from a parameter name when the robot is not known: D-H and URDF names are unambiguous."""
+    base = name.split(".")[-1] if "." in name else name.rstrip("0123456789")
+    if base in ("a", "d", "x", "y", "z", "b", "l"):
+        return "length"
+    if base in ("alpha", "theta", "roll", "pitch", "yaw"):
+        return "angle"
+    return None
+
+
+def load_budget(spec, model=None) -> Budget:
+    """Budget from a YAML/JSON path or a shipped budget name; with ``model``, units follow its parameters."""
+    path = resolve("budgets", spec, suffixes=(".yaml", ".yml", ".json"))
+    text = path.read_text()
+    try:
+        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise BudgetError(f"{path}: cannot parse: {exc}") from None
+    kinds = dict(zip(model.param_names, model.param_kinds)) if model is not None else None
+    try:
+        budget = budget_from_dict(data, kinds)
+    except BudgetError as exc:
+        raise BudgetError(f"{path}: {exc}") from None
+    if model is not None and budget.robot and budget.robot != model.name:
+        raise BudgetError(f"{path}: budget is for robot {budget.robot!r}, not {model.name!r}")
+    return budget
+
