@@ -1,0 +1,91 @@
+"""The command line: tables, --json documents, plots and error messages."""
+import json
+
+import numpy as np
+import pytest
+
+from tolerance_ros.cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_jacobian_json_is_si_and_complete(capsys):
+    code, out, _ = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0,0.1,0.2,0.3,0.4,0.5,0.6", "--json")
+    assert code == 0
+    doc = json.loads(out)
+    assert doc["ok"] and doc["robot"] == "gao2023_7dof"
+    J = np.array(doc["jacobian"])
+    assert J.shape == (1, 6, 28) and doc["parameters"][14] == "alpha1" and doc["units"][0] == "m"
+    assert np.array(doc["poses"]).shape == (1, 4, 4)
+
+
+def test_jacobian_table_and_degrees(capsys):
+    code, out, _ = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0,10,20,30,40,50,60", "--deg")
+    assert code == 0 and "theta7" in out and "tool position [mm]" in out
+
+
+def test_sensitivity_table_json_and_plot(capsys, tmp_path):
+    code, out, err = run(capsys, "sensitivity", "--robot", "gao2023_7dof", "--samples", "300", "--limit", "1.4mm",
+                         "--plot", str(tmp_path))
+    assert code == 0 and "ceiling" in out and "a6" in out
+    assert (tmp_path / "salience.png").stat().st_size > 1000
+    code, out, _ = run(capsys, "sensitivity", "--robot", "gao2023_7dof", "--samples", "300", "--json",
+                       "--limit", "1.4mm", "--quiet")
+    doc = json.loads(out)
+    assert doc["ceilings"]["a1"] == pytest.approx(1.4e-3)
+    assert doc["ceilings"]["theta7"] is None  # unbounded: no effect on position
+    assert sum(p["salience"] for p in doc["parameters"]) == pytest.approx(1.0)
+
+
+def test_verify_with_bounds_and_histogram(capsys, tmp_path):
+    code, out, err = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2",
+                         "--samples", "2000", "--errors", "fixed", "--bounds", "--plot", str(tmp_path))
+    assert code == 0 and "pass rate" in out and "worst_case" in out
+    assert "verify:" in err  # progress on stderr
+    assert (tmp_path / "error_histogram.png").exists()
+    code, out, _ = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2",
+                       "--samples", "2000", "--errors", "fixed", "--json", "--quiet", "--bounds")
+    doc = json.loads(out)
+    pos = doc["position_m"]
+    assert pos["limit"] == pytest.approx(1.4e-3) and 0.99 <= pos["pass_rate"] <= 1.0
+    assert doc["bounds_m"]["worst_case"]["max"] >= doc["bounds_m"]["paper"]["max"]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["jacobian", "--robot", "nope"], "no such file"),
+    (["jacobian", "--robot", "gao2023_7dof", "--joints", "1,2,3"], "expected 7 values"),
+    (["jacobian", "--robot", "gao2023_7dof", "--joints", "1,2,x,4,5,6,7"], "--joints[0]"),
+    (["verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta1", "--limit", "1.4 furlong"], "--limit"),
+    (["verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta1", "--limit=-1mm"], "must be > 0"),
+    (["verify", "--robot", "gao2023_7dof", "--tolerances", "missing_budget"], "missing_budget"),
+    (["paper", "smith1999"], "unknown paper"),
+])
+def test_errors_are_one_clear_line(capsys, argv, message):
+    code, out, err = run(capsys, *argv)
+    assert code == 2
+    assert message in err and "Traceback" not in err
+
+
+def test_errors_with_json_are_a_json_document(capsys):
+    code, out, err = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "1,2", "--json")
+    assert code == 2
+    doc = json.loads(out)
+    assert doc["ok"] is False and "expected 7 values" in doc["error"]["message"]
+
+
+def test_paper_command_prints_published_beside_reproduced(capsys, tmp_path):
+    code, out, _ = run(capsys, "paper", "gao2023", "--poses", "3000", "--quiet", "--plot", str(tmp_path))
+    assert code == 0
+    for needle in ("Table 3", "Table 4", "Table 5", "34459", "44736", "published", "reproduced", "Not reproduced"):
+        assert needle in out
+    assert len(list(tmp_path.glob("*.png"))) == 3
+
+
+def test_robots_lists_the_shipped_configs(capsys):
+    code, out, _ = run(capsys, "robots", "--json")
+    assert code == 0
+    assert any(r["name"] == "gao2023_7dof" and r["dof"] == 7 for r in json.loads(out)["robots"])

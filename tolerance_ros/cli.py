@@ -1,0 +1,404 @@
+"""``tolerance-ros``: the accuracy jobs from the command line, without ROS.
+
+Every subcommand takes a robot (a shipped name such as ``gao2023_7dof``, or a YAML/URDF path), prints
+a readable table (lengths in mm where the header says so), and with ``--json`` prints one JSON
+document on stdout in SI units instead. Progress goes to stderr.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .core import analysis, errors
+from .core.budget import BudgetError, load_budget
+from .core.jsonio import dumps
+from .core.models import ModelError, load_robot
+from .core.resources import shipped
+from .core.units import UnitError, parse_quantity
+
+
+class CLIError(Exception):
+    """A user error reported as one line on stderr (and as a JSON error with --json)."""
+
+
+class Progress:
+    """Progress on stderr: a bar on a terminal, a line every 10 % otherwise; silent with --quiet."""
+
+    def __init__(self, label: str, enabled: bool = True, stream=None):
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.last = -1
+        self.start = time.perf_counter()
+
+    def __call__(self, done, total):
+        if not self.enabled or total <= 0:
+            return
+        frac = min(1.0, done / total)
+        step = int(frac * (50 if self.tty else 10))
+        if step == self.last and done < total:
+            return
+        self.last = step
+        elapsed = time.perf_counter() - self.start
+        if self.tty:
+            bar = "#" * int(frac * 30)
+            self.stream.write(f"\r{self.label} [{bar:<30}] {frac * 100:5.1f}% {elapsed:6.1f}s")
+            if done >= total:
+                self.stream.write("\n")
+        else:
+            self.stream.write(f"{self.label}: {frac * 100:.0f}% ({elapsed:.1f}s)\n")
+        self.stream.flush()
+
+
+def table(headers, rows, aligns=None) -> str:
+    """Plain-text table with right-aligned numbers."""
+    cells = [[str(h) for h in headers]] + [[str(c) for c in r] for r in rows]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(headers))]
+    aligns = aligns or ["<"] + [">"] * (len(headers) - 1)
+    lines = []
+    for k, r in enumerate(cells):
+        lines.append("  ".join(f"{c:{a}{w}}" for c, a, w in zip(r, aligns, widths)).rstrip())
+        if k == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def fmt(x, digits=4) -> str:
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return "inf" if x is not None and x > 0 else "-"
+    return f"{x:.{digits}g}" if abs(x) >= 1e4 or (abs(x) < 1e-3 and x != 0) else f"{x:.{digits}f}"
+
+
+def _limit(text, kind="length"):
+    if text is None:
+        return None
+    value = parse_quantity(text, kind, field="--limit" if kind == "length" else "--orientation-limit")
+    if value <= 0:
+        raise CLIError(f"{'--limit' if kind == 'length' else '--orientation-limit'}: must be > 0, got {text!r}")
+    return value
+
+
+def _joints(args, model):
+    if args.joints:
+        rows = []
+        for i, text in enumerate(args.joints):
+            try:
+                vals = [float(v) for v in text.replace(",", " ").split()]
+            except ValueError:
+                raise CLIError(f"--joints[{i}]: expected {model.dof} numbers separated by commas, got {text!r}") from None
+            rows.append(vals)
+        lens = {len(r) for r in rows}
+        if lens != {model.dof}:
+            raise CLIError(f"--joints: expected {model.dof} values per configuration "
+                           f"({', '.join(model.joint_names)}), got {sorted(lens)}")
+        q = np.array(rows)
+        if args.deg:
+            q = np.where([t == "revolute" for t in model.joint_types], np.deg2rad(q), q)
+        return model.check_joints(q, "--joints", allow_out_of_limits=True)
+    return model.sample_joints(args.random, args.seed)
+
+
+# ---------------------------------------------------------------- subcommands
+
+
+def cmd_robots(args):
+    names = shipped("robots")
+    out = []
+    for n in names:
+        try:
+            m = load_robot(n)
+            out.append({"name": n, "kind": type(m).__name__, "dof": m.dof, "parameters": m.n_params})
+        except Exception as exc:  # a broken shipped file must not hide the others
+            out.append({"name": n, "error": str(exc)})
+    if args.json:
+        return {"robots": out}
+    print(table(["robot", "model", "dof", "parameters"],
+                [[r["name"], r.get("kind", "error: " + r.get("error", "")), r.get("dof", ""), r.get("parameters", "")]
+                 for r in out]))
+
+
+def cmd_jacobian(args):
+    model = load_robot(args.robot)
+    q = _joints(args, model)
+    T, EJ = model.fk_and_jacobian(q)
+    outside = model.out_of_limits(q)
+    if args.json:
+        return {"robot": model.name, "joint_names": list(model.joint_names), "joints": q,
+                "out_of_limits": outside.any(axis=1), "poses": T, "parameters": list(EJ.names),
+                "units": list(EJ.units), "rows": ["dx", "dy", "dz", "drx", "dry", "drz"],
+                "jacobian": EJ.J}
+    for k in range(q.shape[0]):
+        p = T[k, :3, 3] * 1e3
+        flag = "  (outside joint limits)" if outside[k].any() else ""
+        print(f"pose {k}: q = [{', '.join(f'{v:.4f}' for v in q[k])}]{flag}")
+        print(f"  tool position [mm]: {p[0]:.3f} {p[1]:.3f} {p[2]:.3f}")
+        rows = []
+        for j, (n, u) in enumerate(zip(EJ.names, EJ.units)):
+            col = EJ.J[k, :, j]
+            rows.append([n, u] + [f"{v * 1e3:.5f}" for v in col[:3]] + [f"{v:.5f}" for v in col[3:]])
+        print(table(["param", "unit", "dPx mm/u", "dPy mm/u", "dPz mm/u", "dRx rad/u", "dRy rad/u", "dRz rad/u"],
+                    rows))
+
+
+def cmd_sensitivity(args):
+    model = load_robot(args.robot)
+    prog = Progress("sensitivity", not args.quiet)
+    prog(0, 1)
+    sens = analysis.sensitivity(model, args.samples, args.seed, rows=args.rows, length_unit=args.length_unit)
+    q, J = analysis.workspace_jacobian(model, args.samples, args.seed, rows=args.rows)
+    R = analysis.correlation(J)
+    pairs = analysis.correlated_pairs(R, model.param_names, args.correlation)
+    limit = _limit(args.limit, "length" if args.rows == "position" else "angle")
+    ceil = analysis.ceilings(J, limit) if limit else None
+    prog(1, 1)
+    plots = []
+    if args.plot:
+        from . import plots as P
+        plots.append(str(P.salience_bars(sens, Path(args.plot) / "salience.png")))
+    if args.json:
+        out = sens.to_dict()
+        out.update({"robot": model.name, "correlated_pairs": [{"parameters": [a, b], "rho": r} for a, b, r in pairs],
+                    "correlation_threshold": args.correlation, "plots": plots})
+        if ceil is not None:
+            out["limit"] = limit
+            out["ceilings"] = dict(zip(model.param_names, ceil))
+        if args.correlation_matrix:
+            out["correlation_matrix"] = R
+        return out
+    lu = args.length_unit
+    scale = 1.0 / parse_quantity(f"1{lu}")
+    unit_row = "m" if args.rows == "position" else "rad"
+    print(f"robot {model.name}: sensitivity over {sens.samples} poses (seed {args.seed}), {args.rows} rows; "
+          f"salience with lengths in {lu}")
+    rows = []
+    for j in np.argsort(-sens.salience, kind="stable"):
+        u = model.param_units[j]
+        shown = scale if args.rows == "position" else 1.0
+        row = [model.param_names[j], f"{unit_row}->{lu if args.rows == 'position' else 'rad'}/{u}",
+               fmt(sens.mu_mean[j] * shown), fmt(sens.mu_max[j] * shown), f"{sens.salience[j] * 100:.2f}"]
+        if ceil is not None:
+            c = ceil[j] / (parse_quantity(f"1{lu}") if u == "m" else 1.0)
+            row.append(fmt(c) + (f" {lu}" if u == "m" else " rad"))
+        rows.append(row)
+    headers = ["param", "mu unit", "mu mean", "mu max", "D %"] + (["ceiling (eq.18)"] if ceil is not None else [])
+    print(table(headers, rows))
+    print(f"\ncorrelated column pairs (|rho| >= {args.correlation}):")
+    print(table(["param i", "param j", "rho"], [[a, b, f"{r:+.3f}"] for a, b, r in pairs]) if pairs else "  none")
+    for p in plots:
+        print(f"plot: {p}")
+
+
+def cmd_verify(args):
+    model = load_robot(args.robot)
+    budget = load_budget(args.tolerances, model)
+    delta = budget.vector_for(model)
+    limit = _limit(args.limit) if args.limit else budget.limit_position
+    olimit = _limit(args.orientation_limit, "angle") if args.orientation_limit else budget.limit_orientation
+    signs = None
+    if args.signs:
+        signs = np.ones(model.n_params)
+        for name in args.signs.split(","):
+            name = name.strip()
+            if name:
+                signs[model.param_index([name.lstrip("-")])] = -1.0
+    prog = Progress("verify", not args.quiet)
+    ver = analysis.monte_carlo(model, delta, n=args.samples, distribution=args.errors, seed=args.seed,
+                               limit_position=limit, limit_orientation=olimit, signs=signs, method=args.method,
+                               chunk=max(1000, args.samples // 20), progress=prog)
+    out = {"robot": model.name, "tolerances": str(args.tolerances), **ver.to_dict()}
+    if args.bounds:
+        J = model.error_jacobian(ver.q).position
+        b = errors.bounds(J, delta)
+        out["bounds_m"] = {k: analysis.summarize(v, limit) for k, v in b.items()}
+    plots = []
+    if args.plot:
+        from . import plots as P
+        plots.append(str(P.error_histogram(ver.position, Path(args.plot) / "error_histogram.png", limit,
+                                           f"{model.name}: {args.errors} errors, {len(ver.position)} poses")))
+    out["plots"] = plots
+    if args.json:
+        return out
+    s = ver.summary["position"]
+    print(f"robot {model.name}, tolerances {args.tolerances}: {s['n']} poses (seed {args.seed}), "
+          f"errors '{args.errors}', {args.method} model")
+    rows = [["max", fmt(s["max"] * 1e3)], ["mean", fmt(s["mean"] * 1e3)], ["std", fmt(s["std"] * 1e3)]]
+    rows += [[k, fmt(v * 1e3)] for k, v in s["percentiles"].items()]
+    if limit is not None:
+        rows.append([f"pass rate (<= {limit * 1e3:g} mm)", f"{s['pass_rate'] * 100:.2f} %"])
+    print(table(["position error |dP|", "mm"], rows))
+    o = ver.summary["orientation"]
+    print(f"orientation error: max {o['max']:.3g} rad, mean {o['mean']:.3g} rad")
+    if args.bounds:
+        print("\nbounds over the same poses (max / mean, mm):")
+        print(table(["criterion", "max", "mean"] + (["pass rate"] if limit else []),
+                    [[k, fmt(v["max"] * 1e3), fmt(v["mean"] * 1e3)] + ([f"{v['pass_rate'] * 100:.2f} %"] if limit else [])
+                     for k, v in out["bounds_m"].items()]))
+    for p in plots:
+        print(f"plot: {p}")
+
+
+def cmd_paper(args):
+    if args.name != "gao2023":
+        raise CLIError(f"paper: unknown paper {args.name!r}; known: gao2023")
+    from .core import gao2023
+    prog = Progress("gao2023", not args.quiet)
+    res = gao2023.reproduce(n_poses=args.poses, seed=args.seed, progress=prog)
+    if args.plot:
+        from . import plots as P
+        model = load_robot(gao2023.ROBOT)
+        sens = analysis.sensitivity(model, 1000, args.seed, length_unit="mm")
+        res["plots"] = [str(P.salience_bars(sens, Path(args.plot) / "gao2023_fig2_salience.png"))]
+        for key, spec in gao2023.SETS.items():
+            delta = load_budget(spec, model).vector_for(model)
+            q = model.sample_joints(args.poses, np.random.default_rng(args.seed))
+            ver = analysis.monte_carlo(model, delta, distribution="fixed", q=q)
+            res["plots"].append(str(P.error_histogram(ver.position, Path(args.plot) / f"gao2023_fig6_{key}.png",
+                                                      gao2023.LIMIT_MM * 1e-3, f"Gao 2023 {key}: |J delta|")))
+    if args.json:
+        return res
+    print_gao2023(res)
+
+
+def print_gao2023(res):
+    print("Gao, Fang, Jiang, Gong (2023): 7-DOF arm, D-H precision analysis. Lengths in mm, angles in rad.")
+    it = res["interpretation"]
+    print(f"Interpretation: joints {it['joint_range']}; Table 4 errors: {it['table4_errors']}; "
+          f"Table 5: {it['table5_rule']}.\n")
+    s = res["salience"]
+    print(f"Fig. 2 salience ({s['samples']} poses):")
+    print(f"  angle ranking (alpha_i ~ theta_i): published {s['angle_ranking']['published']}, "
+          f"reproduced {s['angle_ranking']['reproduced']} -> {'match' if s['angle_ranking']['match'] else 'DIFFERS'}")
+    a7, t7 = s["alpha7_theta7"]["reproduced"]
+    print(f"  D(alpha7), D(theta7): published 0, reproduced {a7:.1e}, {t7:.1e}")
+    le = s["lengths_equal"]
+    print(f"  length errors equal: {le['min'] * 100:.4f} % .. {le['max'] * 100:.4f} % -> "
+          f"{'match' if le['match'] else 'DIFFERS'}\n")
+    print(f"Table 3, ceilings Delta_j (eq. 18, {res['poses']} poses; lengths: "
+          f"{res['ceilings_lengths_mm']['reproduced']} mm, published 1.4):")
+    print(table(["param", "published", "reproduced", "rounded", "match"],
+                [[c["parameter"], f"{c['published']:.4f}", f"{c['reproduced']:.6f}", f"{c['reproduced']:.4f}",
+                  "yes" if round(c["reproduced"], 4) == c["published"] else "no"] for c in res["ceilings"]]))
+    print("\nSection 5.2, correlation of Jacobian columns (pooled over x, y, z and poses):")
+    print(table(["paper (i,j)", "parameters", "published", "reproduced"],
+                [[f"({c['paper_indices'][0]},{c['paper_indices'][1]})", "/".join(c["parameters"]),
+                  f"{c['published']:+.2f}", f"{c['reproduced']:+.3f}"] for c in res["correlations"]]))
+    print(f"\nTable 4, verification over {res['poses']} poses (|dP| in mm):")
+    rows = []
+    for key, t in res["table4"].items():
+        p, r, lo, hi = t["published"], t["reproduced"], t["rounding_band"]["low"], t["rounding_band"]["high"]
+        rows.append([key, "cost index", f"{p['cost']}", f"{r['cost']:.0f}", "-"])
+        for k, label in (("pass_rate", "pass rate %"), ("max", "max"), ("mean", "mean"), ("std", "std ('RMSE')")):
+            sc = 100.0 if k == "pass_rate" else 1.0
+            band = f"{min(lo[k], hi[k]) * sc:.4f} .. {max(lo[k], hi[k]) * sc:.4f}"
+            inside = min(lo[k], hi[k]) - 1e-12 <= p[k] <= max(lo[k], hi[k]) + 1e-12
+            rows.append([key, label, f"{p[k] * sc:.4f}", f"{r[k] * sc:.4f}", band + ("" if inside else "  (outside)")])
+    print(table(["set", "figure", "published", "reproduced", "band from rounding of Table 3"], rows,
+                ["<", "<", ">", ">", "<"]))
+    print(f"\nTable 5, after sign control of the correlated pairs (|dP| in mm):")
+    rows = []
+    for key, t in res["table5"].items():
+        for k in ("max", "mean", "std"):
+            rows.append([key, k, f"{t['published'][k]:.4f}", f"{t['reproduced'][k]:.4f}"])
+    print(table(["set", "figure", "published", "reproduced"], rows))
+    flips = ", ".join(sorted(next(iter(res["table5"].values()))["signs"]))
+    print(f"  (parameters assembled at -delta: {flips})")
+    print("\nInterpretations tried for Table 4 (mean relative deviation of mean, std and max from the paper):")
+    print(table(["joint range", "errors", "deviation", "delta1 mean", "delta2 mean"],
+                [[r["joint_range"], r["errors"], f"{r['mean_relative_deviation'] * 100:.1f} %",
+                  f"{r['sets']['delta1']['mean']:.4f}", f"{r['sets']['delta2']['mean']:.4f}"]
+                 for r in res["interpretation_study"]]))
+    print("\nThe published tolerances are rounded to 4 decimals (most angles to one significant digit), so\n"
+          "Tables 4 and 5 can only be matched within the band that rounding allows. Not reproduced:")
+    for note in res["not_reproduced"] or ["nothing"]:
+        print(f"  - {note}")
+    for p in res.get("plots", []):
+        print(f"plot: {p}")
+
+
+# ---------------------------------------------------------------- parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="tolerance-ros", description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def common(p, robot=True):
+        if robot:
+            p.add_argument("--robot", required=True, help="shipped robot name or YAML/URDF path")
+        p.add_argument("--json", action="store_true", help="print one JSON document (SI units) on stdout")
+        p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+        return p
+
+    p = common(sub.add_parser("robots", help="list the shipped robot configs"), robot=False)
+    p.set_defaults(func=cmd_robots)
+
+    p = common(sub.add_parser("jacobian", help="nominal pose and parameter-error Jacobian at configurations"))
+    p.add_argument("--joints", action="append", metavar="Q1,Q2,...",
+                   help="a joint configuration (rad, m); repeat for several")
+    p.add_argument("--deg", action="store_true", help="revolute joints in --joints are in degrees")
+    p.add_argument("--random", type=int, default=1, metavar="N", help="N random configurations if no --joints")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=cmd_jacobian)
+
+    p = common(sub.add_parser("sensitivity", help="sensitivity, salience, ceilings and correlation"))
+    p.add_argument("--samples", type=int, default=1000, help="joint-space samples (default 1000, as the paper)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--rows", choices=["position", "orientation"], default="position")
+    p.add_argument("--length-unit", default="mm", help="length unit for salience and the table (default mm)")
+    p.add_argument("--limit", help="design limit for the eq. 18 ceilings, e.g. 1.4mm")
+    p.add_argument("--correlation", type=float, default=0.8, help="|rho| threshold for correlated pairs")
+    p.add_argument("--correlation-matrix", action="store_true", help="include the full matrix in --json")
+    p.add_argument("--plot", metavar="DIR", help="write salience.png into DIR")
+    p.set_defaults(func=cmd_sensitivity)
+
+    p = common(sub.add_parser("verify", help="Monte Carlo verification of a tolerance set"))
+    p.add_argument("--tolerances", required=True, help="budget file (YAML/JSON) or shipped budget name")
+    p.add_argument("--limit", help="position limit, e.g. 1.4mm (default: the budget's)")
+    p.add_argument("--orientation-limit", help="orientation limit, e.g. 1mrad (default: the budget's)")
+    p.add_argument("--samples", type=int, default=10000)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--errors", choices=analysis.DISTRIBUTIONS, default="extreme",
+                   help="fixed: all at +delta (the paper); extreme: +-delta random signs; uniform; "
+                        "normal: sigma = delta/3")
+    p.add_argument("--signs", help="with --errors fixed: comma-separated parameters assembled at -delta")
+    p.add_argument("--method", choices=["linear", "nonlinear"], default="linear",
+                   help="first-order |J dx| or the exact perturbed forward kinematics")
+    p.add_argument("--bounds", action="store_true", help="also report paper/worst-case/per-axis/RSS bounds")
+    p.add_argument("--plot", metavar="DIR", help="write error_histogram.png into DIR")
+    p.set_defaults(func=cmd_verify)
+
+    p = common(sub.add_parser("paper", help="reproduce a source paper's figures"), robot=False)
+    p.add_argument("name", help="gao2023")
+    p.add_argument("--poses", type=int, default=10000)
+    p.add_argument("--seed", type=int, default=2023)
+    p.add_argument("--plot", metavar="DIR", help="write the figures into DIR")
+    p.set_defaults(func=cmd_paper)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    for name in ("samples", "poses", "random"):
+        if getattr(args, name, 1) is not None and getattr(args, name, 1) < 1:
+            parser.error(f"--{name}: must be >= 1")
+    try:
+        out = args.func(args)
+    except (CLIError, ModelError, BudgetError, UnitError, FileNotFoundError, ValueError) as exc:
+        msg = str(exc).strip("'\"")
+        if getattr(args, "json", False):
+            print(dumps({"ok": False, "error": {"code": type(exc).__name__, "message": msg}}))
+        print(f"tolerance-ros {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+    if getattr(args, "json", False) and out is not None:
+        print(dumps({"ok": True, **out} if isinstance(out, dict) else out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
