@@ -51,3 +51,16 @@ def test_default_zero_fills_unlisted(gao, tmp_path):
     b = load_budget(_write(tmp_path, "units: {length: mm}\ntolerances: {a1: 0.1}\ndefault: 0\n"), gao)
     d = b.vector_for(gao)
     assert d[0] == pytest.approx(1e-4) and np.all(d[1:] == 0)
+
+
+def test_free_parameters_count_as_zero_and_round_trip(gao, tmp_path):
+    d = np.full(gao.n_params, 1e-4)
+    free = np.array([n in ("alpha7", "theta7") for n in gao.param_names])
+    b = Budget.from_vector(gao, d, free=free, limit_position=1e-3)
+    path = b.save(tmp_path / "b.json")
+    back = load_budget(path, gao)
+    assert back.free == ("alpha7", "theta7")
+    v = back.vector_for(gao)
+    assert np.all(v[free] == 0) and np.allclose(v[~free], 1e-4)
+    with pytest.raises(BudgetError, match="either free or toleranced"):
+        load_budget(_write(tmp_path, "tolerances: {a1: 1}\nfree: [a1]\n"), gao)

@@ -108,3 +108,21 @@ def test_paper_bound_is_J_delta_and_signs(planar2r):
 def test_invalid_delta(delta):
     with pytest.raises(ValueError, match="delta"):
         worst_case_bound(np.ones((2, 3, 3)), delta)
+
+
+def test_rss_confidence_is_guaranteed_for_gaussian_errors(gao):
+    from tolerance_ros.core.errors import confidence_for_k, k_for_confidence
+    assert k_for_confidence(0.9973) == pytest.approx(3.0, abs=1e-3)
+    assert confidence_for_k(3.0) == pytest.approx(0.9973, abs=1e-4)
+    rng = np.random.default_rng(0)
+    q = gao.sample_joints(3, rng)
+    J = gao.error_jacobian(q).position
+    delta = rng.uniform(1e-5, 3e-4, gao.n_params)
+    k = k_for_confidence(0.9)
+    bound = rss_bound(J, delta, k)
+    dx = rng.standard_normal((200000, gao.n_params)) * delta / 3
+    for i in range(3):
+        err = np.linalg.norm(dx @ J[i].T, axis=1)
+        assert np.mean(err <= bound[i]) >= 0.9
+    with pytest.raises(ValueError, match="confidence"):
+        k_for_confidence(0.5)

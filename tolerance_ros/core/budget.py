@@ -7,10 +7,13 @@ File format (YAML or JSON; ``units`` applies to every length and angle in the fi
     limit: {position: 1.4}           # design limit(s); orientation in the angle unit, optional
     criterion: paper                 # how the limit was judged: paper | worst-case | rss
     tolerances: {a1: 0.0996, d1: 0.0506, alpha1: 0.0003, ...}   # +- limits per parameter
+    free: [alpha7, theta7]           # optional: parameters with no effect on the limited errors
     default: 0                       # optional: tolerance of parameters not listed
     source: "..."                    # free text; other keys under `meta:` are kept as they are
 
-Every parameter of the robot must be listed unless ``default`` is given, so nothing is silently zero.
+Every parameter of the robot must be listed (in ``tolerances`` or ``free``) unless ``default`` is given,
+so nothing is silently zero. ``free`` parameters count as 0 in error bounds: they do not move what
+the limits constrain (e.g. the last joint's angle errors for a position limit).
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ import yaml
 from .resources import resolve
 from .units import UnitError, angle_scale, length_scale, parse_number
 
-_KEYS = {"robot", "units", "limit", "criterion", "tolerances", "default", "source", "meta"}
+_KEYS = {"robot", "units", "limit", "criterion", "tolerances", "free", "default", "source", "meta"}
 CRITERIA = ("paper", "worst-case", "rss")
 
 
@@ -44,21 +47,25 @@ class Budget:
     source: str | None = None
     meta: dict = field(default_factory=dict)
     default: float | None = None
+    free: tuple = ()
 
     def vector_for(self, model) -> np.ndarray:
         """(p,) tolerances in the model's parameter order (SI). Unknown or missing names raise."""
-        unknown = sorted(set(self.tolerances) - set(model.param_names))
+        unknown = sorted((set(self.tolerances) | set(self.free)) - set(model.param_names))
         if unknown:
             raise BudgetError(f"tolerances: unknown parameter name(s) {unknown} for robot {model.name!r}")
-        missing = [n for n in model.param_names if n not in self.tolerances]
+        missing = [n for n in model.param_names if n not in self.tolerances and n not in self.free]
         if missing and self.default is None:
-            raise BudgetError(f"tolerances: no tolerance for {missing}; list them or set `default`")
-        return np.array([self.tolerances.get(n, self.default) for n in model.param_names], dtype=float)
+            raise BudgetError(f"tolerances: no tolerance for {missing}; list them, mark them `free`, or set `default`")
+        return np.array([0.0 if n in self.free else self.tolerances.get(n, self.default)
+                         for n in model.param_names], dtype=float)
 
     @classmethod
-    def from_vector(cls, model, delta, **kw) -> "Budget":
-        """Budget from a (p,) SI tolerance vector in the model's order."""
-        return cls(tolerances={n: float(v) for n, v in zip(model.param_names, delta)}, robot=model.name, **kw)
+    def from_vector(cls, model, delta, free=None, **kw) -> "Budget":
+        """Budget from a (p,) SI tolerance vector in the model's order; ``free`` is a (p,) bool mask."""
+        free = np.zeros(model.n_params, bool) if free is None else np.asarray(free, bool)
+        return cls(tolerances={n: float(v) for n, v, f in zip(model.param_names, delta, free) if not f},
+                   robot=model.name, free=tuple(n for n, f in zip(model.param_names, free) if f), **kw)
 
     def to_dict(self, units=None, kinds=None) -> dict:
         """Plain dict; SI unless ``units`` ({length:, angle:}) and the per-name ``kinds`` are given."""
@@ -75,6 +82,8 @@ class Budget:
         if self.limit_orientation is not None:
             out["limit"]["orientation"] = self.limit_orientation / as_
         out["tolerances"] = {n: conv(n, v) for n, v in self.tolerances.items()}
+        if self.free:
+            out["free"] = list(self.free)
         if self.default is not None:
             out["default"] = self.default
         if self.source:
@@ -112,7 +121,9 @@ def budget_from_dict(data, kinds=None, field_prefix="") -> Budget:
     except UnitError as exc:
         raise BudgetError(str(exc)) from None
     tol = data.get("tolerances")
-    if not isinstance(tol, dict) or not tol:
+    if tol is None and data.get("free"):
+        tol = {}
+    if not isinstance(tol, dict) or (not tol and not data.get("free")):
         raise BudgetError(f"{f}tolerances: expected a mapping of parameter name -> tolerance")
     kinds = kinds or {}
     scaled_units = ls != 1.0 or as_ != 1.0
@@ -148,6 +159,12 @@ def budget_from_dict(data, kinds=None, field_prefix="") -> Budget:
     criterion = data.get("criterion", "paper")
     if criterion not in CRITERIA:
         raise BudgetError(f"{f}criterion: expected one of {CRITERIA}, got {criterion!r}")
+    free = data.get("free") or []
+    if not isinstance(free, list) or not all(isinstance(n, str) for n in free):
+        raise BudgetError(f"{f}free: expected a list of parameter names")
+    both = sorted(set(free) & set(tolerances))
+    if both:
+        raise BudgetError(f"{f}free: {both} also have a tolerance; a parameter is either free or toleranced")
     default = data.get("default")
     if default is not None:
         try:
@@ -157,7 +174,8 @@ def budget_from_dict(data, kinds=None, field_prefix="") -> Budget:
         if default != 0:
             raise BudgetError(f"{f}default: only 0 is allowed (a unit-free default would be ambiguous)")
     return Budget(tolerances=tolerances, robot=data.get("robot"), limit_position=lp, limit_orientation=lo,
-                  criterion=criterion, source=data.get("source"), meta=data.get("meta") or {}, default=default)
+                  criterion=criterion, source=data.get("source"), meta=data.get("meta") or {}, default=default,
+                  free=tuple(free))
 
 
 def _guess_kind(name: str):
