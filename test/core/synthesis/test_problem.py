@@ -1,0 +1,61 @@
+"""Allocation problems: ceilings, floors, costs and input errors."""
+import numpy as np
+import pytest
+
+from tolerance_ros.core.synthesis import SynthesisError, build_problem
+from tolerance_ros.core.synthesis.search import column_maxima, pose_index, select_poses
+
+
+def test_paper_ceilings_and_free_parameters(gao):
+    p = build_problem(gao, 1.4e-3, samples=5000)
+    names = list(gao.param_names)
+    expected = {"alpha1": 0.0014, "alpha2": 0.0015, "alpha3": 0.0025, "alpha4": 0.0027, "alpha5": 0.0088,
+                "alpha6": 0.0154}
+    for n, v in expected.items():
+        assert round(p.ceilings[names.index(n)], 4) == pytest.approx(v)
+    assert np.allclose(p.ceilings[:14], 1.4e-3)
+    assert not p.active[names.index("alpha7")] and not p.active[names.index("theta7")]
+    assert p.floors[0] == pytest.approx(0.05e-3) and p.floors[14] == pytest.approx(3e-4)
+
+
+def test_cost_and_index_match_the_paper_units(gao):
+    p = build_problem(gao, 1.4e-3, samples=2000)
+    d = np.where(np.array(gao.param_kinds) == "length", 0.1e-3, 0.001)
+    # 14 lengths at 0.1 mm cost 1/0.1 each; 12 active angles at 1 mrad cost 1.5/0.001 each.
+    assert p.cost(d) == pytest.approx(14 * 10 + 12 * 1500)
+    assert p.index_I(p.ceilings) == pytest.approx(0.0)
+    assert p.index_I(p.floors) > p.index_I(d) > 0
+
+
+def test_column_maxima_of_a_planar_arm_are_exact(planar2r):
+    mu = column_maxima(planar2r, "position", 500)
+    names = list(planar2r.param_names)
+    assert mu[names.index("theta1")] == pytest.approx(0.7, rel=1e-9)   # reached by local refinement
+    assert mu[names.index("theta2")] == pytest.approx(0.3, rel=1e-9)
+    assert mu[names.index("alpha2")] == 0.0
+
+
+def test_pose_selection_index(planar2r):
+    q = np.array([[0.0, 0.0]])
+    # With 1 mm length errors and 1 rad angle errors, the stretched 2R arm moves by |(a) + (theta)|.
+    F = pose_index(planar2r, q)
+    J = planar2r.error_jacobian(q).position[0]
+    unit = np.array([1e-3 if k == "length" else 1.0 for k in planar2r.param_kinds])
+    assert F[0] == pytest.approx(np.linalg.norm(J @ unit))
+    poses = select_poses(planar2r, 3, n_samples=500)
+    assert poses.shape == (3, 2)
+    assert pose_index(planar2r, poses).min() >= np.sort(pose_index(planar2r, planar2r.sample_joints(500, 0)))[-50]
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(limit=0.0), "limit"),
+    (dict(limit=-1e-3), "limit"),
+    (dict(limit=1e-3, criterion="median"), "criterion"),
+    (dict(limit=1e-3, floors={"nope": 1e-5}), "unknown parameter name"),
+    (dict(limit=1e-3, floors={"angle": 0.0}), "floors: must be > 0"),
+    (dict(limit=1e-3, orientation_limit=-1.0), "orientation_limit"),
+    (dict(limit=1.4e-3, floors={"theta1": 0.01}), "floors above ceilings: theta1"),
+])
+def test_bad_problems_name_the_cause(gao, kwargs, message):
+    with pytest.raises(SynthesisError, match=message):
+        build_problem(gao, samples=1000, **kwargs)

@@ -1,0 +1,178 @@
+"""Precision synthesis: allocate tolerances that keep the end-effector error within a design limit.
+
+``allocate(model, limit, ...)`` sets up the problem (``build_problem``), solves it with the paper's
+GA (``solver='ga'``) or the exact active-set method (``solver='active-set'``), and verifies the
+result independently (``verify_allocation``): searched supremum under every criterion, Monte Carlo
+verification (Table 4 style), the paper's sign control of correlated pairs (Table 5 style), ISO 286
+grades of sized lengths, and warnings. Returns an ``Allocation`` (scipy-style: ``success``,
+``status``, ``message``, the answer and diagnostics).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import analysis
+from ..budget import Budget
+from ..iso286 import coarsest_grade
+from .active_set import solve_active_set
+from .ga import TABLE2, solve_ga
+from .problem import CRITERIA, MODELS, SynthesisError, SynthesisProblem, build_problem
+from .search import maximize, select_poses
+
+SOLVERS = ("active-set", "ga")
+MC_DISTRIBUTION = {"paper": "fixed", "worst-case": "extreme", "rss": "normal"}
+
+__all__ = ["Allocation", "CRITERIA", "MODELS", "SOLVERS", "SynthesisError", "SynthesisProblem", "TABLE2",
+           "allocate", "build_problem", "select_poses", "supremum", "verify_allocation"]
+
+
+@dataclass
+class Allocation:
+    """Result of an allocation (SI; ``table`` and reports convert for humans)."""
+
+    delta: np.ndarray
+    problem: SynthesisProblem
+    model_type: str
+    solver: str
+    success: bool
+    status: str
+    message: str
+    time_s: float
+    cost: float
+    index_I: float
+    verification: dict
+    history: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    seed: int = 0
+
+    @property
+    def names(self):
+        return self.problem.model.param_names
+
+    def budget(self, source=None) -> Budget:
+        """The allocation as a tolerance budget (free parameters listed as such)."""
+        p = self.problem
+        return Budget.from_vector(p.model, self.delta, free=~p.active, limit_position=p.limit,
+                                  limit_orientation=p.orientation_limit, criterion=p.criterion,
+                                  source=source or f"tolerance-ros allocate ({self.model_type}, {self.solver})",
+                                  meta={"cost_index": self.cost, "index_I_mm": self.index_I, "seed": self.seed,
+                                        "searched_supremum_m": {k: v["position"]["value"] for k, v in
+                                                                self.verification["supremum"].items()}})
+
+    def table(self) -> list:
+        """Rows like the paper's Table 3: name, unit, floor, ceiling, tolerance, ISO grade, flags."""
+        p = self.problem
+        rows = []
+        for j, n in enumerate(p.model.param_names):
+            free = not p.active[j]
+            grade = None
+            if p.model.param_kinds[j] == "length" and not free:
+                size = abs(float(p.model.nominal[j])) * 1e3
+                if 0 < size <= 3150:
+                    grade = coarsest_grade(self.delta[j], size)
+            rows.append({"name": n, "unit": p.model.param_units[j], "floor": float(p.floors[j]),
+                         "ceiling": None if free else float(p.ceilings[j]),
+                         "tolerance": None if free else float(self.delta[j]), "free": free,
+                         "at_floor": bool(not free and self.delta[j] <= p.floors[j] * (1 + 1e-6)),
+                         "at_ceiling": bool(not free and self.delta[j] >= p.ceilings[j] * (1 - 1e-6)),
+                         "iso_grade": grade,
+                         "nominal_size_mm": abs(float(p.model.nominal[j])) * 1e3
+                         if p.model.param_kinds[j] == "length" else None})
+        return rows
+
+    def to_dict(self) -> dict:
+        return {"ok": self.success, "status": self.status, "message": self.message, "model": self.model_type,
+                "solver": self.solver, "seed": self.seed, "time_s": self.time_s, "problem": self.problem.to_dict(),
+                "cost_index": self.cost, "index_I_mm": self.index_I, "parameters": self.table(),
+                "verification": self.verification, "warnings": self.warnings, "history": self.history}
+
+
+def supremum(problem: SynthesisProblem, delta, criterion=None, rows="position", n_samples=20000, n_starts=12,
+             seed=0) -> dict:
+    """Largest error of ``delta`` over the joint space under a criterion (search: sample + local)."""
+    model = problem.model
+    crit = criterion or problem.criterion
+    d = np.where(problem.active, delta, 0.0)
+    res = maximize(model, lambda q: problem.values(model.error_jacobian(q).select(rows), d, crit),
+                   n_samples=n_samples, n_starts=n_starts, seed=seed,
+                   upper=(lambda q: problem.upper(model.error_jacobian(q).select(rows), d, crit))
+                   if crit == "worst-case" else None)
+    return {"value": res.value, "q": res.q, "sample_max": res.sample_max, "samples": res.samples,
+            "starts": len(res.maxima), "evaluations": res.evaluations}
+
+
+def verify_allocation(problem: SynthesisProblem, delta, n_mc=10000, seed=0, n_samples=20000, n_starts=12,
+                      correlation_threshold=0.7, distribution=None) -> dict:
+    """Independent checks of a tolerance set: supremum under every criterion, Monte Carlo, sign control."""
+    model = problem.model
+    d = np.where(problem.active, delta, 0.0)
+    sup = {}
+    for crit in CRITERIA:
+        sup[crit] = {}
+        for rows, lim in problem.rows:
+            s = supremum(problem, d, crit, rows, n_samples, n_starts, seed)
+            s["limit"] = lim
+            s["pass"] = bool(s["value"] <= lim)
+            sup[crit][rows] = s
+    dist = distribution or MC_DISTRIBUTION[problem.criterion]
+    q = model.sample_joints(n_mc, np.random.default_rng(seed + 1))
+    mc = analysis.monte_carlo(model, d, distribution=dist, seed=seed + 2, q=q, limit_position=problem.limit,
+                              limit_orientation=problem.orientation_limit)
+    J = model.error_jacobian(model.sample_joints(2000, np.random.default_rng(seed + 3))).position
+    pairs = analysis.correlated_pairs(analysis.correlation(J), model.param_names, correlation_threshold)
+    signs = analysis.sign_control(model.param_names, pairs)
+    ctl = analysis.monte_carlo(model, d, distribution="fixed", signs=signs, q=q, limit_position=problem.limit)
+    return {"supremum": sup,
+            "monte_carlo": {"distribution": dist, "poses": n_mc, "position_m": mc.summary["position"],
+                            "orientation_rad": mc.summary["orientation"]},
+            "sign_control": {"pairs": [{"parameters": [a, b], "rho": r} for a, b, r in pairs],
+                             "negative": [n for n, s in zip(model.param_names, signs) if s < 0],
+                             "position_m": ctl.summary["position"]}}
+
+
+def _warnings(problem, delta, ver) -> list:
+    out = []
+    sup = ver["supremum"]
+    lim = problem.limit
+    paper, worst = sup["paper"]["position"]["value"], sup["worst-case"]["position"]["value"]
+    if paper <= lim < worst:
+        out.append(f"meets the limit only because errors of opposite effect are assumed to cancel: with "
+                   f"every error at +delta the largest error is {paper * 1e3:.4f} mm, but over all error signs it "
+                   f"reaches {worst * 1e3:.4f} mm (limit {lim * 1e3:g} mm)")
+    own = sup[problem.criterion]["position"]["value"]
+    if own > lim:
+        out.append(f"the searched supremum under the '{problem.criterion}' criterion, {own * 1e3:.4f} mm, "
+                   f"exceeds the limit {lim * 1e3:g} mm")
+    mc = ver["monte_carlo"]["position_m"]
+    if mc.get("pass_rate", 1.0) < 1.0:
+        out.append(f"{mc['failures']} of {mc['n']} Monte Carlo poses exceed the limit "
+                   f"({ver['monte_carlo']['distribution']} errors)")
+    return out
+
+
+def allocate(model, limit, model_type="min-cost", solver="active-set", criterion="paper", orientation_limit=None,
+             floors=None, k_sigma=3.0, seed=0, n_mc=10000, problem=None, progress=None, ga_options=None,
+             verify=True) -> Allocation:
+    """Allocate tolerances (see the module docstring). ``limit`` in m, ``orientation_limit`` in rad."""
+    if model_type not in MODELS:
+        raise SynthesisError(f"model: expected one of {MODELS}, got {model_type!r}")
+    if solver not in SOLVERS:
+        raise SynthesisError(f"solver: expected one of {SOLVERS}, got {solver!r}")
+    t0 = time.perf_counter()
+    if problem is None:
+        problem = build_problem(model, limit, orientation_limit, criterion, floors, k_sigma, seed=seed)
+    if solver == "active-set":
+        raw = solve_active_set(problem, model_type, seed=seed, progress=progress)
+    else:
+        raw = solve_ga(problem, model_type, seed=seed, progress=progress, **(ga_options or {}))
+    delta = raw["delta"]
+    solve_time = time.perf_counter() - t0
+    ver = verify_allocation(problem, delta, n_mc=n_mc, seed=seed) if verify else {}
+    warns = _warnings(problem, delta, ver) if verify else []
+    own = ver["supremum"][problem.criterion]["position"]["value"] if verify else None
+    ok = raw["status"] in ("converged", "done") and (own is None or own <= problem.limit)
+    return Allocation(delta, problem, model_type, solver, ok, raw["status"], raw["message"], solve_time,
+                      problem.cost(delta), problem.index_I(delta), ver, raw.get("history", []), warns, seed)

@@ -1,0 +1,217 @@
+"""The exact solver: convex programming over an active set of worst poses, grown by adversarial search.
+
+Every criterion is a norm of a linear map of the tolerances at each pose, so the problem is convex
+with infinitely many constraints (one per pose). Iterate:
+1. solve the convex program with the constraints of the poses collected so far (SLSQP, tolerances
+   scaled by their floors, analytic gradients; for 'worst-case' each constraint carries the signs of
+   the worst vertex at the pose);
+2. look for violations: a seeded check sample of the joint space first, then multi-start local
+   maximisation from its worst poses; add the worst violators (with their current worst signs);
+3. stop when the search finds no pose above the limit.
+The result is then verified independently by ``verify_allocation``.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.optimize import minimize
+
+from ..errors import paper_bound, per_axis_bound, rss_bound, worst_case_bound
+from .problem import COST_UNIT, MODELS, SynthesisError, SynthesisProblem
+from .search import maximize
+
+MARGIN = 1e-7  # the program is solved against limit * (1 - MARGIN), so a found supremum stays <= limit
+
+
+class _Constraints:
+    """Quadratic constraints ``x' M x <= 1`` in the scaled variables x = delta_active / floors."""
+
+    def __init__(self, p):
+        self.M = np.zeros((0, p, p))
+        self.keys = []
+
+    def add(self, M, key):
+        self.M = np.concatenate([self.M, M[None]], axis=0)
+        self.keys.append(key)
+
+    def __len__(self):
+        return len(self.keys)
+
+
+def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_check=20000, n_starts=12,
+                     max_iter=80, add_per_iter=12, progress=None, log=None) -> dict:
+    """Solve the allocation exactly; returns a dict with 'delta' (p,) and diagnostics (see module doc)."""
+    if objective not in MODELS:
+        raise SynthesisError(f"model: expected one of {MODELS}, got {objective!r}")
+    t0 = time.perf_counter()
+    model = problem.model
+    a = problem.active
+    tau, ceil = problem.floors[a], problem.ceilings[a]
+    unit = np.array([COST_UNIT[k] for k in model.param_kinds])[a]
+    K, alpha, w = problem.K[a], problem.alpha[a], problem.weights[a]
+    pa = int(a.sum())
+    rng = np.random.default_rng(seed)
+    q_check = model.sample_joints(n_check, rng)
+    J_check = {rows: model.error_jacobian(q_check).select(rows)[:, :, a] for rows, _ in problem.rows}
+    cons = {rows: _Constraints(pa) for rows, _ in problem.rows}
+    limits = dict(problem.rows)
+
+    def forms(rows, J, delta_a):
+        M = problem.quadratic_forms(J, delta_a)
+        target = (limits[rows] * (1.0 - MARGIN)) ** 2
+        return M * np.outer(tau, tau) / target
+
+    scale0 = _objective(np.ones(pa), objective, K, alpha, tau, unit, w, 1.0)[0]
+    x = np.minimum(ceil / tau, 1e6)
+    history = []
+    # Feasibility: with every tolerance at its floor the criterion must stay within the limit.
+    for rows, lim in problem.rows:
+        res = maximize(model, lambda qq, rows=rows: _values(problem, model.error_jacobian(qq).select(rows)[:, :, a], tau),
+                       n_samples=min(n_check, 5000), n_starts=n_starts, seed=rng,
+                       upper=(lambda qq, rows=rows: per_axis_bound(model.error_jacobian(qq).select(rows)[:, :, a], tau))
+                       if problem.criterion == "worst-case" else None)
+        if res.value > lim * (1.0 - MARGIN):
+            contrib = _largest_contributors(model, res.q, rows, tau, a)
+            raise SynthesisError(
+                f"infeasible: with every tolerance at its floor the {problem.criterion} {rows} error reaches "
+                f"{res.value:.6g} (limit {lim:.6g}) at q = {np.round(res.q, 4).tolist()}; the floors of "
+                f"{contrib} contribute most there: lower them or raise the limit")
+    status, message = "max_iter", f"stopped after {max_iter} iterations"
+    for it in range(max_iter):
+        delta_a = x * tau
+        added = 0
+        worst_ratio = 0.0
+        for rows, lim in problem.rows:
+            J = J_check[rows]
+            v = _values(problem, J, delta_a, prune=True)
+            ratio = float(v.max() / lim)
+            worst_ratio = max(worst_ratio, ratio)
+            bad = np.flatnonzero(v > lim * (1.0 - MARGIN) * (1.0 + 1e-9))
+            if bad.size:
+                pick = bad[np.argsort(-v[bad])[:add_per_iter]]
+                Ms = forms(rows, J[pick], delta_a)
+                for k, i in enumerate(pick):
+                    cons[rows].add(Ms[k], ("check", int(i)))
+                added += len(pick)
+        if not added:
+            # No violation in the check sample: search the joint space from its worst poses.
+            for rows, lim in problem.rows:
+                res = maximize(model, lambda qq, rows=rows: _values(
+                    problem, model.error_jacobian(qq).select(rows)[:, :, a], delta_a), n_samples=0, n_starts=0,
+                    q_extra=_worst(problem, J_check[rows], delta_a, q_check, n_starts), seed=rng)
+                over = res.maxima > lim * (1.0 - MARGIN) * (1.0 + 1e-9)
+                if over.any():
+                    Jq = model.error_jacobian(res.maxima_q[over]).select(rows)[:, :, a]
+                    Ms = forms(rows, Jq, delta_a)
+                    for k in range(len(Ms)):
+                        cons[rows].add(Ms[k], ("search", it, k))
+                    added += int(over.sum())
+        n_cons = sum(len(c) for c in cons.values())
+        obj = _objective(x, objective, K, alpha, tau, unit, w, 1.0)[0]
+        history.append({"iteration": it, "constraints": n_cons, "objective": float(obj), "check_max_ratio": worst_ratio,
+                        "added": added, "elapsed_s": time.perf_counter() - t0})
+        if log:
+            log(history[-1])
+        if progress:
+            progress(it + 1, max_iter)
+        if not added:
+            status, message = "converged", "no pose of the joint-space search exceeds the limit"
+            break
+        x = _solve_program(x, cons, objective, K, alpha, tau, unit, w, scale0, ceil)
+    if progress:
+        progress(max_iter, max_iter)
+    delta = np.zeros(model.n_params)
+    delta[a] = np.clip(x * tau, tau, ceil)
+    return {"delta": delta, "status": status, "message": message, "history": history,
+            "iterations": len(history), "constraints": sum(len(c) for c in cons.values()),
+            "time_s": time.perf_counter() - t0}
+
+
+def _worst(problem, J, delta_a, q, n):
+    v = _values(problem, J, delta_a, prune=True)
+    return q[np.argsort(-v)[:n]]
+
+
+def _values(problem, J, delta_a, prune=False):
+    """Criterion values with J restricted to the active columns; ``prune`` computes the exact worst case
+    only where its per-axis upper bound can reach the largest value (elsewhere a lower bound)."""
+    c = problem.criterion
+    if c == "paper":
+        return paper_bound(J, delta_a)
+    if c == "rss":
+        return rss_bound(J, delta_a, problem.k_sigma)
+    if not prune:
+        return worst_case_bound(J, delta_a)
+    # Exact values only where the cheap upper bound can exceed the largest exact value seen so far.
+    ub = per_axis_bound(J, delta_a)
+    out = rss_bound(J, delta_a)  # a valid lower bound where the exact value is not needed
+    order = np.argsort(-ub)
+    best = -np.inf
+    for start in range(0, len(order), 512):
+        blk = order[start:start + 512]
+        if ub[blk[0]] < best * 0.999:
+            break
+        out[blk] = worst_case_bound(J[blk], delta_a)
+        best = max(best, float(out[blk].max()))
+    return out
+
+
+def _objective(x, objective, K, alpha, tau, unit, w, scale):
+    if objective == "min-cost":
+        base = K * (tau * unit) ** (-alpha)
+        f = np.sum(base * x ** (-alpha))
+        g = -alpha * base * x ** (-alpha - 1.0)
+    else:
+        f = -np.sum(w * tau * unit * x)
+        g = -w * tau * unit
+    return f / scale, g / scale
+
+
+def _solve_program(x0, cons, objective, K, alpha, tau, unit, w, scale, ceil):
+    Ms = np.concatenate([c.M for c in cons.values()], axis=0)
+    hi = np.minimum(ceil / tau, 1e6)
+    bounds = list(zip(np.ones_like(hi), hi))
+    if objective == "optimal-precision":
+        scale = abs(_objective(hi, objective, K, alpha, tau, unit, w, 1.0)[0]) or 1.0
+
+    def fun(x):
+        return _objective(x, objective, K, alpha, tau, unit, w, scale)
+
+    def cfun(x):
+        return 1.0 - np.einsum("p,mpq,q->m", x, Ms, x)
+
+    def cjac(x):
+        return -2.0 * np.einsum("mpq,q->mp", Ms, x)
+
+    x_start = np.clip(x0, 1.0, hi)
+    # Start from a feasible point: shrink towards the floors until every constraint holds.
+    for _ in range(60):
+        if np.all(cfun(x_start) >= 0):
+            break
+        x_start = 1.0 + (x_start - 1.0) * 0.7
+    else:
+        x_start = np.ones_like(hi)
+    res = minimize(fun, x_start, jac=True, method="SLSQP", bounds=bounds,
+                   constraints=[{"type": "ineq", "fun": cfun, "jac": cjac}],
+                   options={"maxiter": 500, "ftol": 1e-14})
+    x = np.clip(res.x, 1.0, hi)
+    # SLSQP may end a hair outside; pull back along the ray to the floors until feasible.
+    viol = cfun(x)
+    if np.any(viol < 0):
+        lo_t, hi_t = 0.0, 1.0
+        for _ in range(60):
+            mid = (lo_t + hi_t) / 2
+            if np.all(cfun(1.0 + (x - 1.0) * mid) >= 0):
+                lo_t = mid
+            else:
+                hi_t = mid
+        x = 1.0 + (x - 1.0) * lo_t
+    return x
+
+
+def _largest_contributors(model, q, rows, tau, a, count=4):
+    J = model.error_jacobian(q[None]).select(rows)[0][:, a]
+    contrib = np.linalg.norm(J, axis=0) * tau
+    names = np.array(model.param_names)[a]
+    return ", ".join(names[np.argsort(-contrib)[:count]])
