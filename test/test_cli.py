@@ -78,7 +78,7 @@ def test_errors_with_json_are_a_json_document(capsys):
 
 
 def test_paper_command_prints_published_beside_reproduced(capsys, tmp_path):
-    code, out, _ = run(capsys, "paper", "gao2023", "--poses", "3000", "--quiet", "--plot", str(tmp_path))
+    code, out, _ = run(capsys, "paper", "gao2023", "--poses", "3000", "--quiet", "--plot", str(tmp_path), "--no-synthesis")
     assert code == 0
     for needle in ("Table 3", "Table 4", "Table 5", "34459", "44736", "published", "reproduced", "Not reproduced"):
         assert needle in out
@@ -89,3 +89,35 @@ def test_robots_lists_the_shipped_configs(capsys):
     code, out, _ = run(capsys, "robots", "--json")
     assert code == 0
     assert any(r["name"] == "gao2023_7dof" and r["dof"] == 7 for r in json.loads(out)["robots"])
+
+
+def test_allocate_writes_a_budget_that_verify_reads(capsys, tmp_path):
+    out = tmp_path / "budget.yaml"
+    code, text, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--out", str(out),
+                          "--plot", str(tmp_path), "--mc-poses", "2000")
+    assert code == 0, err
+    assert "tolerance delta_j" in text and "free (no effect)" in text and "WARNING" in text
+    assert (tmp_path / "convergence.png").exists() and (tmp_path / "error_histogram.png").exists()
+    code, text, _ = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", str(out), "--errors", "fixed",
+                        "--samples", "3000", "--json", "--quiet")
+    doc = json.loads(text)
+    assert code == 0 and doc["position_m"]["pass_rate"] == 1.0 and doc["position_m"]["limit"] == pytest.approx(1.4e-3)
+
+
+def test_allocate_json_and_errors(capsys, tmp_path):
+    code, text, _ = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--solver", "ga",
+                        "--json", "--quiet", "--out", "-", "--mc-poses", "1000")
+    doc = json.loads(text)
+    assert code == 0 and doc["solver"] == "ga" and len(doc["parameters"]) == 28
+    assert {"paper", "worst-case", "rss"} == set(doc["verification"]["supremum"])
+    code, _, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--criterion", "worst-case",
+                       "--out", "-")
+    assert code == 2 and "infeasible" in err
+    code, _, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--floor", "theta1=5mrad",
+                       "--out", "-")
+    assert code == 2 and "floors above ceilings: theta1" in err
+    code, _, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--floor", "bogus=1mm",
+                       "--out", "-")
+    assert code == 2 and "bogus" in err
+    code, _, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "0mm", "--out", "-")
+    assert code == 2 and "--limit" in err

@@ -242,12 +242,121 @@ def cmd_verify(args):
         print(f"plot: {p}")
 
 
+def _floors(args, model):
+    floors = {"length": parse_quantity(args.floor_length, "length", field="--floor-length"),
+              "angle": parse_quantity(args.floor_angle, "angle", field="--floor-angle")}
+    for item in args.floor or []:
+        if "=" not in item:
+            raise CLIError(f"--floor: expected NAME=VALUE (e.g. theta1=0.2mrad), got {item!r}")
+        name, value = item.split("=", 1)
+        j = model.param_index([name.strip()])[0]
+        floors[name.strip()] = parse_quantity(value, model.param_kinds[j], field=f"--floor {name}")
+    return floors
+
+
+def cmd_allocate(args):
+    from .core import synthesis
+    from .core.errors import k_for_confidence
+    model = load_robot(args.robot)
+    limit = _limit(args.limit)
+    olimit = _limit(args.orientation_limit, "angle") if args.orientation_limit else None
+    k_sigma = k_for_confidence(args.confidence) if args.confidence is not None else 3.0
+    prog = Progress(f"allocate ({args.solver})", not args.quiet)
+    ga = {"tol_runs": args.ga_tol, "max_rounds": args.ga_rounds}
+    res = synthesis.allocate(model, limit, args.model, args.solver, args.criterion, olimit, _floors(args, model),
+                             k_sigma, seed=args.seed, n_mc=args.mc_poses, progress=prog,
+                             ga_options=ga if args.solver == "ga" else None)
+    doc = res.to_dict()
+    doc["robot"] = model.name
+    out_path = None
+    if args.out != "-":
+        out_path = args.out or f"{model.name}_{args.model}_{args.solver}_budget.yaml"
+        kinds = dict(zip(model.param_names, model.param_kinds))
+        units = {"length": "mm", "angle": "rad"} if str(out_path).endswith((".yaml", ".yml")) else None
+        res.budget().save(out_path, units=units, kinds=kinds)
+        doc["budget_file"] = str(out_path)
+    plots = []
+    if args.plot:
+        from . import plots as P
+        plots.append(str(_convergence_plot(P, res, Path(args.plot) / "convergence.png")))
+        mc = synthesis.analysis.monte_carlo(model, res.delta, n=args.mc_poses,
+                                            distribution=res.verification["monte_carlo"]["distribution"],
+                                            seed=args.seed + 2,
+                                            q=model.sample_joints(args.mc_poses, np.random.default_rng(args.seed + 1)))
+        plots.append(str(P.error_histogram(mc.position, Path(args.plot) / "error_histogram.png", limit,
+                                           f"{model.name}: {args.model} / {args.solver}")))
+    doc["plots"] = plots
+    if args.json:
+        return doc
+    print_allocation(doc)
+
+
+def _convergence_plot(P, res, path):
+    h = res.history
+    if res.solver == "active-set":
+        x = [r["iteration"] for r in h]
+        series = {"objective (relative)": np.array([r["objective"] for r in h]) / max(abs(h[-1]["objective"]), 1e-300),
+                  "worst check-sample error / limit": [r["check_max_ratio"] for r in h]}
+        return P.line_plot(x, series, path, "iteration", "value", "active-set convergence")
+    if h and "generation" in h[0]:
+        return P.line_plot([r["generation"] for r in h], {"best fitness": [r["best_fitness"] for r in h]}, path,
+                           "generation", "fitness (cost + penalty)", "GA P1 convergence", logy=True)
+    return P.line_plot([r["round"] for r in h], {"GA max error [mm]": [r["ga_max_error"] * 1e3 for r in h]}, path,
+                       "round k", "mm", "GA section 4.3 rounds")
+
+
+def print_allocation(doc):
+    prob = doc["problem"]
+    lim = prob["limit_position_m"]
+    print(f"robot {doc['robot']}: {doc['model']} model, solver {doc['solver']}, criterion {prob['criterion']}, "
+          f"limit {lim * 1e3:g} mm" + (f", orientation {prob['limit_orientation_rad']:g} rad"
+                                       if prob["limit_orientation_rad"] else "") + f", seed {doc['seed']}")
+    print(f"status: {doc['status']} ({doc['message']}); solved in {doc['time_s']:.2f} s\n")
+    rows = []
+    for r in doc["parameters"]:
+        sc = 1e3 if r["unit"] == "m" else 1.0
+        u = "mm" if r["unit"] == "m" else "rad"
+        if r["free"]:
+            rows.append([r["name"], u, "-", "-", "free (no effect)", "-", ""])
+            continue
+        flags = "floor" if r["at_floor"] else ("ceiling" if r["at_ceiling"] else "")
+        grade = f"IT{r['iso_grade']} @ {r['nominal_size_mm']:g} mm" if r["iso_grade"] else "-"
+        rows.append([r["name"], u, f"{r['floor'] * sc:.4f}", f"{r['ceiling'] * sc:.4f}", f"{r['tolerance'] * sc:.5f}",
+                     grade, flags])
+    print(table(["param", "unit", "floor", "ceiling Delta_j", "tolerance delta_j", "ISO 286", "at"], rows))
+    print(f"\ncost index (eq. 17, mm and rad): {doc['cost_index']:.1f}    index I (eq. 21): {doc['index_I_mm']:.4f} mm")
+    ver = doc["verification"]
+    print("\nsearched supremum over the joint space (position, mm):")
+    print(table(["criterion", "supremum", "limit", "within"],
+                [[c, f"{v['position']['value'] * 1e3:.4f}", f"{lim * 1e3:g}", "yes" if v["position"]["pass"] else "NO"]
+                 for c, v in ver["supremum"].items()]))
+    mc = ver["monte_carlo"]
+    s = mc["position_m"]
+    print(f"\nMonte Carlo, {mc['poses']} poses, '{mc['distribution']}' errors: pass {s['pass_rate'] * 100:.2f} %, "
+          f"max {s['max'] * 1e3:.4f}, mean {s['mean'] * 1e3:.4f}, std {s['std'] * 1e3:.4f} mm")
+    sc = ver["sign_control"]
+    t = sc["position_m"]
+    print(f"with the paper's sign control ({len(sc['pairs'])} correlated pairs, -delta on "
+          f"{', '.join(sc['negative']) or 'none'}): max {t['max'] * 1e3:.4f}, mean {t['mean'] * 1e3:.4f}, "
+          f"std {t['std'] * 1e3:.4f} mm")
+    for w in doc["warnings"]:
+        print(f"WARNING: {w}")
+    if doc.get("budget_file"):
+        print(f"budget saved: {doc['budget_file']}")
+    for p in doc.get("plots", []):
+        print(f"plot: {p}")
+
+
 def cmd_paper(args):
     if args.name != "gao2023":
         raise CLIError(f"paper: unknown paper {args.name!r}; known: gao2023")
     from .core import gao2023
-    prog = Progress("gao2023", not args.quiet)
+    prog = Progress("gao2023 analysis", not args.quiet)
     res = gao2023.reproduce(n_poses=args.poses, seed=args.seed, progress=prog)
+    if not args.no_synthesis:
+        res["synthesis"] = gao2023.synthesis_study(seed=args.seed, n_mc=args.poses,
+                                                   ga_options={"tol_runs": args.ga_tol},
+                                                   progress=Progress("gao2023 synthesis", not args.quiet))
     if args.plot:
         from . import plots as P
         model = load_robot(gao2023.ROBOT)
@@ -299,7 +408,7 @@ def print_gao2023(res):
             rows.append([key, label, f"{p[k] * sc:.4f}", f"{r[k] * sc:.4f}", band + ("" if inside else "  (outside)")])
     print(table(["set", "figure", "published", "reproduced", "band from rounding of Table 3"], rows,
                 ["<", "<", ">", ">", "<"]))
-    print(f"\nTable 5, after sign control of the correlated pairs (|dP| in mm):")
+    print("\nTable 5, after sign control of the correlated pairs (|dP| in mm):")
     rows = []
     for key, t in res["table5"].items():
         for k in ("max", "mean", "std"):
@@ -316,8 +425,52 @@ def print_gao2023(res):
           "Tables 4 and 5 can only be matched within the band that rounding allows. Not reproduced:")
     for note in res["not_reproduced"] or ["nothing"]:
         print(f"  - {note}")
+    if "synthesis" in res:
+        print_gao2023_synthesis(res["synthesis"])
     for p in res.get("plots", []):
         print(f"plot: {p}")
+
+
+def print_gao2023_synthesis(syn):
+    sets = syn["sets"]
+    keys = list(sets)
+    short = {k: k.replace("published ", "pub ").replace("active-set", "AS").replace("optimal-precision", "opt-prec")
+             .replace("min-cost", "min-cost") for k in keys}
+    print(f"\n=== Precision synthesis, [Delta] = {syn['limit_mm']} mm, paper floors, cost model and criterion ===")
+    print("Table 3, tolerances (mm for a, d; rad for alpha, theta):")
+    rows = []
+    for j, (n, u) in enumerate(zip(syn["names"], syn["units"])):
+        if n in syn["free"]:
+            continue
+        sc = 1e3 if u == "m" else 1.0
+        c = syn["ceilings"][n]
+        rows.append([n, f"{c * sc:.4f}"] + [f"{sets[k]['delta'][j] * sc:.4f}" for k in keys])
+    print(table(["param", "Delta_j"] + [short[k] for k in keys], rows))
+    print("\nTable 4, verification (10,000-pose Monte Carlo with every error at +delta, as the paper; searched")
+    print("supremum over the joint space under each criterion; mm):")
+    rows = []
+    for k in keys:
+        v = sets[k]["verification"]
+        mc = v["monte_carlo"]["position_m"]
+        sup = v["supremum"]
+        pub = f" ({sets[k]['published_cost']})" if "published_cost" in sets[k] else ""
+        rows.append([short[k], f"{sets[k]['cost']:.0f}{pub}", f"{sets[k]['index_I_mm']:.3f}",
+                     f"{mc['pass_rate'] * 100:.2f}", f"{mc['max'] * 1e3:.4f}", f"{mc['mean'] * 1e3:.4f}",
+                     f"{mc['std'] * 1e3:.4f}", f"{sup['paper']['position']['value'] * 1e3:.4f}",
+                     f"{sup['worst-case']['position']['value'] * 1e3:.4f}", f"{sup['rss']['position']['value'] * 1e3:.4f}",
+                     "-" if sets[k]["time_s"] is None else f"{sets[k]['time_s']:.1f}"])
+    print(table(["set", "cost", "I", "pass %", "max", "mean", "std", "sup paper", "sup worst", "sup rss", "time s"],
+                rows))
+    print("\nTable 5, Monte Carlo after the paper's sign control of correlated pairs (mm):")
+    rows = []
+    for k in keys:
+        t = sets[k]["verification"]["sign_control"]["position_m"]
+        rows.append([short[k], f"{t['pass_rate'] * 100:.2f}", f"{t['max'] * 1e3:.4f}", f"{t['mean'] * 1e3:.4f}",
+                     f"{t['std'] * 1e3:.4f}"])
+    print(table(["set", "pass %", "max", "mean", "std"], rows))
+    for k in keys:
+        for w in sets[k].get("warnings", []):
+            print(f"WARNING ({short[k]}): {w}")
 
 
 # ---------------------------------------------------------------- parser
@@ -372,11 +525,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="DIR", help="write error_histogram.png into DIR")
     p.set_defaults(func=cmd_verify)
 
+    p = common(sub.add_parser("allocate", help="allocate tolerances under a design limit (precision synthesis)"))
+    p.add_argument("--limit", required=True, help="position limit, e.g. 1.4mm")
+    p.add_argument("--orientation-limit", help="orientation limit, e.g. 1mrad (optional)")
+    p.add_argument("--model", choices=["min-cost", "optimal-precision"], default="min-cost")
+    p.add_argument("--solver", choices=["active-set", "ga"], default="active-set",
+                   help="active-set: exact convex method with adversarial pose search; ga: the paper's GA")
+    p.add_argument("--criterion", choices=["paper", "worst-case", "rss"], default="paper",
+                   help="paper: |J delta|; worst-case: over every error sign; rss: statistical")
+    p.add_argument("--confidence", type=float, help="rss confidence (default 0.9973, i.e. 3 sigma)")
+    p.add_argument("--floor-length", default="0.05mm", help="floor of length tolerances (default 0.05mm)")
+    p.add_argument("--floor-angle", default="0.0003rad", help="floor of angle tolerances (default 0.0003rad)")
+    p.add_argument("--floor", action="append", metavar="NAME=VALUE", help="floor of one parameter, e.g. d2=0.02mm")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--mc-poses", type=int, default=10000, help="Monte Carlo verification poses")
+    p.add_argument("--ga-tol", type=int, default=1000, help="GA: Tol of section 4.3 (max solves per round)")
+    p.add_argument("--ga-rounds", type=int, default=50, help="GA: max rounds of section 4.3")
+    p.add_argument("--out", help="budget file to write (.yaml or .json; default <robot>_<model>_<solver>_budget.yaml; "
+                                 "'-' for none)")
+    p.add_argument("--plot", metavar="DIR", help="write convergence.png and error_histogram.png into DIR")
+    p.set_defaults(func=cmd_allocate)
+
     p = common(sub.add_parser("paper", help="reproduce a source paper's figures"), robot=False)
     p.add_argument("name", help="gao2023")
     p.add_argument("--poses", type=int, default=10000)
     p.add_argument("--seed", type=int, default=2023)
     p.add_argument("--plot", metavar="DIR", help="write the figures into DIR")
+    p.add_argument("--no-synthesis", action="store_true", help="only the analysis (Fig. 2, Tables 3-5 inputs)")
+    p.add_argument("--ga-tol", type=int, default=1000, help="GA: Tol of section 4.3")
     p.set_defaults(func=cmd_paper)
     return parser
 
@@ -384,12 +560,12 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    for name in ("samples", "poses", "random"):
+    for name in ("samples", "poses", "random", "mc_poses", "ga_tol", "ga_rounds"):
         if getattr(args, name, 1) is not None and getattr(args, name, 1) < 1:
-            parser.error(f"--{name}: must be >= 1")
+            parser.error(f"--{name.replace('_', '-')}: must be >= 1")
     try:
         out = args.func(args)
-    except (CLIError, ModelError, BudgetError, UnitError, FileNotFoundError, ValueError) as exc:
+    except (CLIError, ModelError, BudgetError, UnitError, FileNotFoundError, ValueError, NotImplementedError) as exc:
         msg = str(exc).strip("'\"")
         if getattr(args, "json", False):
             print(dumps({"ok": False, "error": {"code": type(exc).__name__, "message": msg}}))

@@ -178,3 +178,43 @@ def interpretation_study(model, deltas, n_poses=10000, seed=2023) -> list:
             row["mean_relative_deviation"] = float(np.mean(devs))
             rows.append(row)
     return sorted(rows, key=lambda r: r["mean_relative_deviation"])
+
+
+SYNTHESIS_RUNS = (("ga", "min-cost"), ("ga", "optimal-precision"), ("active-set", "min-cost"),
+                  ("active-set", "optimal-precision"))
+
+
+def synthesis_study(seed: int = 2023, n_mc: int = 10000, ga_options=None, progress=None) -> dict:
+    """Tables 3-5 of the synthesis: the published sets, this project's GA reproduction and the
+    active-set solver, all verified the same way ([Delta] = 1.4 mm, the paper's floors, cost model
+    and criterion)."""
+    from .synthesis import allocate, build_problem, verify_allocation
+
+    model = load_robot(ROBOT)
+    problem = build_problem(model, LIMIT_MM * 1e-3, criterion="paper", seed=seed)
+    out = {"limit_mm": LIMIT_MM, "criterion": "paper", "ceilings": dict(zip(model.param_names, problem.ceilings)),
+           "sets": {}}
+    total = len(SETS) + len(SYNTHESIS_RUNS)
+    done = 0
+    for key, spec in SETS.items():
+        delta = load_budget(spec, model).vector_for(model)
+        out["sets"][f"published {key}"] = {
+            "delta": delta, "cost": problem.cost(delta), "index_I_mm": problem.index_I(delta),
+            "published_cost": PUBLISHED_TABLE4[key]["cost"], "time_s": None,
+            "verification": verify_allocation(problem, delta, n_mc=n_mc, seed=seed)}
+        done += 1
+        if progress:
+            progress(done, total)
+    for solver, kind in SYNTHESIS_RUNS:
+        res = allocate(model, problem.limit, kind, solver, problem=problem, seed=seed, n_mc=n_mc,
+                       ga_options=ga_options if solver == "ga" else None)
+        out["sets"][f"{solver} {kind}"] = {"delta": res.delta, "cost": res.cost, "index_I_mm": res.index_I,
+                                           "time_s": res.time_s, "status": res.status, "success": res.success,
+                                           "verification": res.verification, "warnings": res.warnings}
+        done += 1
+        if progress:
+            progress(done, total)
+    out["names"] = list(model.param_names)
+    out["units"] = list(model.param_units)
+    out["free"] = [n for n, a in zip(model.param_names, problem.active) if not a]
+    return out
