@@ -186,11 +186,16 @@ class Mechanism(ABC):
 
 def rpy_to_matrix(rpy) -> np.ndarray:
     """Rotation matrix R = Rz(yaw) Ry(pitch) Rx(roll) (URDF / REP 103 fixed-axis rpy), rad."""
-    r, p, y = (float(v) for v in rpy)
+    return rpy_to_matrices(np.asarray(rpy, dtype=float)[None])[0]
+
+
+def rpy_to_matrices(rpy) -> np.ndarray:
+    """(n, 3, 3) rotations Rz(yaw) Ry(pitch) Rx(roll) of (n, 3) roll-pitch-yaw angles (rad)."""
+    r, p, y = np.asarray(rpy, dtype=float).reshape(-1, 3).T
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
+    return np.stack([np.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr], -1),
+                     np.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr], -1),
+                     np.stack([-sp, cp * sr, cp * cr], -1)], 1)
 
 
 def transform(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> np.ndarray:

@@ -1,0 +1,170 @@
+"""Measurement campaigns: named test poses visited for a number of cycles (ISO 9283: P1-P5 x 30).
+
+File format (YAML; ``units`` applies to every value)::
+
+    name: iso_cube_gao
+    robot: gao2023_7dof             # optional, checked against the robot it is used with
+    units: {length: mm, angle: deg}
+    cycles: 30                      # visits per test pose
+    dwell: 2.0                      # s at each pose (joint-state publisher)
+    order: cycle                    # cycle: P1..Pk, P1..Pk, ...; pose: P1 x cycles, P2 x cycles, ...
+    poses:
+      - {name: P1, joints: [0, 30, -45, 0, 60, 0, 0]}          # joint configuration, or
+      - {name: PE1, pose: {xyz: [0, 0, 1300], rpy: [0, 0, 0]}}  # an end-effector pose (needs IK)
+
+A pose given as ``pose`` is turned into joints by the model's ``inverse_kinematics`` (parallel
+mechanisms have it; serial chains take ``joints``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .models.base import transform
+from .resources import resolve
+from .units import UnitError, angle_scale, length_scale, parse_number
+
+_KEYS = {"name", "robot", "units", "cycles", "dwell", "order", "poses", "description", "source", "notes"}
+
+
+class CampaignError(ValueError):
+    """An invalid campaign file; the message names the field."""
+
+
+@dataclass
+class TestPose:
+    """One test pose: joints (dof,) SI and/or the commanded end-effector pose (4x4, m)."""
+
+    __test__ = False  # not a pytest class
+
+    name: str
+    joints: np.ndarray | None = None
+    pose: np.ndarray | None = None
+
+
+@dataclass
+class Campaign:
+    name: str
+    poses: list
+    cycles: int = 30
+    dwell_s: float = 2.0
+    order: str = "cycle"
+    robot: str | None = None
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def names(self) -> list:
+        return [p.name for p in self.poses]
+
+    def joints_for(self, model) -> np.ndarray:
+        """(k, dof) joints of the test poses for ``model`` (IK for poses given as end-effector poses)."""
+        if self.robot and self.robot != model.name:
+            raise CampaignError(f"campaign {self.name!r} is for robot {self.robot!r}, not {model.name!r}")
+        out = []
+        for i, tp in enumerate(self.poses):
+            if tp.joints is not None:
+                out.append(model.check_joints(tp.joints, f"poses[{i}].joints")[0])
+            elif hasattr(model, "inverse_kinematics"):
+                out.append(np.asarray(model.inverse_kinematics(tp.pose[None]), dtype=float)[0])
+            else:
+                raise CampaignError(f"poses[{i}] ({tp.name}) is given as a pose, and robot {model.name!r} has no "
+                                    f"inverse kinematics: give its joints")
+        return np.array(out)
+
+    def sequence(self) -> list:
+        """[(pose index, cycle)] in visiting order."""
+        k = len(self.poses)
+        if self.order == "pose":
+            return [(i, c) for i in range(k) for c in range(self.cycles)]
+        return [(i, c) for c in range(self.cycles) for i in range(k)]
+
+
+def campaign_from_dict(data, dof=None) -> Campaign:
+    """Campaign from a parsed file (see the module docstring)."""
+    if not isinstance(data, dict):
+        raise CampaignError("campaign: expected a mapping")
+    extra = sorted(set(data) - _KEYS)
+    if extra:
+        raise CampaignError(f"campaign: unknown key(s) {extra}; allowed: {sorted(_KEYS)}")
+    units = data.get("units") or {}
+    try:
+        ls, as_ = length_scale(units.get("length", "m")), angle_scale(units.get("angle", "rad"))
+    except UnitError as exc:
+        raise CampaignError(str(exc)) from None
+    cycles = data.get("cycles", 30)
+    if not isinstance(cycles, int) or isinstance(cycles, bool) or cycles < 1:
+        raise CampaignError(f"cycles: expected a positive integer, got {cycles!r}")
+    dwell = data.get("dwell", 2.0)
+    try:
+        dwell = parse_number(dwell, "dwell")
+    except UnitError as exc:
+        raise CampaignError(str(exc)) from None
+    if dwell <= 0:
+        raise CampaignError("dwell: must be > 0 s")
+    order = data.get("order", "cycle")
+    if order not in ("cycle", "pose"):
+        raise CampaignError(f"order: expected 'cycle' or 'pose', got {order!r}")
+    raw = data.get("poses")
+    if not isinstance(raw, list) or not raw:
+        raise CampaignError("poses: expected a non-empty list")
+    poses, seen = [], set()
+    for i, p in enumerate(raw):
+        f = f"poses[{i}]"
+        if not isinstance(p, dict):
+            raise CampaignError(f"{f}: expected a mapping")
+        bad = sorted(set(p) - {"name", "joints", "pose", "joint_units"})
+        if bad:
+            raise CampaignError(f"{f}: unknown key(s) {bad}")
+        name = str(p.get("name", f"P{i + 1}"))
+        if name in seen:
+            raise CampaignError(f"{f}.name: duplicate test pose name {name!r}")
+        seen.add(name)
+        if ("joints" in p) == ("pose" in p):
+            raise CampaignError(f"{f}: give exactly one of 'joints' or 'pose'")
+        tp = TestPose(name)
+        try:
+            if "joints" in p:
+                j = p["joints"]
+                if not isinstance(j, list) or (dof is not None and len(j) != dof):
+                    raise CampaignError(f"{f}.joints: expected a list of {dof or 'n'} numbers")
+                kinds = p.get("joint_units")
+                vals = [parse_number(v, f"{f}.joints[{k}]") for k, v in enumerate(j)]
+                if kinds is None:
+                    tp.joints = np.array(vals) * as_  # revolute joints by default
+                else:
+                    if not isinstance(kinds, list) or len(kinds) != len(vals):
+                        raise CampaignError(f"{f}.joint_units: expected one of 'angle'/'length' per joint")
+                    tp.joints = np.array([v * (ls if k == "length" else as_) for v, k in zip(vals, kinds)])
+            else:
+                q = p["pose"]
+                if not isinstance(q, dict) or set(q) - {"xyz", "rpy"}:
+                    raise CampaignError(f"{f}.pose: expected {{xyz: [...], rpy: [...]}}")
+                xyz = [parse_number(v, f"{f}.pose.xyz[{k}]") * ls for k, v in enumerate(q.get("xyz", [0, 0, 0]))]
+                rpy = [parse_number(v, f"{f}.pose.rpy[{k}]") * as_ for k, v in enumerate(q.get("rpy", [0, 0, 0]))]
+                if len(xyz) != 3 or len(rpy) != 3:
+                    raise CampaignError(f"{f}.pose: xyz and rpy need three numbers each")
+                tp.pose = transform(xyz, rpy)
+        except UnitError as exc:
+            raise CampaignError(str(exc)) from None
+        poses.append(tp)
+    return Campaign(str(data.get("name", "campaign")), poses, cycles, float(dwell), order, data.get("robot"),
+                    {k: data[k] for k in ("description", "source", "notes") if k in data})
+
+
+def load_campaign(spec, model=None) -> Campaign:
+    """Campaign from a YAML path or a shipped name (``config/campaigns``)."""
+    path = resolve("campaigns", spec)
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except yaml.YAMLError as exc:
+        raise CampaignError(f"{path}: not valid YAML: {exc}") from None
+    try:
+        camp = campaign_from_dict(data, model.dof if model is not None else None)
+    except CampaignError as exc:
+        raise CampaignError(f"{path}: {exc}") from None
+    if model is not None and camp.robot and camp.robot != model.name:
+        raise CampaignError(f"{path}: campaign is for robot {camp.robot!r}, not {model.name!r}")
+    return camp
