@@ -121,3 +121,39 @@ def test_allocate_json_and_errors(capsys, tmp_path):
     assert code == 2 and "bogus" in err
     code, _, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "0mm", "--out", "-")
     assert code == 2 and "--limit" in err
+
+
+def _synthetic_campaign(tmp_path, gao):
+    from tolerance_ros.core.accuracy.io import Measurements, write_csv
+    from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.models.base import transform
+    delta = load_budget("gao2023_delta2", gao).vector_for(gao)
+    q = gao.sample_joints(60, 1)
+    T = measure(gao, q, as_built_errors(delta, 3), 1e-5, 1e-5, transform([1, 0, 0], [0, 0, 0.5]), seed=2)
+    m = Measurements(np.arange(60.0), T, q, gao.joint_names, np.array([""] * 60, dtype=object), np.full(60, -1))
+    return m, write_csv(tmp_path / "m.csv", m)
+
+
+def test_report_from_csv_and_from_a_rosbag_agree(capsys, tmp_path, gao):
+    from tolerance_ros.core.accuracy.io import write_rosbag
+    m, csv_path = _synthetic_campaign(tmp_path, gao)
+    write_rosbag(tmp_path / "bag", m, "mcap")
+    docs = []
+    for src in (csv_path, tmp_path / "bag"):
+        code, out, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", str(src), "--budget",
+                             "gao2023_delta2", "--json", "--out", str(tmp_path / ("r_" + src.stem)))
+        assert code == 0, err
+        docs.append(json.loads(out))
+    a, b = docs
+    assert a["summary"]["verdicts"] == b["summary"]["verdicts"]
+    assert a["summary"]["position_error_m"]["mean"] == pytest.approx(b["summary"]["position_error_m"]["mean"], rel=1e-6)
+    assert (tmp_path / "r_m" / "report.md").read_text().startswith("# Accuracy report")
+    assert (tmp_path / "r_m" / "error_vs_bound.png").exists()
+
+
+def test_report_bad_file_names_the_line(capsys, tmp_path):
+    p = tmp_path / "bad.csv"
+    p.write_text("stamp[s],x[mm],y[mm],z[mm],joint:joint1[rad]\n0,1,2,3,0\n")
+    code, _, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", str(p))
+    assert code == 2 and "no joint columns for" in err

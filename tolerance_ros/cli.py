@@ -347,6 +347,57 @@ def print_allocation(doc):
         print(f"plot: {p}")
 
 
+def cmd_report(args):
+    from .core.accuracy.report import evaluate_file, read_measurements
+    from .core.campaign import load_campaign
+    from .reporting import write_report
+    model = load_robot(args.robot)
+    budget = load_budget(args.budget, model) if args.budget else None
+    campaign = load_campaign(args.campaign, model) if args.campaign else None
+    if args.stream:
+        from .core.accuracy.report import stream_file
+        if args.registration == "base+tool":
+            raise CLIError("--stream: the tool offset needs all measurements at once; use --registration base")
+        res = stream_file(model, args.measurements, budget, campaign, registration=args.registration)
+        if args.json:
+            return res
+        s = res["summary"]
+        print(f"robot {model.name}: {res['measurements']} measurements streamed from {res['source']}; verdicts "
+              f"{s['verdicts']}; position error mean {s['position_error_m']['mean'] * 1e3:.4f} mm, max "
+              f"{s['position_error_m']['max'] * 1e3:.4f} mm")
+        return None
+    meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
+    res = evaluate_file(model, meas, budget, campaign, registration=args.registration)
+    files = write_report(res, args.out, model, budget) if args.out else {}
+    body = {k: v for k, v in res.items() if k != "rows"}
+    body["files"] = files
+    if args.json:
+        return body
+    s = res["summary"]
+    pe = s["position_error_m"]
+    print(f"robot {model.name}: {res['measurements']} measurements from {res['source']}"
+          + (f" ({len(meas.skipped)} malformed rows skipped)" if meas.skipped else ""))
+    print(f"registration residual RMS {res['registration']['residual_rms_m'] * 1e3:.4f} mm; position error mean "
+          f"{pe['mean'] * 1e3:.4f}, max {pe['max'] * 1e3:.4f} mm")
+    if budget is not None:
+        v = s["verdicts"]
+        print(f"budget: {v['within']} within the predicted bound, {v['over bound']} over it, {v['over limit']} over "
+              f"the limit")
+    if res.get("per_pose"):
+        rows = [[n, v["n"]] + ([f"{v[k] * 1e3:.4f}" for k in ("AP_p", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a")]
+                               if "AP_p" in v else ["-"] * 6) for n, v in res["per_pose"].items()]
+        print(table(["pose", "n", "AP_p mm", "AP_a mrad", "AP_b mrad", "AP_c mrad", "RP_l mm", "RP_a mrad"], rows))
+    ident = res.get("identification")
+    if ident:
+        oot = ident.get("out_of_tolerance", [])
+        print(f"identification: {len(oot)} parameter(s) out of tolerance"
+              + (": " + ", ".join(f"{o['name']} ({o['ratio']:.2f}x)" for o in oot) if oot else "")
+              + (f"; not separable: {', '.join(ident['unidentifiable'])}" if ident.get("unidentifiable") else ""))
+    for k, v in files.items():
+        for f in (v if isinstance(v, list) else [v]):
+            print(f"wrote {f}")
+
+
 def cmd_paper(args):
     if args.name != "gao2023":
         raise CLIError(f"paper: unknown paper {args.name!r}; known: gao2023")
@@ -546,6 +597,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="DIR", help="write convergence.png and error_histogram.png into DIR")
     p.set_defaults(func=cmd_allocate)
 
+    p = common(sub.add_parser("report", help="accuracy report of measured poses (ISO 9283, budget, identification)"))
+    p.add_argument("--measurements", required=True, help="CSV file, campaign log (.jsonl) or rosbag2 (dir, .db3, .mcap)")
+    p.add_argument("--budget", help="tolerance budget to check against")
+    p.add_argument("--campaign", help="campaign with the test poses (ISO 9283 statistics per pose)")
+    p.add_argument("--registration", choices=["base", "base+tool", "none"], default="base",
+                   help="estimate the base (and tool) transform, or take measurements as base-frame")
+    p.add_argument("--skip-bad", action="store_true", help="skip malformed rows (they are listed), instead of failing")
+    p.add_argument("--out", metavar="DIR", help="write report.md, plots, JSON and CSV into DIR")
+    p.add_argument("--stream", action="store_true", help="constant memory for large CSV files (summary only)")
+    p.set_defaults(func=cmd_report)
+
     p = common(sub.add_parser("paper", help="reproduce a source paper's figures"), robot=False)
     p.add_argument("name", help="gao2023")
     p.add_argument("--poses", type=int, default=10000)
@@ -565,7 +627,8 @@ def main(argv=None) -> int:
             parser.error(f"--{name.replace('_', '-')}: must be >= 1")
     try:
         out = args.func(args)
-    except (CLIError, ModelError, BudgetError, UnitError, FileNotFoundError, ValueError, NotImplementedError) as exc:
+    except (CLIError, ModelError, BudgetError, UnitError, FileNotFoundError, ValueError, NotImplementedError,
+            OSError) as exc:
         msg = str(exc).strip("'\"")
         if getattr(args, "json", False):
             print(dumps({"ok": False, "error": {"code": type(exc).__name__, "message": msg}}))

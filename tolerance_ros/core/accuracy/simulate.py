@@ -1,0 +1,43 @@
+"""A simulated measurement source: an as-built robot inside a tolerance budget, seen by a tracker.
+
+The as-built robot has parameter errors drawn within the budget (seeded); the tracker measures the
+tool pose in its own frame (``T_tracker_base`` maps base-frame poses into the tracker frame) with
+Gaussian noise on position (m) and orientation (rad, a small rotation about a random axis).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..analysis import sample_errors
+from ..models.base import Mechanism
+
+
+def as_built_errors(delta, seed=0, distribution="uniform") -> np.ndarray:
+    """(p,) parameter errors of one as-built robot within ``+-delta`` (SI)."""
+    return sample_errors(np.asarray(delta, dtype=float), 1, distribution, seed)[0]
+
+
+def _small_rotations(rng, n, sigma):
+    w = rng.standard_normal((n, 3)) * sigma
+    th = np.linalg.norm(w, axis=1)
+    k = np.where(th[:, None] > 0, w / np.where(th > 0, th, 1.0)[:, None], 0.0)
+    K = np.zeros((n, 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
+    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
+    return np.eye(3) + s * K + (1 - c) * K @ K
+
+
+def measure(model: Mechanism, q, dx=None, noise_position=0.0, noise_orientation=0.0, T_tracker_base=None,
+            seed=0) -> np.ndarray:
+    """(n, 4, 4) tracker readings of the as-built tool at joints q (n, dof)."""
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    T = model.fk(q, dx)
+    n = len(T)
+    if noise_orientation > 0:
+        T[:, :3, :3] = _small_rotations(rng, n, noise_orientation) @ T[:, :3, :3]
+    if noise_position > 0:
+        T[:, :3, 3] += rng.standard_normal((n, 3)) * noise_position
+    if T_tracker_base is not None:
+        T = np.asarray(T_tracker_base, dtype=float) @ T
+    return T

@@ -1,0 +1,191 @@
+"""Streaming evaluation of measurements: one code path for the live accuracy monitor and offline reports.
+
+``AccuracyAccumulator.add`` takes a batch of measurements (tracker-frame poses with the joint readings
+at their stamps), expresses them in the base frame through the registration, compares them with the
+nominal model and with the budget's predicted bound, and updates fixed-size aggregates: verdict
+counts, error statistics, per-test-pose samples (bounded by the campaign's cycles) and the normal
+equations of a linearised identification. Memory does not grow with the number of measurements.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .evaluate import BASE_NAMES, budget_check, pose_errors, predicted_bounds
+from .iso9283 import pose_characteristics
+
+
+class _Running:
+    """Count, mean, M2 (Welford) and max of a scalar stream."""
+
+    def __init__(self):
+        self.n, self.mean, self.m2, self.max = 0, 0.0, 0.0, -np.inf
+
+    def update(self, x):
+        x = np.asarray(x, float)
+        if x.size == 0:
+            return
+        n_b, mean_b = x.size, float(x.mean())
+        m2_b = float(np.sum((x - mean_b) ** 2))
+        n = self.n + n_b
+        d = mean_b - self.mean
+        self.mean += d * n_b / n
+        self.m2 += m2_b + d * d * self.n * n_b / n
+        self.n = n
+        self.max = max(self.max, float(x.max()))
+
+    def to_dict(self):
+        if not self.n:
+            return {"n": 0}
+        return {"n": self.n, "mean": self.mean, "std": float(np.sqrt(self.m2 / self.n)), "max": self.max}
+
+
+class AccuracyAccumulator:
+    """Accumulates accuracy statistics of a robot against its nominal model and tolerance budget.
+
+    model : Mechanism.  delta : (p,) budget tolerances (SI) or None.  criterion : 'paper' |
+    'worst-case' | 'rss' for the predicted bound.  limit / limit_orientation : design limits (m, rad).
+    T_tracker_base : 4x4 registration (identity: measurements already in the base frame).
+    tool_offset : (3,) m in the tool frame, removed from measurements.  campaign_joints : (k, dof)
+    test-pose joints with ``campaign_names``; a measurement belongs to a test pose when all its joints
+    are within ``pose_tolerance`` (rad or m) of it (or when labelled).
+    """
+
+    def __init__(self, model, delta=None, criterion="paper", limit=None, limit_orientation=None,
+                 T_tracker_base=None, tool_offset=None, campaign_joints=None, campaign_names=(), cycles=30,
+                 pose_tolerance=1e-3, k_sigma=3.0, identify=True):
+        self.model = model
+        self.delta = None if delta is None else np.asarray(delta, float)
+        self.criterion = criterion
+        self.k_sigma = k_sigma
+        self.limit, self.limit_orientation = limit, limit_orientation
+        self.T_base_tracker = np.linalg.inv(np.eye(4) if T_tracker_base is None else np.asarray(T_tracker_base, float))
+        self.tool_offset = None if tool_offset is None else np.asarray(tool_offset, float)
+        self.campaign_joints = None if campaign_joints is None else np.atleast_2d(np.asarray(campaign_joints, float))
+        self.campaign_names = list(campaign_names)
+        self.max_per_pose = 10 * cycles
+        self.pose_tolerance = pose_tolerance
+        self.per_pose = {n: [] for n in self.campaign_names}
+        self.per_pose_dropped = {n: 0 for n in self.campaign_names}
+        self.position = _Running()
+        self.orientation = _Running()
+        self.margin = _Running()
+        self.counts = {"within": 0, "over bound": 0, "over limit": 0, "no budget": 0}
+        self.worst = None
+        self.n = 0
+        p = model.n_params + 6
+        self.identify = identify
+        self.JtJ = np.zeros((p, p))
+        self.Jtr = np.zeros(p)
+        self.rtr = 0.0
+        self.rows = 0
+
+    def to_base(self, T_tracker) -> np.ndarray:
+        T = self.T_base_tracker @ np.asarray(T_tracker, float)
+        if self.tool_offset is not None:
+            T = T.copy()
+            T[:, :3, 3] -= np.einsum("nij,j->ni", T[:, :3, :3], self.tool_offset)
+        return T
+
+    def label(self, q) -> np.ndarray:
+        """(n,) campaign test-pose name of each configuration, or '' when none is close enough."""
+        q = np.atleast_2d(q)
+        if self.campaign_joints is None or not len(self.campaign_joints):
+            return np.array([""] * len(q), dtype=object)
+        d = np.abs(q[:, None, :] - self.campaign_joints[None]).max(axis=2)
+        k = np.argmin(d, axis=1)
+        return np.where(d[np.arange(len(q)), k] <= self.pose_tolerance, np.array(self.campaign_names, dtype=object)[k], "")
+
+    def add(self, T_tracker, q, labels=None) -> dict:
+        """Evaluate a batch: (n, 4, 4) tracker poses and (n, dof) joints; returns per-measurement arrays."""
+        q = self.model.check_joints(q)
+        T_meas = self.to_base(np.asarray(T_tracker, float).reshape(-1, 4, 4))
+        T_nom, EJ = self.model.fk_and_jacobian(q)
+        dp, dphi = pose_errors(T_nom, T_meas)
+        e_pos, e_ori = np.linalg.norm(dp, axis=1), np.linalg.norm(dphi, axis=1)
+        if self.delta is not None:
+            b_pos, b_ori = predicted_bounds(self.model, q, self.delta, self.criterion, self.k_sigma, EJ)
+            check = budget_check(e_pos, b_pos, self.limit, e_ori, b_ori if self.limit_orientation else None,
+                                 self.limit_orientation)
+        else:
+            check = {"error": e_pos, "bound": np.full(len(q), np.nan), "margin": np.full(len(q), np.nan),
+                     "verdict": np.array(["no budget"] * len(q), dtype=object)}
+            if self.limit is not None:
+                check["verdict"][e_pos > self.limit] = "over limit"
+        labels = self.label(q) if labels is None else np.asarray(labels, dtype=object)
+        self.n += len(q)
+        self.position.update(e_pos)
+        self.orientation.update(e_ori)
+        if self.delta is not None:
+            self.margin.update(check["margin"])
+        for v in check["verdict"]:
+            self.counts[v] = self.counts.get(v, 0) + 1
+        k = int(np.argmax(e_pos))
+        if self.worst is None or e_pos[k] > self.worst["error"]:
+            self.worst = {"error": float(e_pos[k]), "joints": q[k].tolist(), "label": str(labels[k])}
+        for i, name in enumerate(labels):
+            if name in self.per_pose:
+                if len(self.per_pose[name]) < self.max_per_pose:
+                    self.per_pose[name].append(T_meas[i])
+                else:
+                    self.per_pose_dropped[name] += 1
+        if self.identify:
+            self._normal_equations(T_nom, EJ, dp, dphi)
+        return {"position_error": e_pos, "orientation_error": e_ori, "dp": dp, "dphi": dphi, "label": labels, **check}
+
+    def _normal_equations(self, T_nom, EJ, dp, dphi):
+        n = len(dp)
+        p = T_nom[:, :3, 3]
+        Jb = np.zeros((n, 3, 6))
+        Jb[:, :, :3] = np.eye(3)
+        Jb[:, 0, 4], Jb[:, 0, 5] = p[:, 2], -p[:, 1]
+        Jb[:, 1, 3], Jb[:, 1, 5] = -p[:, 2], p[:, 0]
+        Jb[:, 2, 3], Jb[:, 2, 4] = p[:, 1], -p[:, 0]
+        J = np.concatenate([EJ.position, Jb], axis=2).reshape(-1, self.JtJ.shape[0])
+        r = dp.reshape(-1)
+        self.JtJ += J.T @ J
+        self.Jtr += J.T @ r
+        self.rtr += float(r @ r)
+        self.rows += len(r)
+
+    def commanded(self) -> dict:
+        """Nominal poses of the campaign test poses."""
+        if self.campaign_joints is None:
+            return {}
+        T = self.model.fk(self.campaign_joints)
+        return dict(zip(self.campaign_names, T))
+
+    def summary(self, sigma_position=1e-5) -> dict:
+        out = {"measurements": self.n, "verdicts": dict(self.counts),
+               "position_error_m": self.position.to_dict(), "orientation_error_rad": self.orientation.to_dict(),
+               "margin_m": self.margin.to_dict() if self.delta is not None else None, "worst": self.worst}
+        cmd = self.commanded()
+        out["test_poses"] = {}
+        for name, samples in self.per_pose.items():
+            entry = {"n": len(samples), "beyond_storage": self.per_pose_dropped[name]}
+            if len(samples) >= 2:
+                entry.update(pose_characteristics(cmd[name], np.array(samples)).to_dict())
+            out["test_poses"][name] = entry
+        if self.identify and self.rows:
+            out["identification"] = self.linear_identification(sigma_position)
+        return out
+
+    def linear_identification(self, sigma_position=1e-5) -> dict:
+        """One regularised least-squares step from the accumulated normal equations (positions)."""
+        p = self.model.n_params
+        scale = np.concatenate([np.where(self.delta > 0, self.delta, 1e-3) if self.delta is not None
+                                else np.full(p, 1e-3), np.full(6, 1e-3)])
+        prior = (sigma_position / scale) ** 2
+        A = self.JtJ + np.diag(prior)
+        x = np.linalg.solve(A, self.Jtr)
+        cov = np.linalg.inv(A) * sigma_position ** 2
+        names = tuple(self.model.param_names) + BASE_NAMES
+        res = {"parameters": [{"name": n, "error": float(v), "std": float(s)}
+                              for n, v, s in zip(names, x, np.sqrt(np.diag(cov)))],
+               "residual_rms_before_m": float(np.sqrt(self.rtr / self.rows)),
+               "out_of_tolerance": []}
+        if self.delta is not None:
+            for j, n in enumerate(self.model.param_names):
+                if self.delta[j] > 0 and abs(x[j]) > self.delta[j] and np.sqrt(cov[j, j]) < 0.5 * self.delta[j]:
+                    res["out_of_tolerance"].append({"name": n, "error": float(x[j]), "tolerance": float(self.delta[j]),
+                                                    "ratio": float(abs(x[j]) / self.delta[j])})
+        return res

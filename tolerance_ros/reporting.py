@@ -1,0 +1,159 @@
+"""Writes an accuracy report (Markdown, PNG plots, and the JSON and CSV behind them) from the dict of
+``tolerance_ros.core.accuracy.report.evaluate_file``. Lengths in mm and angles in mrad in the human
+report, as its headers say; JSON and CSV in SI."""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from .core.jsonio import dumps
+
+
+def _plots(res, out, budget_delta, names):
+    from . import plots as P
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    files = []
+    per = {k: v for k, v in res.get("per_pose", {}).items() if "AP_p" in v}
+    if per:
+        fig, ax = plt.subplots(figsize=(6, 3.6))
+        x = np.arange(len(per))
+        ax.bar(x - 0.2, [v["AP_p"] * 1e3 for v in per.values()], 0.4, label="AP_p (accuracy)")
+        ax.bar(x + 0.2, [v["RP_l"] * 1e3 for v in per.values()], 0.4, label="RP_l (repeatability)")
+        ax.set_xticks(x)
+        ax.set_xticklabels(list(per))
+        ax.set_ylabel("mm")
+        ax.set_title("ISO 9283 per test pose")
+        ax.legend()
+        fig.tight_layout()
+        files.append(P._save(fig, plt, out / "error_per_pose.png"))
+    rows = res.get("rows")
+    if rows is not None and np.isfinite(rows["bound"]).any():
+        fig, ax = plt.subplots(figsize=(5, 4.5))
+        ax.scatter(rows["bound"] * 1e3, rows["error"] * 1e3, s=6)
+        lim = max(float(np.nanmax(rows["bound"])), float(rows["error"].max())) * 1e3 * 1.05
+        ax.plot([0, lim], [0, lim], "r--", label="error = bound")
+        ax.set_xlabel("predicted bound [mm]")
+        ax.set_ylabel("measured error [mm]")
+        ax.set_title("Measured error vs the budget's bound")
+        ax.legend()
+        fig.tight_layout()
+        files.append(P._save(fig, plt, out / "error_vs_bound.png"))
+    ident = res.get("identification")
+    if ident and budget_delta is not None:
+        errs = {p["name"]: p["error"] for p in ident["parameters"]}
+        sel = [j for j, n in enumerate(names) if budget_delta[j] > 0 and n in errs]
+        ratio = [abs(errs[names[j]]) / budget_delta[j] for j in sel]
+        fig, ax = plt.subplots(figsize=(max(6, 0.3 * len(sel)), 3.6))
+        bad = set(ident.get("unidentifiable", []))
+        colors = ["lightgray" if names[j] in bad else ("tab:red" if r > 1 else "tab:blue") for j, r in zip(sel, ratio)]
+        ax.bar(np.arange(len(sel)), ratio, color=colors)
+        ax.axhline(1.0, color="tab:red", linestyle="--")
+        ax.set_xticks(np.arange(len(sel)))
+        ax.set_xticklabels([names[j] for j in sel], rotation=90, fontsize=7)
+        ax.set_ylabel("|identified error| / tolerance")
+        ax.set_title("Identified errors against tolerances (grey: not identifiable)")
+        fig.tight_layout()
+        files.append(P._save(fig, plt, out / "identified_vs_tolerance.png"))
+    return [str(f) for f in files]
+
+
+def write_report(res, out_dir, model, budget=None) -> dict:
+    """Write report.md, report.json, measurements.csv, per_pose.csv, identification.csv and plots."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    delta = budget.vector_for(model) if budget is not None else None
+    files = {"plots": _plots(res, out, delta, list(model.param_names))}
+    body = {k: v for k, v in res.items() if k != "rows"}
+    (out / "report.json").write_text(dumps(body, indent=1) + "\n")
+    files["json"] = str(out / "report.json")
+    rows = res.get("rows")
+    if rows is not None:
+        with (out / "measurements.csv").open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["stamp[s]", "pose", "dx[m]", "dy[m]", "dz[m]", "drx[rad]", "dry[rad]", "drz[rad]",
+                        "error[m]", "bound[m]", "margin[m]", "verdict"] + [f"joint:{n}" for n in model.joint_names])
+            for i in range(len(rows["error"])):
+                w.writerow([f"{rows['stamp'][i]:.6f}", rows["label"][i]] + [f"{v:.9g}" for v in rows["dp"][i]]
+                           + [f"{v:.9g}" for v in rows["dphi"][i]]
+                           + [f"{rows[k][i]:.9g}" for k in ("error", "bound", "margin")] + [rows["verdict"][i]]
+                           + [f"{v:.9g}" for v in rows["joints"][i]])
+        files["measurements_csv"] = str(out / "measurements.csv")
+    if res.get("per_pose"):
+        keys = ["n", "AP_p", "AP_x", "AP_y", "AP_z", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a", "RP_b", "RP_c"]
+        with (out / "per_pose.csv").open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["pose"] + [k + ("" if k == "n" else ("[m]" if k[-1] in "pxyzl" else "[rad]")) for k in keys])
+            for name, v in res["per_pose"].items():
+                w.writerow([name] + [v.get(k, "") for k in keys])
+        files["per_pose_csv"] = str(out / "per_pose.csv")
+    if res.get("identification"):
+        with (out / "identification.csv").open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["parameter", "error[SI]", "std[SI]", "tolerance[SI]", "identifiable"])
+            bad = set(res["identification"].get("unidentifiable", []))
+            for j, p in enumerate(res["identification"]["parameters"]):
+                tol = "" if delta is None or j >= len(delta) else f"{delta[j]:.9g}"
+                w.writerow([p["name"], f"{p['error']:.9g}", f"{p['std']:.9g}", tol, p["name"] not in bad])
+        files["identification_csv"] = str(out / "identification.csv")
+    (out / "report.md").write_text(markdown(res, model, budget, files))
+    files["markdown"] = str(out / "report.md")
+    return files
+
+
+def markdown(res, model, budget, files) -> str:
+    s = res["summary"]
+    L = [f"# Accuracy report: {model.name}", "", f"Measurements: {res['measurements']} from `{res['source']}`"
+         + (f"; {len(res['skipped_rows'])} malformed rows skipped (listed in report.json)" if res["skipped_rows"] else ""),
+         "", "## Registration", "",
+         f"Base -> tracker transform estimated from all measurements: residual RMS "
+         f"{res['registration']['residual_rms_m'] * 1e3:.4f} mm, max {res['registration']['residual_max_m'] * 1e3:.4f} mm.",
+         ""]
+    pe = s["position_error_m"]
+    L += ["## Errors (base frame, after registration)", "",
+          f"Position error: mean {pe['mean'] * 1e3:.4f} mm, std {pe['std'] * 1e3:.4f} mm, max {pe['max'] * 1e3:.4f} mm.",
+          ""]
+    if budget is not None:
+        v = s["verdicts"]
+        L += ["## Budget check", "",
+              f"Budget criterion '{budget.criterion}', limit {budget.limit_position * 1e3:g} mm: "
+              f"{v['within']} within the predicted bound, {v['over bound']} over it, {v['over limit']} over the limit.",
+              ""]
+    if res.get("per_pose"):
+        L += ["## ISO 9283 per test pose (mm, mrad)", "",
+              "| pose | n | AP_p | AP_x | AP_y | AP_z | AP_a | AP_b | AP_c | RP_l | RP_a | RP_b | RP_c |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for name, v in res["per_pose"].items():
+            if "AP_p" not in v:
+                L.append(f"| {name} | {v['n']} | " + " | ".join(["-"] * 11) + " |")
+                continue
+            L.append(f"| {name} | {v['n']} | " + " | ".join(
+                f"{v[k] * 1e3:.4f}" for k in ("AP_p", "AP_x", "AP_y", "AP_z", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a",
+                                               "RP_b", "RP_c")) + " |")
+        L.append("")
+    ident = res.get("identification")
+    if ident:
+        L += ["## Identified parameter errors", "",
+              f"Rank {ident.get('rank', '-')} of {ident.get('unknowns', '-')} unknowns"
+              + (f", condition {ident['condition']:.3g}" if "condition" in ident else "")
+              + f"; residual RMS {ident['residual_rms_before_m'] * 1e3:.4f} mm"
+              + (f" -> {ident['residual_rms_after_m'] * 1e3:.4f} mm" if "residual_rms_after_m" in ident else "") + ".",
+              ""]
+        if ident.get("unidentifiable"):
+            L += [f"Not separable from others with these poses: {', '.join(ident['unidentifiable'])}.", ""]
+        oot = ident.get("out_of_tolerance", [])
+        if oot:
+            L += ["Out of tolerance:", "", "| parameter | identified | tolerance | ratio |", "|---|---|---|---|"]
+            for o in oot:
+                unit, sc = ("mm", 1e3) if model.param_kinds[model.param_names.index(o["name"])] == "length" else ("mrad", 1e3)
+                L.append(f"| {o['name']} | {o['error'] * sc:+.4f} {unit} | {o['tolerance'] * sc:.4f} {unit} | "
+                         f"{o['ratio']:.2f} |")
+            L.append("")
+        elif budget is not None:
+            L += ["No identifiable parameter is out of tolerance.", ""]
+    if files.get("plots"):
+        L += ["## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in files["plots"]] + [""]
+    return "\n".join(L)
