@@ -7,6 +7,11 @@ import math
 
 import numpy as np
 
+try:
+    import orjson
+except ImportError:  # pragma: no cover - orjson is an install requirement; json is the fallback
+    orjson = None
+
 
 def to_jsonable(obj):
     """Recursively convert numpy arrays/scalars, tuples and non-finite floats to plain JSON values."""
@@ -31,3 +36,32 @@ def to_jsonable(obj):
 def dumps(obj, indent=None) -> str:
     """Strict JSON text (``allow_nan=False``) of ``obj`` after ``to_jsonable``."""
     return json.dumps(to_jsonable(obj), indent=indent, allow_nan=False)
+
+
+def dumps_fast(obj) -> str:
+    """Compact strict JSON, fast for large numpy arrays (orjson when installed); NaN/inf become null."""
+    if orjson is not None:
+        return orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
+                            default=_default).decode()
+    return json.dumps(to_jsonable(obj), allow_nan=False, separators=(",", ":"))
+
+
+def _default(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj)
+    if isinstance(obj, (set, frozenset)):
+        return sorted(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _reject_constant(name):
+    raise ValueError(f"{name} is not valid JSON (use finite numbers)")
+
+
+def loads_strict(text):
+    """Parse JSON text; NaN, Infinity and -Infinity are rejected (ValueError)."""
+    if orjson is not None:
+        return orjson.loads(text)
+    return json.loads(text, parse_constant=_reject_constant)
