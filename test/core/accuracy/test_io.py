@@ -1,9 +1,10 @@
-"""Readers: CSV (units, bad rows), campaign log, rosbag2 (sqlite3 and mcap) and stamp pairing."""
+"""Readers: CSV (units, bad rows), rosbag2 (sqlite3 and mcap) and stamp pairing (the campaign log is
+tested with the monitor that writes it)."""
 import numpy as np
 import pytest
 
-from tolerance_ros.core.accuracy.io import (Measurements, MeasurementError, log_record, pair_by_stamp, read_csv,
-                                            read_log, read_rosbag, write_csv, write_rosbag)
+from tolerance_ros.core.accuracy.io import (Measurements, MeasurementError, pair_by_stamp, read_csv, read_rosbag,
+                                            write_csv, write_rosbag)
 from tolerance_ros.core.models.base import transform
 
 
@@ -61,20 +62,6 @@ def test_skipping_bad_rows_lists_them(tmp_path):
     p.write_text("# c\nstamp[s],x[mm],y[mm],z[mm]\n0,1,2,3\n1,x,2,3\n2,1,2,3\n")
     m = read_csv(p, skip_bad=True)
     assert len(m) == 2 and m.skipped == [{"line": 4, "reason": "x: 'x' is not a number"}]
-
-
-def test_campaign_log_round_trip(tmp_path):
-    m = _meas()
-    path = tmp_path / "log.jsonl"
-    path.write_text("".join(log_record(m.stamps[i], m.T[i], m.joints[i], m.joint_names, m.pose[i], int(m.cycle[i]))
-                            + "\n" for i in range(len(m))))
-    back = read_log(path)
-    assert np.allclose(back.T, m.T, atol=1e-12) and np.allclose(back.joints, m.joints)
-    with path.open("a") as fh:
-        fh.write('{"stamp": 99, "position": [1, 2]}\n')
-    with pytest.raises(MeasurementError, match="line 13"):
-        read_log(path)
-    assert len(read_log(path, skip_bad=True).skipped) == 1
 
 
 @pytest.mark.parametrize("storage", ["sqlite3", "mcap"])

@@ -12,10 +12,13 @@ Rx(roll)``; optional, or ``qx qy qz qw`` quaternion columns instead), ``pose`` t
 Stamps must not decrease. A malformed row stops the read with its line number, unless the caller
 asks to skip bad rows; skipped rows are then listed, never dropped silently.
 
-Campaign log (JSON Lines, one object per measurement as it arrived; SI)::
+Campaign log of the accuracy monitor (JSON Lines of events, SI)::
 
-    {"stamp": 12.5, "position": [x, y, z], "quaternion": [qx, qy, qz, qw], "frame": "tracker",
-     "joint_names": [...], "joints": [...] | null, "pose": "P1" | null, "cycle": 0 | null, ...}
+    {"event": "measurement", "seq": 7, "stamp": 12.5, "frame": "tracker", "position": [x, y, z],
+     "quaternion": [qx, qy, qz, qw]}                        # written the moment it arrives
+    {"event": "paired", "seq": 7, "joint_stamp": 12.49, "joint_names": [...], "joints": [...],
+     "pose": "P1" | null, "verdict": "within", ...}           # written when its joint state is known
+    {"event": "unpaired", "seq": 8, "reason": "..."}
 """
 from __future__ import annotations
 
@@ -348,62 +351,46 @@ def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="
     return path
 
 
-def log_record(stamp, T, joints=None, joint_names=(), pose=None, cycle=None, **extra) -> str:
-    """One campaign-log line (JSON, SI) for a measurement as it arrives."""
-    rec = {"stamp": float(stamp), "position": [float(v) for v in T[:3, 3]],
-           "quaternion": [float(v) for v in matrix_to_quat(T[None, :3, :3])[0]],
-           "joint_names": list(joint_names), "joints": None if joints is None else [float(v) for v in joints],
-           "pose": pose, "cycle": cycle}
-    rec.update(extra)
-    return json.dumps(rec, allow_nan=False)
-
-
-def read_log(path, skip_bad: bool = False) -> Measurements:
-    """Measurements from the accuracy monitor's campaign log (JSON Lines)."""
+def read_log(path, skip_bad=False) -> Measurements:
+    """Measurements (with joints) rebuilt from the accuracy monitor's campaign log (JSON Lines of events:
+    ``measurement`` as it arrived, then ``paired`` or ``unpaired``); unpaired, rejected and undecided
+    measurements are listed in ``skipped`` with their reason."""
     path = Path(path)
     if not path.is_file():
         raise MeasurementError(f"{path}: file not found")
-    stamps, T, joints, names, poses, cycles, skipped = [], [], [], None, [], [], []
+    meas, pairs, skipped, names = {}, {}, [], None
     with path.open() as fh:
         for lineno, line in enumerate(fh, start=1):
             if not line.strip():
                 continue
             try:
                 rec = json.loads(line)
-                pos = np.array(rec["position"], dtype=float)
-                quat = np.array(rec["quaternion"], dtype=float)
-                if pos.shape != (3,) or quat.shape != (4,) or not (np.all(np.isfinite(pos)) and np.all(np.isfinite(quat))):
-                    raise MeasurementError("position needs 3 and quaternion 4 finite numbers")
-                Ti = np.eye(4)
-                Ti[:3, :3] = quat_to_matrix(quat)[0]
-                Ti[:3, 3] = pos
-                jn = tuple(rec.get("joint_names") or ())
-                if names is None:
-                    names = jn
-                elif jn and jn != names:
-                    raise MeasurementError(f"joint names changed from {list(names)} to {list(jn)}")
-                j = rec.get("joints")
-                stamp = float(rec["stamp"])
-            except (KeyError, TypeError, ValueError, json.JSONDecodeError) as exc:
-                msg = f"{path}, line {lineno}: {exc.__class__.__name__}: {exc}"
+                ev = rec.get("event")
+                if ev == "measurement":
+                    if "rejected" in rec:
+                        skipped.append({"seq": rec["seq"], "reason": rec["rejected"]})
+                    else:
+                        meas[rec["seq"]] = (float(rec["stamp"]), rec["position"], rec["quaternion"])
+                elif ev == "paired":
+                    pairs[rec["seq"]] = (rec["joints"], rec.get("pose") or "")
+                    names = names or tuple(rec["joint_names"])
+                elif ev == "unpaired":
+                    skipped.append({"seq": rec["seq"], "reason": rec["reason"]})
+            except (ValueError, KeyError, TypeError) as exc:
                 if not skip_bad:
-                    raise MeasurementError(msg) from None
+                    raise MeasurementError(f"{path}, line {lineno}: {exc}") from None
                 skipped.append({"line": lineno, "reason": str(exc)})
-                continue
-            stamps.append(stamp)
-            T.append(Ti)
-            joints.append(j)
-            poses.append(rec.get("pose") or "")
-            cycles.append(-1 if rec.get("cycle") is None else int(rec["cycle"]))
-    if not stamps:
-        raise MeasurementError(f"{path}: no measurements")
-    have = [j is not None for j in joints]
-    J = None
-    if all(have) and names:
-        J = np.array(joints, dtype=float)
-    order = np.argsort(np.array(stamps), kind="stable")
-    return Measurements(np.array(stamps)[order], np.array(T)[order], None if J is None else J[order], names or (),
-                        np.array(poses, dtype=object)[order], np.array(cycles)[order], True, str(path), skipped)
+    for seq in sorted(set(meas) - set(pairs) - {s.get("seq") for s in skipped}):
+        skipped.append({"seq": seq, "reason": "pairing not decided before the log ended"})
+    seqs = sorted(set(meas) & set(pairs))
+    if not seqs:
+        raise MeasurementError(f"{path}: no paired measurements")
+    T = np.tile(np.eye(4), (len(seqs), 1, 1))
+    T[:, :3, :3] = quat_to_matrix(np.array([meas[s][2] for s in seqs]))
+    T[:, :3, 3] = [meas[s][1] for s in seqs]
+    return Measurements(np.array([meas[s][0] for s in seqs]), T, np.array([pairs[s][0] for s in seqs], float),
+                        names or (), np.array([pairs[s][1] for s in seqs], dtype=object), np.full(len(seqs), -1),
+                        True, str(path), skipped)
 
 
 def pair_by_stamp(meas_stamps, state_stamps, slop: float) -> np.ndarray:

@@ -1,0 +1,114 @@
+"""The accuracy monitor's logic with real ROS 2 Jazzy message shapes (from the rosbags package)."""
+import json
+
+import numpy as np
+import pytest
+from rosbags.typesys import Stores, get_typestore
+
+from tolerance_ros.core.accuracy.io import MeasurementError, read_log
+from tolerance_ros.core.accuracy.simulate import SimulatedTracker
+from tolerance_ros.core.budget import load_budget
+from tolerance_ros.core.campaign import Campaign, TestPose
+from tolerance_ros.core.jsonio import dumps_fast
+from tolerance_ros.core.models.base import transform
+from tolerance_ros.core.monitor import ERROR, OK, WARN, MonitorLogic, pose_message_fields
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+T_TB = transform([1.5, 0.2, 0.0], [0, 0, 0.5])
+
+
+def time_msg(t):
+    ns = int(round(t * 1e9))
+    return TS.types["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+
+
+def joint_state(t, names, q):
+    return TS.types["sensor_msgs/msg/JointState"](
+        header=TS.types["std_msgs/msg/Header"](stamp=time_msg(t), frame_id=""), name=list(names),
+        position=np.asarray(q, float), velocity=np.zeros(0), effort=np.zeros(0))
+
+
+def pose_stamped(t, T):
+    sec, nsec, frame, p, q = pose_message_fields(t, T)
+    P, Q = TS.types["geometry_msgs/msg/Point"], TS.types["geometry_msgs/msg/Quaternion"]
+    return TS.types["geometry_msgs/msg/PoseStamped"](
+        header=TS.types["std_msgs/msg/Header"](stamp=TS.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                                               frame_id=frame),
+        pose=TS.types["geometry_msgs/msg/Pose"](position=P(x=p[0], y=p[1], z=p[2]),
+                                                orientation=Q(x=q[0], y=q[1], z=q[2], w=q[3])))
+
+
+@pytest.fixture
+def setup(gao, tmp_path):
+    budget = load_budget("gao2023_delta2", gao)
+    qk = gao.sample_joints(3, 1)
+    camp = Campaign("c", [TestPose(f"P{i + 1}", joints=qk[i]) for i in range(3)], cycles=5)
+    sim = SimulatedTracker(gao, budget.vector_for(gao), seed=2, T_tracker_base=T_TB)
+    clock = {"t": 0.0}
+    mon = MonitorLogic(gao, budget, camp, slop=0.01, max_wait=0.5, T_tracker_base=T_TB,
+                       log_path=tmp_path / "log.jsonl", clock=lambda: clock["t"])
+    return mon, sim, qk, clock, tmp_path / "log.jsonl"
+
+
+def test_pairs_measurements_and_rebuilds_from_the_log(gao, setup):
+    mon, sim, qk, clock, log = setup
+    t = 100.0
+    results = []
+    for cycle in range(5):
+        for k in range(3):
+            q = qk[k]
+            results += mon.on_joint_state_msg(joint_state(t - 0.004, gao.joint_names, q))
+            # The tracker reading arrives after the state at t - 4 ms and before the one at t + 6 ms.
+            results += mon.on_pose_msg(pose_stamped(t, sim.measure_at(q)))
+            results += mon.on_joint_state_msg(joint_state(t + 0.006, gao.joint_names, q))
+            t += 0.5
+    assert len(results) == 15 and mon.counts["paired"] == 15 and mon.counts["unpaired"] == 0
+    assert all(r["verdict"] == "within" for r in results)
+    rep = mon.report()
+    assert rep["summary"]["test_poses"]["P1"]["n"] == 5
+    assert json.loads(dumps_fast(rep))["counts"]["paired"] == 15
+    mon.close()
+    back = read_log(log)
+    assert len(back) == 15 and np.allclose(back.joints[0], qk[0]) and list(back.pose[:3]) == ["P1", "P2", "P3"]
+
+
+def test_unpaired_and_rejected_are_counted_logged_and_reported(gao, setup):
+    mon, sim, qk, clock, log = setup
+    mon.on_joint_state(10.0, gao.joint_names, qk[0])
+    mon.on_joint_state(11.0, gao.joint_names, qk[0])
+    assert mon.on_pose(10.5, "tracker", [1, 2, 3], [0, 0, 0, 1]) == []     # no state within 10 ms
+    mon.on_pose(12.0, "tracker", [1, 2, np.nan], [0, 0, 0, 1])            # rejected
+    assert mon.counts["unpaired"] == 1 and mon.counts["rejected"] == 1
+    mon.on_pose(13.0, "tracker", [1, 2, 3], [0, 0, 0, 1])                 # waits for a later state
+    assert len(mon.pending) == 1
+    clock["t"] = 10.0                                                      # max_wait elapsed
+    mon.resolve()
+    assert mon.counts["unpaired"] == 2 and not mon.pending
+    d = mon.diagnostic()
+    assert d["level"] == WARN and "2 unpaired and 1 rejected" in d["message"]
+    assert any("unpaired" in r for r in mon.report()["recent_issues"])
+    mon.close()
+    events = [json.loads(line)["event"] for line in log.read_text().splitlines()]
+    assert events.count("measurement") == 3 and events.count("unpaired") == 2
+    with pytest.raises(MeasurementError, match="no paired measurements"):
+        read_log(log)
+
+
+def test_joint_state_with_other_names_is_rejected_not_crashing(gao, setup):
+    mon, *_ = setup
+    assert mon.on_joint_state(1.0, ["a", "b"], [0, 0]) == []
+    assert mon.counts["joint_states_rejected"] == 1
+
+
+def test_diagnostic_levels(gao, setup):
+    mon, sim, qk, clock, log = setup
+    assert mon.diagnostic()["level"] == OK
+    mon.on_joint_state(1.0, gao.joint_names, qk[0])
+    T = sim.measure_at(qk[0])
+    T[:3, 3] += [0.01, 0, 0]  # 10 mm off: above the 1.4 mm limit
+    mon.on_pose(1.0, "tracker", T[:3, 3], pose_message_fields(1.0, T)[4])
+    mon.on_joint_state(1.01, gao.joint_names, qk[0])
+    d = mon.diagnostic()
+    assert d["level"] == ERROR and d["values"]["over_limit"] == "1"
+    mon.set_budget(None)
+    assert mon.diagnostic()["level"] == WARN

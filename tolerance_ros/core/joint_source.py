@@ -1,0 +1,58 @@
+"""Joint configurations over time for the joint-state publisher (ROS-free).
+
+Modes: 'campaign' (the test poses of a campaign, each held ``dwell`` seconds, for its cycles in its
+visiting order), 'random' (seeded uniform samples within the joint limits) and 'selected' (the
+configurations of highest pose-selection index F, eq. 25). With ``loop`` the sequence repeats;
+otherwise the last configuration is held once it has run out.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+MODES = ("campaign", "random", "selected")
+
+
+class JointStateSequence:
+    """``at(t)`` gives (step, label, joints (dof,), finished) for t seconds after the start."""
+
+    def __init__(self, model, mode="random", campaign=None, count=100, seed=0, dwell=None, loop=False):
+        if mode not in MODES:
+            raise ValueError(f"mode: expected one of {MODES}, got {mode!r}")
+        self.model = model
+        self.mode = mode
+        if mode == "campaign":
+            if campaign is None:
+                raise ValueError("mode 'campaign' needs a campaign")
+            joints = campaign.joints_for(model)
+            order = campaign.sequence()
+            self.q = np.array([joints[i] for i, _ in order])
+            self.labels = [campaign.poses[i].name for i, _ in order]
+            self.cycles = [c for _, c in order]
+            self.dwell = float(dwell if dwell is not None else campaign.dwell_s)
+        else:
+            if count < 1:
+                raise ValueError("count: must be >= 1")
+            if mode == "random":
+                self.q = model.sample_joints(count, seed)
+            else:
+                from .synthesis.search import select_poses
+                self.q = select_poses(model, count, seed=seed)
+            self.labels = [f"{mode}{k}" for k in range(len(self.q))]
+            self.cycles = [None] * len(self.q)
+            self.dwell = float(dwell if dwell is not None else 2.0)
+        if not self.dwell > 0:
+            raise ValueError("dwell: must be > 0 s")
+        self.loop = loop
+
+    def __len__(self):
+        return len(self.q)
+
+    def at(self, t: float):
+        k = int(max(t, 0.0) // self.dwell)
+        finished = False
+        if k >= len(self.q):
+            if self.loop:
+                k %= len(self.q)
+            else:
+                k, finished = len(self.q) - 1, True
+        return k, self.labels[k], self.q[k], finished

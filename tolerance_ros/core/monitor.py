@@ -1,0 +1,231 @@
+"""Logic of the accuracy monitor (ROS-free, duck-typed messages).
+
+Measured poses are paired with the joint state nearest to their stamp within ``slop`` seconds. A
+measurement waits until a joint state at or after its stamp has arrived (so that both neighbours are
+known), or until it is ``max_wait`` seconds old; then it is paired or counted as unpaired. Every
+measurement is written to the campaign log the moment it arrives, and its pairing (joints, test pose,
+verdict) when it is decided, so that a crash loses nothing and ``accuracy.io.read_log`` rebuilds the data.
+Nothing is dropped silently: rejected messages and unpaired measurements are counted, logged and
+reported.
+"""
+from __future__ import annotations
+
+import bisect
+import json
+import time
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+
+from .accuracy.io import matrix_to_quat, quat_to_matrix
+from .accuracy.stream import AccuracyAccumulator
+
+OK, WARN, ERROR = 0, 1, 2
+
+
+def stamp_of(msg) -> float:
+    """Seconds of a message's ``header.stamp`` (builtin_interfaces/Time: sec, nanosec)."""
+    st = msg.header.stamp
+    return float(st.sec) + float(st.nanosec) * 1e-9
+
+
+class MonitorLogic:
+    """See the module docstring. ``budget`` is a Budget or None; ``campaign`` a Campaign or None."""
+
+    def __init__(self, model, budget=None, campaign=None, slop=0.02, max_wait=1.0, T_tracker_base=None,
+                 tool_offset=None, log_path=None, pose_tolerance=1e-3, state_buffer=2000, clock=time.monotonic):
+        self.model = model
+        self.campaign = campaign
+        self.slop, self.max_wait = float(slop), float(max_wait)
+        self.T_tracker_base, self.tool_offset = T_tracker_base, tool_offset
+        self.pose_tolerance = pose_tolerance
+        self.clock = clock
+        self.states = deque(maxlen=state_buffer)  # (stamp, q) sorted by stamp
+        self.pending = deque()                    # (seq, stamp, T, arrival)
+        self.seq = 0
+        self.counts = {"received": 0, "paired": 0, "unpaired": 0, "rejected": 0, "joint_states": 0,
+                       "joint_states_rejected": 0}
+        self.last = None
+        self.last_reasons = deque(maxlen=20)
+        self.log = None
+        if log_path:
+            path = Path(log_path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self.log = path.open("a", buffering=1)
+            self._write({"event": "start", "robot": model.name, "joint_names": list(model.joint_names),
+                         "slop": self.slop, "wall_time": time.time()})
+        self.set_budget(budget)
+
+    def set_budget(self, budget):
+        """Use a new budget (Budget or None) from now on; statistics restart with it."""
+        self.budget = budget
+        delta = budget.vector_for(self.model) if budget is not None else None
+        names = self.campaign.names if self.campaign is not None else []
+        self.acc = AccuracyAccumulator(self.model, delta, budget.criterion if budget else "paper",
+                                       budget.limit_position if budget else None,
+                                       budget.limit_orientation if budget else None, self.T_tracker_base,
+                                       self.tool_offset,
+                                       self.campaign.joints_for(self.model) if self.campaign is not None else None,
+                                       names, self.campaign.cycles if self.campaign is not None else 30,
+                                       self.pose_tolerance, identify=False)
+        if self.log:
+            self._write({"event": "budget", "robot": budget.robot if budget else None,
+                         "source": budget.source if budget else None})
+
+    def _write(self, rec):
+        if self.log:
+            self.log.write(json.dumps(rec, allow_nan=False) + "\n")
+
+    def close(self):
+        if self.log:
+            self.log.close()
+            self.log = None
+
+    def on_joint_state(self, stamp, names, positions) -> list:
+        """Store a joint state (names in any order; extra joints ignored); returns newly decided results."""
+        names = list(names)
+        try:
+            idx = [names.index(n) for n in self.model.joint_names]
+            q = np.asarray(positions, dtype=float)[idx]
+            if not np.all(np.isfinite(q)):
+                raise ValueError("non-finite position")
+        except (ValueError, IndexError) as exc:
+            self.counts["joint_states_rejected"] += 1
+            self.last_reasons.append(f"joint state rejected: {exc} (names {names})")
+            return []
+        self.counts["joint_states"] += 1
+        if self.states and stamp < self.states[-1][0]:
+            k = bisect.bisect([s for s, _ in self.states], stamp)
+            self.states.insert(k, (stamp, q))
+        else:
+            self.states.append((stamp, q))
+        return self.resolve()
+
+    def on_pose(self, stamp, frame_id, position, quaternion) -> list:
+        """A measured pose (position m, quaternion x y z w); returns the results decided by it."""
+        self.counts["received"] += 1
+        seq = self.seq
+        self.seq += 1
+        vals = np.concatenate([np.asarray(position, float).ravel(), np.asarray(quaternion, float).ravel()])
+        rec = {"event": "measurement", "seq": seq, "stamp": stamp, "frame": frame_id,
+               "position": [float(v) if np.isfinite(v) else None for v in vals[:3]],
+               "quaternion": [float(v) if np.isfinite(v) else None for v in vals[3:]]}
+        if vals.shape != (7,) or not np.all(np.isfinite(vals)) or np.linalg.norm(vals[3:]) < 1e-9:
+            self.counts["rejected"] += 1
+            reason = "non-finite pose or zero quaternion"
+            self.last_reasons.append(f"measurement {seq} rejected: {reason}")
+            self._write({**rec, "rejected": reason})
+            return []
+        self._write(rec)
+        T = np.eye(4)
+        T[:3, :3] = quat_to_matrix(vals[3:])[0]
+        T[:3, 3] = vals[:3]
+        self.pending.append((seq, float(stamp), T, self.clock()))
+        return self.resolve()
+
+    def on_pose_msg(self, msg) -> list:
+        """Duck-typed geometry_msgs/PoseStamped."""
+        p, o = msg.pose.position, msg.pose.orientation
+        return self.on_pose(stamp_of(msg), msg.header.frame_id, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w))
+
+    def on_joint_state_msg(self, msg) -> list:
+        """Duck-typed sensor_msgs/JointState."""
+        return self.on_joint_state(stamp_of(msg), msg.name, msg.position)
+
+    def resolve(self, now=None) -> list:
+        """Decide pending measurements whose neighbours are known or whose wait is over."""
+        now = self.clock() if now is None else now
+        newest = self.states[-1][0] if self.states else -np.inf
+        decided = []
+        keep = deque()
+        while self.pending:
+            item = self.pending.popleft()
+            seq, t, T, arrival = item
+            if newest >= t or newest >= t + self.slop or now - arrival >= self.max_wait:
+                decided.append(self._pair(seq, t, T))
+            else:
+                keep.append(item)
+        self.pending = keep
+        return [d for d in decided if d is not None]
+
+    def _nearest_state(self, t):
+        """(stamp, q) of the stored joint state nearest to t within slop, else None (newest first)."""
+        best = None
+        for s, q in reversed(self.states):
+            if s < t - self.slop:
+                break
+            if abs(s - t) <= self.slop and (best is None or abs(s - t) < abs(best[0] - t)):
+                best = (s, q)
+        return best
+
+    def _pair(self, seq, t, T):
+        found = self._nearest_state(t)
+        if found is None:
+            stamps = [s for s, _ in self.states]
+            self.counts["unpaired"] += 1
+            reason = (f"no joint state within {self.slop} s of stamp {t:.6f}"
+                      + (f" (nearest {min(abs(s - t) for s in stamps):.4f} s away)" if stamps else " (none received)"))
+            self.last_reasons.append(f"measurement {seq} unpaired: {reason}")
+            self._write({"event": "unpaired", "seq": seq, "reason": reason})
+            return None
+        joint_stamp, q = found
+        r = self.acc.add(T[None], q[None])
+        self.counts["paired"] += 1
+        res = {"seq": seq, "stamp": t, "joints": q, "label": str(r["label"][0]), "verdict": str(r["verdict"][0]),
+               "position_error": float(r["position_error"][0]), "orientation_error": float(r["orientation_error"][0]),
+               "bound": float(r["bound"][0]), "margin": float(r["margin"][0]), "dp": r["dp"][0]}
+        self.last = res
+        self._write({"event": "paired", "seq": seq, "joint_stamp": joint_stamp, "joint_names": list(self.model.joint_names),
+                     "joints": [float(v) for v in q], "pose": res["label"] or None, "verdict": res["verdict"],
+                     "position_error": res["position_error"],
+                     "bound": res["bound"] if np.isfinite(res["bound"]) else None})
+        return res
+
+    def diagnostic(self) -> dict:
+        """DiagnosticStatus content: level (0 OK, 1 WARN, 2 ERROR), name, message, key values (strings)."""
+        c, v = self.counts, self.acc.counts
+        level, msg = OK, "measurements within the predicted bound"
+        if self.budget is None:
+            level, msg = WARN, "no tolerance budget yet"
+        if c["unpaired"] or c["rejected"]:
+            level, msg = WARN, f"{c['unpaired']} unpaired and {c['rejected']} rejected measurement(s)"
+        if v.get("over bound"):
+            level, msg = WARN, f"{v['over bound']} measurement(s) above the predicted bound"
+        if v.get("over limit"):
+            level, msg = ERROR, f"{v['over limit']} measurement(s) above the design limit"
+        if c["received"] == 0:
+            msg = "waiting for measured poses" if level == OK else msg
+        pe = self.acc.position.to_dict()
+        values = {"received": c["received"], "paired": c["paired"], "unpaired": c["unpaired"],
+                  "rejected": c["rejected"], "pending": len(self.pending), "within": v.get("within", 0),
+                  "over_bound": v.get("over bound", 0), "over_limit": v.get("over limit", 0),
+                  "position_error_mean_m": pe.get("mean"), "position_error_max_m": pe.get("max"),
+                  "last_position_error_m": self.last["position_error"] if self.last else None,
+                  "last_bound_m": self.last["bound"] if self.last else None,
+                  "budget": (self.budget.source or self.budget.robot) if self.budget else "none"}
+        return {"level": level, "name": "tolerance_ros: accuracy monitor", "message": msg,
+                "hardware_id": self.model.name, "values": {k: _fmt(val) for k, val in values.items()}}
+
+    def report(self) -> dict:
+        """JSON-ready report: counts, the accumulator summary (per test pose ISO 9283), the last result."""
+        last = None if self.last is None else {k: v for k, v in self.last.items() if k != "dp"}
+        return {"robot": self.model.name, "counts": dict(self.counts), "pending": len(self.pending),
+                "recent_issues": list(self.last_reasons), "summary": self.acc.summary(), "last": last,
+                "budget": None if self.budget is None else {"source": self.budget.source,
+                                                             "criterion": self.budget.criterion,
+                                                             "limit_position_m": self.budget.limit_position}}
+
+
+def _fmt(v):
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def pose_message_fields(stamp, T, frame_id="tracker"):
+    """Plain values for a PoseStamped: (sec, nanosec, frame_id, position (3,), quaternion x y z w)."""
+    ns = int(round(stamp * 1e9))
+    return ns // 1_000_000_000, ns % 1_000_000_000, frame_id, T[:3, 3].copy(), matrix_to_quat(T[None, :3, :3])[0]
