@@ -82,6 +82,16 @@ def test_fk_and_joint_columns_match_pinocchio(seed):
             assert np.allclose(Jp[:, i], col, atol=1e-12)
 
 
+def test_small_and_large_batches_agree():
+    """Few poses and many poses take different code paths; both give the same columns."""
+    rng = np.random.default_rng(12)
+    model = random_dh(rng, dof=6)
+    q = model.sample_joints(300, rng)
+    J = model.error_jacobian(q).J
+    pieces = np.concatenate([model.error_jacobian(q[a:a + 7]).J for a in range(0, 300, 7)])
+    assert np.allclose(J, pieces, atol=1e-15)
+
+
 def test_perturbed_pinocchio_model_matches_perturbed_fk():
     rng = np.random.default_rng(9)
     model = random_dh(rng, dof=5)

@@ -19,6 +19,7 @@ import numpy as np
 from .base import PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError, cross3
 
 CONVENTIONS = ("standard", "modified")
+SMALL_BATCH = 64  # up to this many poses the Jacobian columns are built all at once
 KINDS = ("a", "d", "alpha", "theta")
 
 
@@ -135,14 +136,25 @@ class DHChain(Mechanism):
         if not jacobian:
             return T, None
         Jt = np.zeros((4 * dof, 6, n))
-        for k, kind in enumerate(KINDS):
-            for i, (u, o) in enumerate(lines[kind]):
-                col = Jt[k * dof + i]
-                if kind in ("a", "d"):
-                    col[:3] = u
-                else:
-                    col[:3] = cross3(u, Pend - o)
-                    col[3:] = u
+        if n > SMALL_BATCH:
+            # Many poses: one column at a time keeps the arrays contiguous and the copies few.
+            for k, kind in enumerate(KINDS):
+                for i, (u, o) in enumerate(lines[kind]):
+                    col = Jt[k * dof + i]
+                    if kind in ("a", "d"):
+                        col[:3] = u
+                    else:
+                        col[:3] = cross3(u, Pend - o)
+                        col[3:] = u
+        else:
+            # Few poses (a live monitor, one request): all columns at once, fewer numpy calls.
+            Jt[:2 * dof, :3] = [u for kind in ("a", "d") for u, _ in lines[kind]]
+            U = np.array([u for kind in ("alpha", "theta") for u, _ in lines[kind]])            # (2 dof, 3, n)
+            arm = Pend - np.array([o for kind in ("alpha", "theta") for _, o in lines[kind]])  # (2 dof, 3, n)
+            Jt[2 * dof:, 0] = U[:, 1] * arm[:, 2] - U[:, 2] * arm[:, 1]
+            Jt[2 * dof:, 1] = U[:, 2] * arm[:, 0] - U[:, 0] * arm[:, 2]
+            Jt[2 * dof:, 2] = U[:, 0] * arm[:, 1] - U[:, 1] * arm[:, 0]
+            Jt[2 * dof:, 3:] = U
         return T, ErrorJacobian(Jt.transpose(2, 1, 0), self.param_names, self.param_units)
 
     def to_pinocchio(self, dx=None):
