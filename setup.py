@@ -28,7 +28,8 @@ setup(
     packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
     data_files=data_files,
     python_requires=">=3.10",
-    install_requires=["numpy>=1.24", "scipy>=1.10", "PyYAML>=6", "matplotlib>=3.6", "pin>=2.7", "rosbags>=0.10"],
+    install_requires=["numpy>=1.24", "scipy>=1.10", "PyYAML>=6", "matplotlib>=3.6", "pin>=2.7", "rosbags>=0.10",
+                      "orjson>=3.6"],
     extras_require={"test": ["pytest>=7", "hypothesis>=6", "jsonschema>=4", "example-robot-data>=4"]},
     zip_safe=False,
     maintainer="tolerance_ros maintainers",
@@ -39,6 +40,11 @@ setup(
     entry_points={
         "console_scripts": [
             "tolerance-ros = tolerance_ros.cli:main",
+            "joint_state_source = tolerance_ros.nodes.joint_state_source:main",
+            "error_model_server = tolerance_ros.nodes.error_model_server:main",
+            "tolerance_allocator = tolerance_ros.nodes.tolerance_allocator:main",
+            "accuracy_monitor = tolerance_ros.nodes.accuracy_monitor:main",
+            "simulated_tracker = tolerance_ros.nodes.simulated_tracker:main",
         ],
     },
 )

@@ -1,0 +1,86 @@
+"""The package in a ROS 2 workspace: colcon build, ros2 launch, ros2 topic pub/echo, ros2 param
+(skipped unless ROS 2 Jazzy is sourced and colcon is installed)."""
+import os
+import shutil
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+pytestmark = pytest.mark.skipif(not (os.environ.get("ROS_DISTRO") and shutil.which("ros2") and shutil.which("colcon")),
+                                reason="ROS 2 Jazzy is not sourced or colcon is not installed")
+
+
+def sh(cmd, env, timeout=120, check=True):
+    out = subprocess.run(["bash", "-c", cmd], env=env, capture_output=True, text=True, timeout=timeout)
+    if check and out.returncode != 0:
+        raise AssertionError(f"{cmd}\n{out.stdout}\n{out.stderr}")
+    return out
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory):
+    ws = tmp_path_factory.mktemp("ws")
+    shutil.copytree(ROOT, ws / "src" / "tolerance_ros",
+                    ignore=shutil.ignore_patterns(".git", ".venv", "build", "install", "log", "__pycache__",
+                                                  ".pytest_cache", ".hypothesis", "*.egg-info"))
+    env = dict(os.environ, ROS_DOMAIN_ID=str(150 + os.getpid() % 50), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    sh(f"cd {ws} && colcon build --packages-select tolerance_ros", env, timeout=300)
+    env["WS"] = str(ws)
+    return env
+
+
+def test_colcon_install_layout(workspace):
+    out = sh("source $WS/install/setup.bash && ros2 pkg executables tolerance_ros", workspace).stdout
+    for exe in ("joint_state_source", "error_model_server", "tolerance_allocator", "accuracy_monitor",
+                "simulated_tracker"):
+        assert f"tolerance_ros {exe}" in out
+    share = Path(workspace["WS"]) / "install" / "tolerance_ros" / "share" / "tolerance_ros"
+    for rel in ("package.xml", "launch/accuracy_suite.launch.py", "config/accuracy_suite.yaml",
+                "config/robots/gao2023_7dof.yaml", "schemas/compute_error_jacobian.request.json"):
+        assert (share / rel).exists(), rel
+
+
+def test_launch_pub_echo_and_params(workspace, tmp_path):
+    launch = subprocess.Popen(["bash", "-c", "source $WS/install/setup.bash && exec ros2 launch tolerance_ros "
+                               "accuracy_suite.launch.py"], env=workspace, stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            nodes = sh("source $WS/install/setup.bash && ros2 node list", workspace, check=False).stdout
+            if "/tolerance_error_model" in nodes and "/tolerance_simulated_tracker" in nodes:
+                break
+            time.sleep(1)
+        echo = subprocess.Popen(["bash", "-c", "source $WS/install/setup.bash && exec ros2 topic echo --once "
+                                 "/tolerance/compute_error_jacobian/response std_msgs/msg/String"],
+                                env=workspace, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                start_new_session=True)
+        time.sleep(3)
+        req = ('{data: \'{"id": "cli-1", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6], "outputs": "position", '
+               '"include_jacobian": false}\'}')
+        pub = subprocess.run(["bash", "-c", 'source $WS/install/setup.bash && exec ros2 topic pub --once -w 1 '
+                              '/tolerance/compute_error_jacobian/request std_msgs/msg/String "$0"', req],
+                             env=workspace, capture_output=True, text=True, timeout=60)
+        assert pub.returncode == 0, pub.stderr
+        out, _ = echo.communicate(timeout=30)
+        assert '"id":"cli-1","ok":true' in out
+        time.sleep(3)
+        diag = sh("source $WS/install/setup.bash && timeout 10 ros2 topic echo --once /diagnostics "
+                  "diagnostic_msgs/msg/DiagnosticArray", workspace).stdout
+        assert "tolerance_ros: accuracy monitor" in diag and "key: paired" in diag
+        desc = sh("source $WS/install/setup.bash && ros2 param describe /tolerance_accuracy_monitor slop",
+                  workspace).stdout
+        assert "joint state" in desc
+    finally:
+        os.killpg(launch.pid, signal.SIGINT)
+        try:
+            out, _ = launch.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            os.killpg(launch.pid, signal.SIGKILL)
+            out, _ = launch.communicate()
+        sh("source $WS/install/setup.bash && ros2 daemon stop", workspace, check=False)
+    assert "Traceback" not in out, out

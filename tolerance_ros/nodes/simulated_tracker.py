@@ -1,0 +1,62 @@
+"""Simulated laser tracker (node ``tolerance_simulated_tracker``): an as-built robot drawn within a
+tolerance budget (seeded), measurement noise and a base-frame offset; subscribes to ``joint_states``
+and publishes ``measured_pose`` (PoseStamped, tracker frame) stamped like the joint state."""
+from __future__ import annotations
+
+from geometry_msgs.msg import PoseStamped
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from ..core.accuracy.simulate import SimulatedTracker
+from ..core.budget import load_budget
+from ..core.models import load_robot
+from ..core.models.base import transform
+from ..core.monitor import pose_message_fields
+from .common import STREAM_QOS, declare, run
+
+
+class SimulatedTrackerNode(Node):
+    def __init__(self, **node_options):
+        super().__init__("tolerance_simulated_tracker", **node_options)
+        robot = declare(self, "robot", "gao2023_7dof", "robot config: shipped name or YAML/URDF path")
+        budget = declare(self, "budget", "gao2023_delta2", "budget within which the as-built errors are drawn")
+        seed = declare(self, "seed", 0, "seed of the as-built robot and of the noise")
+        noise_p = declare(self, "noise_position", 1e-5, "tracker position noise (1 sigma), m")
+        noise_o = declare(self, "noise_orientation", 1e-5, "tracker orientation noise (1 sigma), rad")
+        base = declare(self, "tracker_to_base", [0.0] * 6,
+                       "pose of the robot base in the tracker frame, [x y z roll pitch yaw] (m, rad)")
+        self.frame_id = declare(self, "frame_id", "tracker", "frame_id of the measured poses")
+        self.every = max(1, declare(self, "measure_every", 1, "measure every n-th joint state"))
+        model = load_robot(robot)
+        delta = load_budget(budget, model).vector_for(model)
+        self.sim = SimulatedTracker(model, delta, seed, noise_p, noise_o, transform(base[:3], base[3:]))
+        self.pub = self.create_publisher(PoseStamped, "measured_pose", STREAM_QOS)
+        self.create_subscription(JointState, "joint_states", self.on_joint_state, STREAM_QOS)
+        self.count = 0
+        self.get_logger().info(f"simulating {model.name} built within {budget} (seed {seed})")
+
+    def on_joint_state(self, msg):
+        self.count += 1
+        if (self.count - 1) % self.every:
+            return
+        try:
+            T = self.sim.on_joint_state(msg.name, msg.position)
+        except ValueError as exc:
+            self.get_logger().warning(f"joint state ignored: {exc}")
+            return
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        sec, nsec, frame, p, q = pose_message_fields(stamp, T, self.frame_id)
+        out = PoseStamped()
+        out.header.stamp.sec, out.header.stamp.nanosec, out.header.frame_id = sec, nsec, frame
+        out.pose.position.x, out.pose.position.y, out.pose.position.z = (float(v) for v in p)
+        o = out.pose.orientation
+        o.x, o.y, o.z, o.w = (float(v) for v in q)
+        self.pub.publish(out)
+
+
+def main(args=None):
+    run(SimulatedTrackerNode, args)
+
+
+if __name__ == "__main__":
+    main()
