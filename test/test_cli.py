@@ -157,3 +157,21 @@ def test_report_bad_file_names_the_line(capsys, tmp_path):
     p.write_text("stamp[s],x[mm],y[mm],z[mm],joint:joint1[rad]\n0,1,2,3,0\n")
     code, _, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", str(p))
     assert code == 2 and "no joint columns for" in err
+
+
+def test_the_3pups_robot_through_the_existing_subcommands(capsys, tmp_path):
+    code, out, _ = run(capsys, "sensitivity", "--robot", "rong2018_3pups", "--samples", "200", "--quiet", "--json")
+    doc = json.loads(out)
+    assert code == 0 and len(doc["parameters"]) == 27
+    code, out, _ = run(capsys, "verify", "--robot", "rong2018_3pups", "--tolerances", "rong2018_table1", "--samples",
+                       "500", "--errors", "normal", "--quiet", "--json", "--plot", str(tmp_path))
+    doc = json.loads(out)
+    assert code == 0 and doc["position_m"]["limit"] == pytest.approx(4e-5) and (tmp_path / "error_histogram.png").exists()
+    code, out, _ = run(capsys, "jacobian", "--robot", "rong2018_3pups", "--random", "2", "--json")
+    assert code == 0 and np.array(json.loads(out)["jacobian"]).shape == (2, 6, 27)
+
+
+def test_paper_rong2018_prints_the_studies(capsys, tmp_path):
+    code, out, _ = run(capsys, "paper", "rong2018", "--no-synthesis", "--quiet", "--plot", str(tmp_path))
+    assert code == 0 and "Fig. 3" in out and "Table 3" in out and "PE6" in out
+    assert (tmp_path / "rong2018_fig3.png").exists()

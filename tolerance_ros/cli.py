@@ -172,14 +172,15 @@ def cmd_sensitivity(args):
         return out
     lu = args.length_unit
     scale = 1.0 / parse_quantity(f"1{lu}")
-    unit_row = "m" if args.rows == "position" else "rad"
     print(f"robot {model.name}: sensitivity over {sens.samples} poses (seed {args.seed}), {args.rows} rows; "
           f"salience with lengths in {lu}")
     rows = []
     for j in np.argsort(-sens.salience, kind="stable"):
         u = model.param_units[j]
-        shown = scale if args.rows == "position" else 1.0
-        row = [model.param_names[j], f"{unit_row}->{lu if args.rows == 'position' else 'rad'}/{u}",
+        shown = scale if args.rows == "position" and u == "rad" else 1.0
+        per = "mm" if u == "m" else "rad"
+        row = [model.param_names[j], (f"{lu}/{per}" if u == "rad" else "m/m") if args.rows == "position"
+               else f"rad/{per}",
                fmt(sens.mu_mean[j] * shown), fmt(sens.mu_max[j] * shown), f"{sens.salience[j] * 100:.2f}"]
         if ceil is not None:
             c = ceil[j] / (parse_quantity(f"1{lu}") if u == "m" else 1.0)
@@ -399,8 +400,10 @@ def cmd_report(args):
 
 
 def cmd_paper(args):
+    if args.name == "rong2018":
+        return cmd_paper_rong2018(args)
     if args.name != "gao2023":
-        raise CLIError(f"paper: unknown paper {args.name!r}; known: gao2023")
+        raise CLIError(f"paper: unknown paper {args.name!r}; known: gao2023, rong2018")
     from .core import gao2023
     prog = Progress("gao2023 analysis", not args.quiet)
     res = gao2023.reproduce(n_poses=args.poses, seed=args.seed, progress=prog)
@@ -422,6 +425,82 @@ def cmd_paper(args):
     if args.json:
         return res
     print_gao2023(res)
+
+
+def cmd_paper_rong2018(args):
+    from .core import rong2018
+    from .core.accuracy.io import read_csv
+    from .core.resources import config_dir
+    prog = Progress("rong2018", not args.quiet)
+    model, campaign = load_robot(rong2018.ROBOT), None
+    from .core.campaign import load_campaign
+    campaign = load_campaign(rong2018.CAMPAIGN, model)
+    prog(0, 3)
+    res = {"fig3": rong2018.fig3_study(model, campaign, seed=args.seed % 1000)}
+    prog(1, 3)
+    if not args.no_synthesis:
+        res["grades"] = rong2018.grades(model, seed=args.seed % 1000)
+    prog(2, 3)
+    path = config_dir() / "data" / rong2018.EXAMPLE_CSV
+    meas = read_csv(path)
+    res["table3"] = rong2018.table3(campaign, model, {n: meas.T[meas.pose == n] for n in campaign.names})
+    res["table3"]["source"] = str(path)
+    prog(3, 3)
+    if args.plot:
+        from . import plots as P
+        f = res["fig3"]
+        mags = np.array(f["magnitudes_m"]) * 1e3
+        series = {}
+        for g in ("a", "b", "l"):
+            sw = f["sweep"][g]
+            series[f"d{g}1 position [um]"] = np.array(sw["position_m"]).mean(axis=0) * 1e6
+            series[f"d{g}1 orientation [urad]"] = np.array(sw["orientation_rad"]).mean(axis=0) * 1e6
+        res["plots"] = [str(P.line_plot(mags, series, Path(args.plot) / "rong2018_fig3.png", "|error| [mm]",
+                                        "um / urad", "Fig. 3: platform error vs source error (mean over PE1-PE6)"))]
+    if args.json:
+        return res
+    print_rong2018(res)
+
+
+def print_rong2018(res):
+    f = res["fig3"]
+    print("Rong, Han, Liu, Qu (2018): 3-PUPS parallel manipulator, error analysis.")
+    print(f"\nFig. 3: limb {f['limb']} sources swept 0.001-0.01 mm along their worst direction; errors at 0.01 mm "
+          f"(position um / orientation urad):")
+    rows = []
+    for k, name in enumerate(f["test_poses"]):
+        rows.append([name] + [f"{f['sweep'][g]['position_m'][k][-1] * 1e6:.3f} / "
+                              f"{f['sweep'][g]['orientation_rad'][k][-1] * 1e6:.2f}" for g in ("a", "b", "l")])
+    print(table(["pose", "da1", "db1", "dl1"], rows))
+    print("\nPaper's conclusion 'da and db dominate, dl is weak', by the direction the error vectors are taken along:")
+    print(table(["direction", "verdict", "meaning"], [[k, v, f["conventions"][k]] for k, v in f["verdict"].items()],
+                ["<", "<", "<"]))
+    sal = f["salience"]["position"]["all_limbs"]
+    print(f"salience by group (position, all limbs): a {sal['a']:.3f}, b {sal['b']:.3f}, l {sal['l']:.3f}")
+    print(f"note: {f['facts']['note']}")
+    if "grades" in res:
+        g = res["grades"]
+        print(f"\nTable 1, ISO 286 grades from an allocation ({g['criterion']}, {g['model_type']}; limits "
+              f"{g['limits']['position_m'] * 1e3:g} mm and {np.degrees(g['limits']['orientation_rad']):g} deg; "
+              f"{g['status']}):")
+        print(table(["fit", "size mm", "tolerance um", "grade", "paper"],
+                    [[x["fit"], x["size_mm"], f"{x['tolerance_m'] * 1e6:.2f}", f"IT{x['grade']}" if x["grade"] else "-",
+                      f"IT{x['paper_grade']} ({x['paper_fit']})"] for x in g["fits"]], ["<", ">", ">", ">", "<"]))
+        ps = g["paper_set"]
+        print(f"the paper's grades as tolerances: position up to {ps['position']['rss_max'] * 1e3:.4f} mm (rss), "
+              f"{ps['position']['worst_case_max'] * 1e3:.4f} mm (worst case) against {ps['position']['limit'] * 1e3:g} mm")
+    t = res["table3"]
+    print(f"\nTable 3 from {t['source']} (simulated measurements, 30 cycles; mean error, mm and deg), beside the "
+          f"published values:")
+    rows = []
+    for r in t["rows"]:
+        me, pub, iso = r["mean_error"], r["published"], r["iso9283"]
+        rows.append([r["pose"], r["n"]] + [f"{me[k] * 1e3:+.4f} ({pub[k] * 1e3:.3f})" for k in ("dX", "dY", "dZ")]
+                    + [f"{np.degrees(me[k]):+.4f} ({np.degrees(pub[k]):.3f})" for k in ("dalpha", "dbeta", "dgamma")]
+                    + [f"{iso['AP_p'] * 1e3:.4f}", f"{iso['RP_l'] * 1e3:.4f}"])
+    print(table(["pose", "n", "dX", "dY", "dZ", "dalpha", "dbeta", "dgamma", "AP_p mm", "RP_l mm"], rows))
+    for p in res.get("plots", []):
+        print(f"plot: {p}")
 
 
 def print_gao2023(res):
@@ -609,11 +688,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_report)
 
     p = common(sub.add_parser("paper", help="reproduce a source paper's figures"), robot=False)
-    p.add_argument("name", help="gao2023")
+    p.add_argument("name", help="gao2023 or rong2018")
     p.add_argument("--poses", type=int, default=10000)
     p.add_argument("--seed", type=int, default=2023)
     p.add_argument("--plot", metavar="DIR", help="write the figures into DIR")
-    p.add_argument("--no-synthesis", action="store_true", help="only the analysis (Fig. 2, Tables 3-5 inputs)")
+    p.add_argument("--no-synthesis", action="store_true", help="only the analysis, no allocation")
     p.add_argument("--ga-tol", type=int, default=1000, help="GA: Tol of section 4.3")
     p.set_defaults(func=cmd_paper)
     return parser

@@ -8,7 +8,6 @@ import pytest
 
 from tolerance_ros.core.contracts import (ContractError, ErrorModelService, Limits, parse_allocate_request,
                                           run_allocation)
-from tolerance_ros.core.models import load_robot
 
 SCHEMAS = Path(__file__).resolve().parents[2] / "schemas"
 

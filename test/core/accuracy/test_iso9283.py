@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from tolerance_ros.core.accuracy.iso9283 import iso_cube_points, pose_characteristics, rpy_from_matrix, wrap
+from tolerance_ros.core.accuracy.iso9283 import iso_cube_points, pose_characteristics, wrap
+from tolerance_ros.core.models.base import rpy_from_matrix
 from tolerance_ros.core.models.base import rpy_to_matrix, transform
 
 

@@ -1,4 +1,4 @@
 """Measured against nominal: ISO 9283 characteristics, registration, budget checks, identification."""
-from .iso9283 import PoseCharacteristics, iso_cube_points, pose_characteristics, rpy_from_matrix, wrap
+from .iso9283 import PoseCharacteristics, iso_cube_points, pose_characteristics, wrap
 
-__all__ = ["PoseCharacteristics", "iso_cube_points", "pose_characteristics", "rpy_from_matrix", "wrap"]
+__all__ = ["PoseCharacteristics", "iso_cube_points", "pose_characteristics", "wrap"]

@@ -30,9 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..models.base import rpy_to_matrices
+from ..models.base import rpy_from_matrix, rpy_to_matrices
 from ..units import ANGLE_UNITS, LENGTH_UNITS
-from .iso9283 import rpy_from_matrix
 
 _COL = re.compile(r"^\s*([A-Za-z_][\w:.\-/]*)\s*(?:\[\s*([^\]]*)\s*\])?\s*$")
 

@@ -17,20 +17,13 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ..models.base import rpy_from_matrix
+
 
 def wrap(angle):
     """Angles wrapped to (-pi, pi]."""
     a = np.asarray(angle, dtype=float)
     return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
-
-
-def rpy_from_matrix(R) -> np.ndarray:
-    """(n, 3) roll, pitch, yaw (rad) of (n, 3, 3) rotations, ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
-    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
-    pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
-    roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
-    yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
-    return np.stack([roll, pitch, yaw], axis=1)
 
 
 @dataclass

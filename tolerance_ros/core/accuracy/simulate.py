@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..analysis import sample_errors
-from ..models.base import Mechanism
+from ..models.base import Mechanism, exp_so3
 
 
 def as_built_errors(delta, seed=0, distribution="uniform") -> np.ndarray:
@@ -18,14 +18,7 @@ def as_built_errors(delta, seed=0, distribution="uniform") -> np.ndarray:
 
 
 def _small_rotations(rng, n, sigma):
-    w = rng.standard_normal((n, 3)) * sigma
-    th = np.linalg.norm(w, axis=1)
-    k = np.where(th[:, None] > 0, w / np.where(th > 0, th, 1.0)[:, None], 0.0)
-    K = np.zeros((n, 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
-    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
-    return np.eye(3) + s * K + (1 - c) * K @ K
+    return exp_so3(rng.standard_normal((n, 3)) * sigma)
 
 
 def measure(model: Mechanism, q, dx=None, noise_position=0.0, noise_orientation=0.0, T_tracker_base=None,

@@ -163,6 +163,15 @@ class Mechanism(ABC):
             raise ModelError("dx: parameter errors must be finite")
         return arr
 
+    def search_space(self):
+        """Coordinates for local searches of the workspace: (bounds (k, 2), to_joints, from_joints).
+
+        Serial chains search their joints directly (``to_joints`` is None). A parallel mechanism, whose
+        actuated joints are not free coordinates, searches its platform pose instead; its
+        ``to_joints`` maps (m, k) coordinates to (m, dof) joints with NaN rows where out of reach.
+        """
+        return self.joint_limits, None, None
+
     def with_joint_limits(self, limits) -> "Mechanism":
         """A copy of the model with other joint limits ((dof, 2), SI)."""
         lim = np.asarray(limits, dtype=float)
@@ -196,6 +205,29 @@ def rpy_to_matrices(rpy) -> np.ndarray:
     return np.stack([np.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr], -1),
                      np.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr], -1),
                      np.stack([-sp, cp * sr, cp * cr], -1)], 1)
+
+
+def rpy_from_matrix(R) -> np.ndarray:
+    """(n, 3) roll, pitch, yaw (rad) of (n, 3, 3) rotations, ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
+    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
+    pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
+    roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
+    yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
+    return np.stack([roll, pitch, yaw], axis=1)
+
+
+def exp_so3(w) -> np.ndarray:
+    """(n, 3, 3) rotation matrices ``exp([w]x)`` of (n, 3) rotation vectors (rad)."""
+    w = np.asarray(w, dtype=float).reshape(-1, 3)
+    th = np.linalg.norm(w, axis=1)
+    small = th < 1e-8
+    safe = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th ** 2 / 6.0, np.sin(th) / safe)
+    c = np.where(small, 0.5 - th ** 2 / 24.0, (1.0 - np.cos(th)) / safe ** 2)
+    K = np.zeros((len(w), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+    return np.eye(3) + a[:, None, None] * K + c[:, None, None] * K @ K
 
 
 def transform(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> np.ndarray:

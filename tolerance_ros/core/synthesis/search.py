@@ -62,33 +62,52 @@ def maximize(model, f, n_samples=20000, n_starts=12, seed=0, q_extra=None, upper
              maxiter=200) -> SearchResult:
     """Largest value of ``f`` (vectorised: (m, dof) -> (m,)) over the joint space of ``model``."""
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    q = model.sample_joints(n_samples, rng)
+    q = model.sample_joints(n_samples, rng) if n_samples else np.zeros((0, model.dof))
     idx, vals, evals = top_samples(f, q, n_starts, upper)
     starts = q[idx]
     if q_extra is not None and len(q_extra):
         starts = np.vstack([starts, np.atleast_2d(q_extra)])
-    lo, hi = model.joint_limits[:, 0], model.joint_limits[:, 1]
-    dof = model.dof
+    bounds, to_joints, from_joints = model.search_space()
+    lo, hi = bounds[:, 0], bounds[:, 1]
+    starts_x = starts if from_joints is None else from_joints(starts)
+    dof = len(lo)
     eye = np.eye(dof) * h
     counter = {"n": 0}
+
+    def g(x):
+        """f at search coordinates x (m, k); unreachable points are -inf."""
+        if to_joints is None:
+            return f(x)
+        qq = to_joints(x)
+        ok = ~np.isnan(qq).any(axis=1)
+        out = np.full(len(x), -np.inf)
+        if ok.any():
+            out[ok] = f(qq[ok])
+        return out
 
     def fun(x):
         pts = np.vstack([x, x + eye, x - eye])
         pts = np.clip(pts, lo, hi)
-        v = f(pts)
+        v = g(pts)
         counter["n"] += len(pts)
+        if not np.isfinite(v[0]):
+            return 1e300, np.zeros(dof)
+        v = np.where(np.isfinite(v), v, v[0])
         step = pts[1:dof + 1] - pts[dof + 1:]
         span = np.einsum("ii->i", step)
         grad = (v[1:dof + 1] - v[dof + 1:]) / np.where(span > 0, span, 1.0)
         return -v[0], -grad
 
     maxima_q, maxima = [], []
-    for x0 in starts:
+    for x0 in starts_x:
         res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=list(zip(lo, hi)),
                        options={"maxiter": maxiter, "ftol": 1e-15, "gtol": 1e-12})
         x = np.clip(res.x, lo, hi)
-        maxima_q.append(x)
-        maxima.append(float(f(x[None])[0]))
+        value = float(g(x[None])[0])
+        if not np.isfinite(value):  # the search left the reachable set: keep its start
+            x, value = x0, float(g(np.asarray(x0)[None])[0])
+        maxima_q.append(x if to_joints is None else to_joints(x[None])[0])
+        maxima.append(value)
     maxima_q, maxima = np.array(maxima_q), np.array(maxima)
     sample_best = float(vals[0]) if len(vals) else -np.inf
     order = np.argsort(-maxima, kind="stable")

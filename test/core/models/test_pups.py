@@ -1,0 +1,306 @@
+"""The 3-PUPS model: kinematics, the completed error transfer G, variants, sampling, file validation."""
+import copy
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from helpers import fd_jacobian, pose_difference
+from tolerance_ros.core import analysis
+from tolerance_ros.core.campaign import load_campaign
+from tolerance_ros.core.models import ModelError, load_robot
+from tolerance_ros.core.models.base import rpy_to_matrix, transform
+from tolerance_ros.core.models.pups import PUPS3, axis_rotation, pups_from_dict
+from tolerance_ros.core.resources import config_dir
+
+DEG = np.pi / 180
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_robot("rong2018_3pups")
+
+
+@pytest.fixture(scope="module")
+def raw():
+    return yaml.safe_load((config_dir() / "robots" / "rong2018_3pups.yaml").read_text())
+
+
+@pytest.fixture(scope="module")
+def pe(model):
+    camp = load_campaign("rong2018_pe", model)
+    return np.array([tp.pose for tp in camp.poses]), camp.joints_for(model)
+
+
+@pytest.fixture(scope="module")
+def ws(model):
+    return model.sample_poses(150, seed=11)
+
+
+def test_loaded_model(model):
+    assert isinstance(model, PUPS3) and model.variant == "3-PUPS"
+    assert model.joint_names == ("a1", "a2", "a3", "psi1", "psi2", "psi3", "l1", "l2", "l3")
+    assert model.param_names[:9] == ("a1.x", "a1.y", "a1.z", "b1.x", "b1.y", "b1.z", "l1.x", "l1.y", "l1.z")
+    assert model.n_params == 27 and not model.nominal.any()
+    # Units converted from the file's mm and deg.
+    assert model.c == pytest.approx(0.09)
+    np.testing.assert_allclose(model.joint_limits[0], [0.2, 0.3])
+    np.testing.assert_allclose(model.joint_limits[3], [-np.pi / 4, np.pi / 4])
+
+
+def test_ik_then_fk_round_trip(model, pe, ws):
+    T = np.concatenate([pe[0], ws[1]])
+    q, theta = model.inverse_kinematics(T, passive=True)
+    np.testing.assert_allclose(model.fk(q), T, atol=1e-12)
+    np.testing.assert_allclose(model.passive_angles(q), theta, atol=1e-10)
+    np.testing.assert_allclose(q[:, :3], 0.25)  # the redundancy rule: free sliders at mid-travel
+    # The test poses can be reached with the sliders anywhere in their travel.
+    a = np.random.default_rng(1).uniform(0.2, 0.3, (len(pe[0]), 3))
+    q2 = model.inverse_kinematics(pe[0], a=a)
+    np.testing.assert_allclose(q2[:, :3], a)
+    np.testing.assert_allclose(model.fk(q2), pe[0], atol=1e-12)
+
+
+def test_pe_joints_by_hand(model, pe):
+    """PE1 is symmetric: every leg reaches from A_i (250 mm from O) to C_i (90 mm from the axis)."""
+    q = pe[1][0]
+    np.testing.assert_allclose(q[6:], np.hypot(1.3, 0.25 - 0.09))
+    np.testing.assert_allclose(q[3:6], 0.0, atol=1e-15)
+
+
+def _random_dx(rng, n, scale=1e-6):
+    return rng.uniform(-scale, scale, (n, 27))
+
+
+def test_G_against_the_nonlinear_loops(model, pe, ws):
+    q = np.concatenate([pe[1], ws[0]])
+    G = model.error_jacobian(q).J
+    rng = np.random.default_rng(7)
+    dx = _random_dx(rng, len(q))
+    T0 = model.fk(q)
+    d1 = pose_difference(model.fk(q, dx), T0)
+    lin = np.einsum("nrp,np->nr", G, dx)
+    scale = np.abs(lin).max(axis=1, keepdims=True)
+    assert np.max(np.abs(d1 - lin) / scale) < 1e-4
+    # The remainder is of second order: halving the errors quarters it.
+    d2 = pose_difference(model.fk(q, dx / 2), T0)
+    r1, r2 = np.abs(d1 - lin).max(), np.abs(d2 - lin / 2).max()
+    assert r2 < 0.3 * r1
+
+
+def test_G_against_central_differences(model, pe, ws):
+    q = np.concatenate([pe[1], ws[0][:10]])
+    G = model.error_jacobian(q).J
+    fd = fd_jacobian(lambda p: model.fk(q, p), np.zeros(27), h=1e-6)
+    assert np.abs(G - fd).max() < 1e-6 * np.abs(G).max()
+
+
+def test_G_contains_the_papers_projected_equations(model, pe):
+    """Rows of eq. 8: w_i dp - (w_i x R c_i) dphi = w_i (da_i + R_Ai db_i + R_Ai R_Bi dl_i)."""
+    T, q = pe
+    G = model.error_jacobian(q).J
+    theta = model.passive_angles(q)
+    for n in range(len(q)):
+        R, p = T[n, :3, :3], T[n, :3, 3]
+        for i in range(3):
+            RA = axis_rotation(2, model.slider_angles[i])
+            A = -q[n, i] * RA[:, 0]
+            Rc = R @ model.c_local[i]
+            w = (p + Rc - A) / q[n, 6 + i]
+            RB = axis_rotation(0, q[n, 3 + i]) @ axis_rotation(1, theta[n, i])
+            lhs = w @ G[n, :3] - np.cross(w, Rc) @ G[n, 3:]
+            rhs = np.zeros(27)
+            rhs[9 * i:9 * i + 3], rhs[9 * i + 3:9 * i + 6], rhs[9 * i + 6:9 * i + 9] = w, w @ RA, w @ RA @ RB
+            np.testing.assert_allclose(lhs, rhs, atol=1e-12)
+
+
+def test_passive_joint_absorbs_the_lateral_leg_error(model, ws):
+    """li.x moves C_i along the passive joint's tangent: no first-order effect."""
+    G = model.error_jacobian(ws[0]).J
+    idx = model.param_index(["l1.x", "l2.x", "l3.x"])
+    assert np.abs(G[:, :, idx]).max() < 1e-12 * np.abs(G).max()
+
+
+@settings(deadline=None, max_examples=20)
+@given(x=st.floats(-0.5, 0.5), y=st.floats(-0.5, 0.5), z=st.floats(1.2, 1.5), roll=st.floats(-15, 15),
+       pitch=st.floats(-15, 15), yaw=st.floats(-35, 35))
+def test_limb_symmetry(model, x, y, z, roll, pitch, yaw):
+    """Turning the whole configuration by 120 deg about z moves limb i's role to limb i + 1."""
+    T = transform([x, y, z], np.array([roll, pitch, yaw]) * DEG)
+    try:
+        q = model.inverse_kinematics(T)
+    except ModelError:
+        assume(False)
+    Rz = axis_rotation(2, 2 * np.pi / 3)
+    S = np.eye(4)
+    S[:3, :3] = Rz
+    T2 = S @ T @ S.T
+    perm = np.array([2, 0, 1])
+    q2 = model.inverse_kinematics(T2)
+    np.testing.assert_allclose(q2, q[:, np.concatenate([perm, perm + 3, perm + 6])], atol=1e-12)
+    G, G2 = model.error_jacobian(q).J[0], model.error_jacobian(q2).J[0]
+    Q = np.kron(np.eye(2), Rz)
+    for j in range(3):
+        old, new = 9 * perm[j], 9 * j
+        np.testing.assert_allclose(G2[:, new:new + 3], Q @ G[:, old:old + 3] @ Rz.T, atol=1e-10)
+        np.testing.assert_allclose(G2[:, new + 3:new + 9], Q @ G[:, old + 3:old + 9], atol=1e-10)
+
+
+@pytest.mark.parametrize("xyz, rpy, reason", [
+    ([0, 0, 2000], [0, 0, 0], "leg l1 = "),
+    ([0, 0, 1000], [0, 0, 0], "leg l1 = "),
+    # Limb 1 (A_1 at x = -250 mm, C_1 at x + 90 mm): theta1 = asin(1160 / hypot(1160, 1000)) = 49.24 deg.
+    ([1000, 0, 1000], [0, 0, 0], "passive U-joint angle theta1 = 49.236"),
+    # Sideways for limb 1: psi1 = -atan(1100 / 1000) = -47.73 deg.
+    ([0, 1100, 1000], [0, 0, 0], "U-joint angle psi1 = -47.726"),
+])
+def test_unreachable_poses_name_the_pose_and_the_reason(model, xyz, rpy, reason):
+    T = transform(np.array(xyz) * 1e-3, np.array(rpy) * DEG)
+    with pytest.raises(ModelError) as exc:
+        model.inverse_kinematics(T)
+    msg = str(exc.value)
+    assert reason in msg and "outside" in msg
+    assert f"xyz = {[float(v) for v in xyz]} mm" in msg
+
+
+def test_literal_eq2_axes_make_pe1_singular(raw, pe):
+    """With eq. 2's axes taken literally (psi about y, theta about x) the symmetric pose PE1 is a
+    forward-kinematic singularity: the passive joints let the platform turn about z."""
+    data = dict(raw, u_joint_axes=["y", "x"])
+    lit = pups_from_dict(data)
+    with pytest.raises(ModelError, match="J1 is singular"):
+        lit.inverse_kinematics(pe[0][0])
+    # Its forward kinematics has other assemblies close by (at PE4 and PE5 the start leads to one with
+    # the same joints and another orientation), so G is checked where the assembly is the commanded one.
+    T = pe[0][1:3]
+    q = lit.inverse_kinematics(T)
+    np.testing.assert_allclose(lit.fk(q), T, atol=1e-12)
+    G = lit.error_jacobian(q).J
+    fd = fd_jacobian(lambda p: lit.fk(q, p), np.zeros(27), h=1e-6)
+    assert np.abs(G - fd).max() < 1e-6 * np.abs(G).max()
+
+
+def test_joints_that_cannot_close_the_loop(model, ws):
+    bad = np.array([0.3, 0.2, 0.3, 0.26, np.pi / 4, -np.pi / 4, 1.1, 1.6, 1.6])
+    with pytest.raises(ModelError, match="cannot close the platform triangle"):
+        model.fk(bad)
+    q = np.vstack([ws[0][:2], bad])
+    T, J = model.tolerant().fk_and_jacobian(q)
+    assert np.isnan(T[2]).all() and np.isnan(J.J[2]).all()
+    np.testing.assert_allclose(T[:2], ws[1][:2], atol=1e-12)
+
+
+def test_sample_joints_deterministic_and_reachable(model):
+    q = model.sample_joints(300, seed=5)
+    np.testing.assert_array_equal(q, model.sample_joints(300, seed=5))
+    assert not np.array_equal(q, model.sample_joints(300, seed=6))
+    assert not model.out_of_limits(q).any()
+    T = model.fk(q)
+    x = np.concatenate([T[:, :3, 3], np.array([[0, 0, 0]] * len(T))], axis=1)
+    lo, hi = model.workspace[:, 0], model.workspace[:, 1]
+    assert np.all((x[:, :3] >= lo[:3]) & (x[:, :3] <= hi[:3]))
+    np.testing.assert_allclose(model.inverse_kinematics(T), q, atol=1e-10)
+    th = model.passive_angles(q)
+    assert np.all(np.abs(th) <= model.theta_range[1])
+
+
+def test_analysis_runs_unchanged(model):
+    sens = analysis.sensitivity(model, 300, seed=1)
+    assert sens.salience.sum() == pytest.approx(1.0)
+    delta = np.full(27, 5e-6)
+    lin = analysis.monte_carlo(model, delta, n=300, distribution="uniform", seed=2, method="linear")
+    non = analysis.monte_carlo(model, delta, n=300, distribution="uniform", seed=2, method="nonlinear")
+    np.testing.assert_allclose(non.position, lin.position, rtol=1e-4, atol=1e-12)
+    np.testing.assert_allclose(non.orientation, lin.orientation, rtol=1e-4, atol=1e-12)
+
+
+# ------------------------------------------------------------------ metamorphic variants
+
+
+def test_3ups_sliders_locked(model, ws):
+    ups = model.with_locked(a=[0.22, 0.25, 0.28])
+    assert ups.variant == "3-UPS"
+    np.testing.assert_allclose(ups.joint_limits[:3], [[0.22, 0.22], [0.25, 0.25], [0.28, 0.28]])
+    q = ups.inverse_kinematics(ws[1])
+    np.testing.assert_allclose(q[:, :3], np.broadcast_to([0.22, 0.25, 0.28], (len(q), 3)))
+    np.testing.assert_allclose(ups.fk(q), ws[1], atol=1e-12)
+    with pytest.raises(ModelError, match="a1 is locked at 0.22"):
+        ups.fk(model.inverse_kinematics(ws[1][:1]))
+    qs = ups.sample_joints(50, seed=3)
+    np.testing.assert_allclose(qs[:, :3], np.broadcast_to([0.22, 0.25, 0.28], (50, 3)))
+
+
+@pytest.mark.parametrize("locked, variant", [({"psi": [0.0] * 3}, "3-PRPS"),
+                                             ({"a": [0.25] * 3, "psi": [0.0] * 3}, "3-RPS"),
+                                             ({"psi": [0.05, None, None]}, "asymmetric")])
+def test_locked_u_joints_confine_the_platform(model, locked, variant):
+    v = model.with_locked(**locked)
+    assert v.variant == variant
+    q, T = v.sample_poses(40, seed=4)
+    np.testing.assert_allclose(v.fk(q), T, atol=1e-12)
+    for i, psi in enumerate(locked["psi"]):
+        if psi is None:
+            continue
+        np.testing.assert_allclose(q[:, 3 + i], psi)
+        # C_i stays in the plane through the slider axis turned by psi_i about it.
+        RA = axis_rotation(2, v.slider_angles[i])
+        n = RA @ axis_rotation(0, psi)[:, 1]
+        C = T[:, :3, 3] + np.einsum("nij,j->ni", T[:, :3, :3], v.c_local[i])
+        np.testing.assert_allclose(C @ n, 0.0, atol=1e-12)
+    # Moving only the free actuators keeps the mobility: 6 for free sliders alone would be too many.
+    free = [j for j in range(9) if v.joint_limits[j, 0] < v.joint_limits[j, 1]]
+    J = np.stack([pose_difference(v.fk(q[:1] + e), v.fk(q[:1] - e))[0] / 2e-7
+                  for e in np.eye(9)[free] * 1e-7], axis=1)
+    assert np.linalg.matrix_rank(J, tol=1e-6) == 6 - len([p for p in locked["psi"] if p is not None])
+    with pytest.raises(ModelError, match="off the plane of limb 1"):
+        v.inverse_kinematics(transform([0.1, 0.05, 1.3], [0.1, 0.05, 0.2]))
+
+
+def test_locked_variant_from_the_file(raw, tmp_path):
+    path = tmp_path / "ups.yaml"
+    path.write_text(yaml.safe_dump(dict(raw, name="rong_3ups", locked={"a": [250, 250, 250]})))
+    ups = load_robot(path)
+    assert ups.variant == "3-UPS" and ups.name == "rong_3ups"
+    np.testing.assert_allclose(ups.joint_limits[:3], 0.25)
+
+
+# ------------------------------------------------------------------ invalid files
+
+
+@pytest.mark.parametrize("change, field", [
+    ({"platform_radius": None}, "platform_radius"),
+    ({"platform_radius": -90}, "platform_radius"),
+    ({"leg_length": [1600, 1100]}, "leg_length"),
+    ({"leg_length": [1100]}, "leg_length"),
+    ({"slider_travel": [200, "wide"]}, "slider_travel[1]"),
+    ({"u_joint_axes": ["x", "z"]}, "u_joint_axes"),
+    ({"units": {"length": "furlong"}}, "units.length"),
+    ({"workspace": {"x": [-1, 1]}}, "workspace"),
+    ({"workspace_box": {}}, "unknown key"),
+    ({"locked": {"l": [1300, 1300, 1300]}}, "locked.l"),
+    ({"locked": {"a": [250, 350, 250]}}, "locked.a[1]"),
+    ({"locked": {"a": [250, 250]}}, "locked.a"),
+    ({"redundancy": {"a": [250, 250, 100]}}, "redundancy.a"),
+    ({"slider_angles": [0, 120]}, "slider_angles"),
+])
+def test_invalid_fields_are_named(raw, tmp_path, change, field):
+    data = copy.deepcopy(raw)
+    for k, v in change.items():
+        if v is None:
+            data.pop(k)
+        else:
+            data[k] = v
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ModelError) as exc:
+        load_robot(path)
+    assert field in str(exc.value) and str(path) in str(exc.value)
+
+
+def test_rpy_convention_matches_the_project(model):
+    """The sampled box uses R = Rz(yaw) Ry(pitch) Rx(roll), the project's (REP 103) convention."""
+    from tolerance_ros.core.models.base import rpy_to_matrices as rpy_matrix
+    rpy = np.array([0.1, -0.2, 0.3])
+    np.testing.assert_allclose(rpy_matrix(rpy)[0], rpy_to_matrix(rpy), atol=1e-15)
