@@ -59,6 +59,52 @@ def line_plot(x, series: dict, path, xlabel: str, ylabel: str, title: str, logy=
     return _save(fig, plt, path)
 
 
+def iso_per_pose(per: dict, path) -> Path:
+    """Bars of ISO 9283 AP_p and RP_l (mm) per test pose."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    x = np.arange(len(per))
+    ax.bar(x - 0.2, [v["AP_p"] * 1e3 for v in per.values()], 0.4, label="AP_p (accuracy)")
+    ax.bar(x + 0.2, [v["RP_l"] * 1e3 for v in per.values()], 0.4, label="RP_l (repeatability)")
+    ax.set_xticks(x)
+    ax.set_xticklabels(list(per))
+    ax.set_ylabel("mm")
+    ax.set_title("ISO 9283 per test pose")
+    ax.legend()
+    fig.tight_layout()
+    return _save(fig, plt, path)
+
+
+def error_vs_bound(bound_m, error_m, path) -> Path:
+    """Scatter of measured errors against the budget's predicted bounds (mm)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(5, 4.5))
+    ax.scatter(np.asarray(bound_m) * 1e3, np.asarray(error_m) * 1e3, s=6)
+    lim = max(float(np.nanmax(bound_m)), float(np.max(error_m))) * 1e3 * 1.05
+    ax.plot([0, lim], [0, lim], "r--", label="error = bound")
+    ax.set_xlabel("predicted bound [mm]")
+    ax.set_ylabel("measured error [mm]")
+    ax.set_title("Measured error vs the budget's bound")
+    ax.legend()
+    fig.tight_layout()
+    return _save(fig, plt, path)
+
+
+def identified_vs_tolerance(names, ratio, unidentifiable, path) -> Path:
+    """Bars of |identified error| / tolerance per parameter; grey where not identifiable."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(max(6, 0.3 * len(names)), 3.6))
+    colors = ["lightgray" if u else ("tab:red" if r > 1 else "tab:blue") for r, u in zip(ratio, unidentifiable)]
+    ax.bar(np.arange(len(names)), ratio, color=colors)
+    ax.axhline(1.0, color="tab:red", linestyle="--")
+    ax.set_xticks(np.arange(len(names)))
+    ax.set_xticklabels(names, rotation=90, fontsize=7)
+    ax.set_ylabel("|identified error| / tolerance")
+    ax.set_title("Identified errors against tolerances (grey: not identifiable)")
+    fig.tight_layout()
+    return _save(fig, plt, path)
+
+
 def _save(fig, plt, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -13,51 +13,21 @@ from .core.jsonio import dumps
 
 def _plots(res, out, budget_delta, names):
     from . import plots as P
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     files = []
     per = {k: v for k, v in res.get("per_pose", {}).items() if "AP_p" in v}
     if per:
-        fig, ax = plt.subplots(figsize=(6, 3.6))
-        x = np.arange(len(per))
-        ax.bar(x - 0.2, [v["AP_p"] * 1e3 for v in per.values()], 0.4, label="AP_p (accuracy)")
-        ax.bar(x + 0.2, [v["RP_l"] * 1e3 for v in per.values()], 0.4, label="RP_l (repeatability)")
-        ax.set_xticks(x)
-        ax.set_xticklabels(list(per))
-        ax.set_ylabel("mm")
-        ax.set_title("ISO 9283 per test pose")
-        ax.legend()
-        fig.tight_layout()
-        files.append(P._save(fig, plt, out / "error_per_pose.png"))
+        files.append(P.iso_per_pose(per, out / "error_per_pose.png"))
     rows = res.get("rows")
     if rows is not None and np.isfinite(rows["bound"]).any():
-        fig, ax = plt.subplots(figsize=(5, 4.5))
-        ax.scatter(rows["bound"] * 1e3, rows["error"] * 1e3, s=6)
-        lim = max(float(np.nanmax(rows["bound"])), float(rows["error"].max())) * 1e3 * 1.05
-        ax.plot([0, lim], [0, lim], "r--", label="error = bound")
-        ax.set_xlabel("predicted bound [mm]")
-        ax.set_ylabel("measured error [mm]")
-        ax.set_title("Measured error vs the budget's bound")
-        ax.legend()
-        fig.tight_layout()
-        files.append(P._save(fig, plt, out / "error_vs_bound.png"))
+        files.append(P.error_vs_bound(rows["bound"], rows["error"], out / "error_vs_bound.png"))
     ident = res.get("identification")
     if ident and budget_delta is not None:
         errs = {p["name"]: p["error"] for p in ident["parameters"]}
         sel = [j for j, n in enumerate(names) if budget_delta[j] > 0 and n in errs]
-        ratio = [abs(errs[names[j]]) / budget_delta[j] for j in sel]
-        fig, ax = plt.subplots(figsize=(max(6, 0.3 * len(sel)), 3.6))
         bad = set(ident.get("unidentifiable", []))
-        colors = ["lightgray" if names[j] in bad else ("tab:red" if r > 1 else "tab:blue") for j, r in zip(sel, ratio)]
-        ax.bar(np.arange(len(sel)), ratio, color=colors)
-        ax.axhline(1.0, color="tab:red", linestyle="--")
-        ax.set_xticks(np.arange(len(sel)))
-        ax.set_xticklabels([names[j] for j in sel], rotation=90, fontsize=7)
-        ax.set_ylabel("|identified error| / tolerance")
-        ax.set_title("Identified errors against tolerances (grey: not identifiable)")
-        fig.tight_layout()
-        files.append(P._save(fig, plt, out / "identified_vs_tolerance.png"))
+        files.append(P.identified_vs_tolerance([names[j] for j in sel],
+                                               [abs(errs[names[j]]) / budget_delta[j] for j in sel],
+                                               [names[j] in bad for j in sel], out / "identified_vs_tolerance.png"))
     return [str(f) for f in files]
 
 
