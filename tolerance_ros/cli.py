@@ -7,6 +7,7 @@ document on stdout in SI units instead. Progress goes to stderr.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -706,6 +707,9 @@ def main(argv=None) -> int:
             parser.error(f"--{name.replace('_', '-')}: must be >= 1")
     try:
         out = args.func(args)
+    except BrokenPipeError:  # the reader (e.g. `| head`) went away: not an error of ours
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except (CLIError, ModelError, BudgetError, UnitError, FileNotFoundError, ValueError, NotImplementedError,
             OSError) as exc:
         msg = str(exc).strip("'\"")
