@@ -120,3 +120,17 @@ def test_run_allocation_and_infeasible(gao):
     with pytest.raises(ContractError) as exc:
         run_allocation(job)
     assert exc.value.code == "infeasible"
+
+
+def test_bound_at_a_joint_state_uses_the_current_budget(gao):
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.errors import paper_bound
+    svc = ErrorModelService({"gao2023_7dof": gao}, "gao2023_7dof")
+    names = list(reversed(gao.joint_names))
+    assert svc.bound_at(names, list(reversed(Q))) is None            # no budget yet
+    svc.current_budget = load_budget("gao2023_delta2", gao)
+    robot, crit, pos, ori = svc.bound_at(names, list(reversed(Q)))
+    J = gao.error_jacobian(np.array([Q])).position
+    assert robot == "gao2023_7dof" and crit == "paper"
+    assert pos == pytest.approx(paper_bound(J, svc.current_budget.vector_for(gao))[0])
+    assert svc.bound_at(["joint1"], [0.0]) is None                   # joints missing

@@ -144,3 +144,30 @@ def test_publisher_tracker_and_monitor_loop(ros, tmp_path):
     assert any(kv.key == "paired" for kv in st.values)
     logs = list(tmp_path.glob("*.jsonl"))
     assert logs and '"event": "measurement"' in logs[0].read_text()
+
+
+def test_predicted_bound_at_the_current_joint_state(ros):
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.jsonio import dumps_fast
+    from tolerance_ros.core.models import load_robot
+    from tolerance_ros.nodes.common import LATCHED_QOS, REQUEST_QOS
+    from tolerance_ros.nodes.error_model_server import ErrorModelServer
+    ros(ErrorModelServer)
+    model = load_robot("gao2023_7dof")
+    budget = load_budget("gao2023_delta2", model)
+    node = rclpy.create_node("bound_test")
+    got = []
+    node.create_subscription(String, "/tolerance/predicted_bound", lambda m: got.append(json.loads(m.data)), 10)
+    pub_budget = node.create_publisher(String, "tolerance_budget", LATCHED_QOS)
+    pub_js = node.create_publisher(JointState, "joint_states", REQUEST_QOS)
+    pub_budget.publish(String(data=dumps_fast({"robot": model.name, "budget": budget.to_dict()})))
+    deadline = time.monotonic() + 20
+    while not got and time.monotonic() < deadline:
+        msg = JointState(name=list(model.joint_names), position=Q)
+        msg.header.stamp = node.get_clock().now().to_msg()
+        pub_js.publish(msg)
+        rclpy.spin_once(node, timeout_sec=0.2)
+    node.destroy_node()
+    assert got and got[0]["criterion"] == "paper" and 0 < got[0]["position_bound_m"] < 1.4e-3

@@ -23,13 +23,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .budget import BudgetError, budget_from_dict
-from .errors import paper_bound, per_axis_bound, rss_bound, worst_case_bound
+from .errors import CRITERIA as BOUND_CRITERIA
+from .errors import criterion_bound
 from .jsonio import dumps_fast, loads_strict
 from .models.base import ModelError
 
 CODES = ("invalid_json", "invalid_request", "unknown_robot", "out_of_limits", "too_large", "infeasible", "busy",
          "internal")
-BOUNDS = {"paper": paper_bound, "worst-case": worst_case_bound, "per-axis": per_axis_bound, "rss": rss_bound}
 
 
 class ContractError(Exception):
@@ -205,6 +205,26 @@ class ErrorModelService:
     def handle_text(self, text) -> str:
         return dumps_fast(self.handle(text))
 
+    def bound_at(self, names, positions, criterion=None):
+        """(robot, criterion, position bound m, orientation bound rad) of the current budget at a joint
+        state (names in any order), or None without a budget or when joints are missing."""
+        budget = self.current_budget
+        if budget is None or budget.robot not in self.models:
+            return None
+        model = self.models[budget.robot]
+        names = list(names)
+        try:
+            q = np.array([[positions[names.index(n)] for n in model.joint_names]], dtype=float)
+        except ValueError:
+            return None
+        if not np.all(np.isfinite(q)):
+            return None
+        crit = criterion or budget.criterion
+        EJ = model.error_jacobian(q)
+        delta = budget.vector_for(model)
+        return (budget.robot, crit, float(criterion_bound(EJ.position, delta, crit)[0]),
+                float(criterion_bound(EJ.orientation, delta, crit)[0]))
+
     def _serve(self, req) -> dict:
         name, model = select_robot(req, self.models, self.default_robot)
         outputs = req.get("outputs", "pose")
@@ -227,12 +247,12 @@ class ErrorModelService:
         if "tolerances" in req:
             delta, default_criterion = parse_tolerances(req["tolerances"], model, self.current_budget)
             criteria = req.get("criteria", ["paper", "rss", "per-axis"])
-            bad = [c for c in criteria if c not in BOUNDS]
+            bad = [c for c in criteria if c not in BOUND_CRITERIA]
             if bad:
-                raise ContractError("invalid_request", f"criteria: unknown {bad}; allowed: {sorted(BOUNDS)}")
-            resp["bounds"] = {"position": {c: BOUNDS[c](EJ.position, delta) for c in criteria}}
+                raise ContractError("invalid_request", f"criteria: unknown {bad}; allowed: {list(BOUND_CRITERIA)}")
+            resp["bounds"] = {"position": {c: criterion_bound(EJ.position, delta, c) for c in criteria}}
             if outputs == "pose":
-                resp["bounds"]["orientation"] = {c: BOUNDS[c](EJ.orientation, delta) for c in criteria}
+                resp["bounds"]["orientation"] = {c: criterion_bound(EJ.orientation, delta, c) for c in criteria}
             resp["bounds"]["budget_criterion"] = default_criterion
         return resp
 

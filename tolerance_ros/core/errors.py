@@ -145,6 +145,22 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
     return out
 
 
+CRITERIA = ("paper", "worst-case", "per-axis", "rss")
+
+
+def criterion_bound(J, delta, criterion: str, k_sigma: float = 3.0) -> np.ndarray:
+    """(n,) bound of one named criterion: 'paper', 'worst-case', 'per-axis' or 'rss' (coverage k_sigma)."""
+    if criterion == "paper":
+        return paper_bound(J, delta)
+    if criterion == "worst-case":
+        return worst_case_bound(J, delta)
+    if criterion == "per-axis":
+        return per_axis_bound(J, delta)
+    if criterion == "rss":
+        return rss_bound(J, delta, k_sigma)
+    raise ValueError(f"criterion: expected one of {CRITERIA}, got {criterion!r}")
+
+
 def bounds(J, delta, worst_case: bool = True) -> dict:
     """All bounds at once: {'paper', 'worst_case', 'per_axis', 'rss'} -> (n,) arrays."""
     out = {"paper": paper_bound(J, delta), "per_axis": per_axis_bound(J, delta), "rss": rss_bound(J, delta)}

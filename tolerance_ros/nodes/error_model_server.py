@@ -34,7 +34,6 @@ class ErrorModelServer(Node):
         self.create_subscription(String, f"{TOPIC}/request", self.on_request, REQUEST_QOS)
         self.create_subscription(JointState, "joint_states", self.on_joint_state, REQUEST_QOS)
         self.create_subscription(String, "tolerance_budget", self.on_budget, LATCHED_QOS)
-        self.budget_robot = None
         self.get_logger().info(f"serving {sorted(models)} on {TOPIC}/request")
 
     def on_request(self, msg):
@@ -49,29 +48,16 @@ class ErrorModelServer(Node):
                 self.get_logger().warning(f"budget for unknown robot {robot!r} ignored")
                 return
             self.service.current_budget = budget_from_dict(doc["budget"], dict(zip(model.param_names, model.param_kinds)))
-            self.budget_robot = robot
         except (ValueError, KeyError, TypeError, BudgetError) as exc:
             self.get_logger().error(f"invalid budget message: {exc}")
 
     def on_joint_state(self, msg):
-        if self.service.current_budget is None:
+        found = self.service.bound_at(msg.name, msg.position, self.criterion or None)
+        if found is None:
             return
-        request = {"id": "joint_states", "robot": self.budget_robot, "joints": [list(msg.position)],
-                   "outputs": "pose", "tolerances": "current", "include_jacobian": False,
-                   "criteria": [self.criterion or self.service.current_budget.criterion], "allow_out_of_limits": True}
-        names = list(msg.name)
-        model = self.service.models[self.budget_robot]
-        try:
-            request["joints"] = [[msg.position[names.index(n)] for n in model.joint_names]]
-        except ValueError:
-            return
-        resp = self.service.handle(json.dumps(request))
-        if not resp["ok"]:
-            return
-        crit = request["criteria"][0]
-        out = {"stamp": msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, "robot": self.budget_robot,
-               "criterion": crit, "position_bound_m": resp["bounds"]["position"][crit][0],
-               "orientation_bound_rad": resp["bounds"]["orientation"][crit][0]}
+        robot, crit, pos, ori = found
+        out = {"stamp": msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, "robot": robot, "criterion": crit,
+               "position_bound_m": pos, "orientation_bound_rad": ori}
         self.bound_pub.publish(String(data=dumps_fast(out)))
 
 

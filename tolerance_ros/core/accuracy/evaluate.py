@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import paper_bound, rss_bound, worst_case_bound
+from ..errors import criterion_bound
 from ..models.base import matrix_log_vec
 from .iso9283 import pose_characteristics
 
@@ -22,9 +22,8 @@ def pose_errors(T_nominal, T_actual):
 def predicted_bounds(model, q, delta, criterion="paper", k_sigma=3.0, EJ=None):
     """(position (n,) m, orientation (n,) rad) bounds of the budget at configurations q."""
     EJ = EJ if EJ is not None else model.error_jacobian(q)
-    fn = {"paper": paper_bound, "worst-case": worst_case_bound,
-          "rss": lambda J, d: rss_bound(J, d, k_sigma)}[criterion]
-    return fn(EJ.position, delta), fn(EJ.orientation, delta)
+    return (criterion_bound(EJ.position, delta, criterion, k_sigma),
+            criterion_bound(EJ.orientation, delta, criterion, k_sigma))
 
 
 def budget_check(err_pos, bound_pos, limit=None, err_ori=None, bound_ori=None, limit_ori=None) -> dict:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import paper_bound, per_axis_bound, rss_bound, worst_case_bound
+from ..errors import criterion_bound, per_axis_bound, worst_case_bound
 from ..models.base import Mechanism
 from .search import column_maxima
 
@@ -79,14 +79,9 @@ class SynthesisProblem:
     def values(self, J, delta, criterion=None) -> np.ndarray:
         """(n,) criterion values for Jacobian rows J (n, 3, p) and tolerances delta (p,)."""
         criterion = criterion or self.criterion
-        d = np.where(self.active, delta, 0.0)
-        if criterion == "paper":
-            return paper_bound(J, d)
-        if criterion == "worst-case":
-            return worst_case_bound(J, d)
-        if criterion == "rss":
-            return rss_bound(J, d, self.k_sigma)
-        raise SynthesisError(f"criterion: expected one of {CRITERIA}, got {criterion!r}")
+        if criterion not in CRITERIA:
+            raise SynthesisError(f"criterion: expected one of {CRITERIA}, got {criterion!r}")
+        return criterion_bound(J, np.where(self.active, delta, 0.0), criterion, self.k_sigma)
 
     def upper(self, J, delta, criterion=None) -> np.ndarray | None:
         """A cheap upper bound of ``values`` where the criterion is expensive (worst case), else None."""
