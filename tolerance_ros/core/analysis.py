@@ -99,7 +99,7 @@ def correlation(J) -> np.ndarray:
     Each column contributes its ``n * k`` entries; constant columns get NaN rows (undefined).
     """
     n, k, p = J.shape
-    X = np.asarray(J).transpose(0, 1, 2).reshape(n * k, p)
+    X = np.asarray(J).reshape(n * k, p)
     X = X - X.mean(axis=0)
     sd = np.sqrt((X * X).sum(axis=0))
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -40,14 +40,11 @@ SIGN_MODELS = {"all +delta (eq. 11)": "fixed", "random +-delta": "extreme", "uni
                "normal 3-sigma": "normal"}
 
 
-def cost_index(model, delta, k_length=1.0, k_angle=1.5, exponent=1.0) -> float:
-    """Eq. 17 cost ``sum K_j delta_j^-alpha`` with lengths in mm and angles in rad (zero tolerances skipped)."""
-    total = 0.0
-    for kind, d in zip(model.param_kinds, delta):
-        if d > 0:
-            v = d * 1e3 if kind == "length" else d
-            total += (k_length if kind == "length" else k_angle) * v ** (-exponent)
-    return total
+def cost_index(model, delta) -> float:
+    """Eq. 17 cost with the paper's K and alpha = 1, lengths in mm and angles in rad (zero tolerances skipped;
+    the same model as ``SynthesisProblem.cost``)."""
+    from .synthesis.problem import COST_UNIT, DEFAULT_K
+    return float(sum(DEFAULT_K[k] / (d * COST_UNIT[k]) for k, d in zip(model.param_kinds, delta) if d > 0))
 
 
 def _stats_mm(summary) -> dict:

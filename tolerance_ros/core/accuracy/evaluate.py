@@ -81,19 +81,24 @@ class Identification:
                 "iterations": self.iterations, "out_of_tolerance": self.out_of_tolerance}
 
 
-def _stack(model, q, T_meas, dx, base, use_orientation, w_ori):
-    T_nom = model.fk(q, dx)
-    Tb = _apply_base(T_nom, base)
-    dp, dphi = pose_errors(Tb, T_meas)
-    EJ = model.error_jacobian(q, dx)
-    n = len(q)
-    p = Tb[:, :3, 3]
+def base_jacobian(p) -> np.ndarray:
+    """(n, 6, 6) pose error of tool points p (n, 3) per base correction [translation m; rotation rad]."""
+    n = len(p)
     Jb = np.zeros((n, 6, 6))
     Jb[:, :3, :3] = np.eye(3)
     Jb[:, 0, 4], Jb[:, 0, 5] = p[:, 2], -p[:, 1]
     Jb[:, 1, 3], Jb[:, 1, 5] = -p[:, 2], p[:, 0]
     Jb[:, 2, 3], Jb[:, 2, 4] = p[:, 1], -p[:, 0]
     Jb[:, 3:, 3:] = np.eye(3)
+    return Jb
+
+
+def _stack(model, q, T_meas, dx, base, use_orientation, w_ori):
+    T_nom = model.fk(q, dx)
+    Tb = _apply_base(T_nom, base)
+    dp, dphi = pose_errors(Tb, T_meas)
+    EJ = model.error_jacobian(q, dx)
+    Jb = base_jacobian(Tb[:, :3, 3])
     R0 = _base_matrix(base)[:3, :3]
     Jp = np.einsum("ij,njp->nip", R0, EJ.position)
     Jo = np.einsum("ij,njp->nip", R0, EJ.orientation)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .evaluate import BASE_NAMES, budget_check, pose_errors, predicted_bounds
+from .evaluate import BASE_NAMES, base_jacobian, budget_check, pose_errors, predicted_bounds
 from .iso9283 import pose_characteristics
 
 
@@ -133,13 +133,7 @@ class AccuracyAccumulator:
         return {"position_error": e_pos, "orientation_error": e_ori, "dp": dp, "dphi": dphi, "label": labels, **check}
 
     def _normal_equations(self, T_nom, EJ, dp, dphi):
-        n = len(dp)
-        p = T_nom[:, :3, 3]
-        Jb = np.zeros((n, 3, 6))
-        Jb[:, :, :3] = np.eye(3)
-        Jb[:, 0, 4], Jb[:, 0, 5] = p[:, 2], -p[:, 1]
-        Jb[:, 1, 3], Jb[:, 1, 5] = -p[:, 2], p[:, 0]
-        Jb[:, 2, 3], Jb[:, 2, 4] = p[:, 1], -p[:, 0]
+        Jb = base_jacobian(T_nom[:, :3, 3])[:, :3]
         J = np.concatenate([EJ.position, Jb], axis=2).reshape(-1, self.JtJ.shape[0])
         r = dp.reshape(-1)
         self.JtJ += J.T @ J

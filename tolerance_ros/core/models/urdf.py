@@ -136,7 +136,7 @@ class URDFChain(Mechanism):
                     lo, hi = -math.pi, math.pi
                 limits.append((lo, hi))
             names.append(jname)
-        self._check_serial(model, chain, tip_link)
+        self._check_serial(model, chain)
         self.chain_ids = tuple(chain)
         self.joint_names = tuple(names)
         self.joint_types = tuple(types)
@@ -173,7 +173,7 @@ class URDFChain(Mechanism):
         return body[-1], model.frames[body[-1]].name
 
     @staticmethod
-    def _check_serial(model, chain, tip_link):
+    def _check_serial(model, chain):
         for jid in chain:
             nq = model.joints[jid].nq
             if nq not in (1, 2):
