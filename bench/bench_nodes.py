@@ -20,7 +20,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-from tolerance_ros.core.accuracy.io import matrix_to_quat  # noqa: E402
+from tolerance_ros.core.geometry import matrices_to_quat  # noqa: E402
 from tolerance_ros.core.accuracy.simulate import SimulatedTracker  # noqa: E402
 from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.contracts import ErrorModelService  # noqa: E402
@@ -56,7 +56,7 @@ def main():
     n = 5000
     q = model.sample_joints(n, 2)
     T = np.array([sim.measure_at(qk) for qk in q])
-    quats = matrix_to_quat(T[:, :3, :3])
+    quats = matrices_to_quat(T[:, :3, :3])
     with tempfile.TemporaryDirectory() as tmp:
         mon = MonitorLogic(model, budget, slop=0.01, log_path=Path(tmp) / "log.jsonl")
         names = list(model.joint_names)

@@ -30,7 +30,7 @@ from tolerance_ros.core.accuracy.simulate import as_built_errors, measure  # noq
 from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.campaign import Campaign, TestPose  # noqa: E402
 from tolerance_ros.core.models import load_robot  # noqa: E402
-from tolerance_ros.core.models.base import transform  # noqa: E402
+from tolerance_ros.core.geometry import transform  # noqa: E402
 from tolerance_ros.reporting import write_report  # noqa: E402
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from tolerance_ros.core.models import DHChain
-from tolerance_ros.core.models.base import matrix_log_vec, transform
+from tolerance_ros.core.geometry import matrix_log_vec, transform
 
 
 def pose_difference(Tp, Tm):

@@ -127,7 +127,7 @@ def _synthetic_campaign(tmp_path, gao):
     from tolerance_ros.core.accuracy.io import Measurements, write_csv
     from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
     from tolerance_ros.core.budget import load_budget
-    from tolerance_ros.core.models.base import transform
+    from tolerance_ros.core.geometry import transform
     delta = load_budget("gao2023_delta2", gao).vector_for(gao)
     q = gao.sample_joints(60, 1)
     T = measure(gao, q, as_built_errors(delta, 3), 1e-5, 1e-5, transform([1, 0, 0], [0, 0, 0.5]), seed=2)

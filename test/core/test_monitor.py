@@ -10,7 +10,7 @@ from tolerance_ros.core.accuracy.simulate import SimulatedTracker
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.campaign import Campaign, TestPose
 from tolerance_ros.core.jsonio import dumps_fast
-from tolerance_ros.core.models.base import transform
+from tolerance_ros.core.geometry import transform
 from tolerance_ros.core.monitor import ERROR, OK, WARN, MonitorLogic, pose_message_fields
 
 TS = get_typestore(Stores.ROS2_JAZZY)

@@ -6,7 +6,7 @@ import pytest
 from helpers import pose_difference
 from tolerance_ros.core import rong2018
 from tolerance_ros.core.accuracy.io import read_csv
-from tolerance_ros.core.models.base import rpy_from_matrix
+from tolerance_ros.core.geometry import rpy_from_matrix
 from tolerance_ros.core.campaign import load_campaign
 from tolerance_ros.core.errors import rss_bound
 from tolerance_ros.core.models import load_robot

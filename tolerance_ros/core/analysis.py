@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import error_norms
-from .models.base import Mechanism, matrix_log_vec
+from .geometry import rotation_error
+from .models.base import Mechanism
 from .units import length_scale
 
 DISTRIBUTIONS = ("fixed", "extreme", "uniform", "normal")
@@ -223,8 +224,7 @@ def monte_carlo(model: Mechanism, delta, n: int = 10000, distribution: str = "ex
             T0 = model.fk(qc)
             T1 = model.fk(qc, dx)
             pos[a:b] = np.linalg.norm(T1[:, :3, 3] - T0[:, :3, 3], axis=1)
-            R = np.einsum("nij,nkj->nik", T1[:, :3, :3], T0[:, :3, :3])
-            ori[a:b] = np.linalg.norm(matrix_log_vec(R), axis=1)
+            ori[a:b] = np.linalg.norm(rotation_error(T1[:, :3, :3], T0[:, :3, :3]), axis=1)
         if progress is not None:
             progress(b, n)
     summary = {"position": summarize(pos, limit_position), "orientation": summarize(ori, limit_orientation)}

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .models.base import transform
+from .geometry import transform
 from .resources import resolve
 from .units import UnitError, angle_scale, length_scale, parse_number
 

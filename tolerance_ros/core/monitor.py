@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .accuracy.io import matrix_to_quat, quat_to_matrix
+from .geometry import matrices_to_quat, quat_to_matrices
 from .accuracy.stream import AccuracyAccumulator
 
 OK, WARN, ERROR = 0, 1, 2
@@ -119,7 +119,7 @@ class MonitorLogic:
             return []
         self._write(rec)
         T = np.eye(4)
-        T[:3, :3] = quat_to_matrix(vals[3:])[0]
+        T[:3, :3] = quat_to_matrices(vals[3:])[0]
         T[:3, 3] = vals[:3]
         self.pending.append((seq, float(stamp), T, self.clock()))
         return self.resolve()
@@ -228,4 +228,4 @@ def _fmt(v):
 def pose_message_fields(stamp, T, frame_id="tracker"):
     """Plain values for a PoseStamped: (sec, nanosec, frame_id, position (3,), quaternion x y z w)."""
     ns = int(round(stamp * 1e9))
-    return ns // 1_000_000_000, ns % 1_000_000_000, frame_id, T[:3, 3].copy(), matrix_to_quat(T[None, :3, :3])[0]
+    return ns // 1_000_000_000, ns % 1_000_000_000, frame_id, T[:3, 3].copy(), matrices_to_quat(T[None, :3, :3])[0]

@@ -25,7 +25,7 @@ from .accuracy.simulate import as_built_errors, measure
 from .campaign import load_campaign
 from .iso286 import coarsest_grade, it_tolerance
 from .models import load_robot
-from .models.base import matrix_log_vec
+from .geometry import rotation_error
 from .models.pups import GROUPS
 
 ROBOT = "rong2018_3pups"
@@ -144,7 +144,7 @@ def fig3_study(model=None, campaign=None, magnitudes=None, limb: int = 1, m: int
         T1 = model.fk(np.repeat(q_pe, s, axis=0), dx.reshape(k * s, -1))
         T0r = np.repeat(T0, s, axis=0)
         dp = np.linalg.norm(T1[:, :3, 3] - T0r[:, :3, 3], axis=1).reshape(k, s)
-        dphi = np.linalg.norm(matrix_log_vec(np.einsum("nij,nkj->nik", T1[:, :3, :3], T0r[:, :3, :3])),
+        dphi = np.linalg.norm(rotation_error(T1[:, :3, :3], T0r[:, :3, :3]),
                               axis=1).reshape(k, s)
         lin = np.einsum("nrc,nc->nr", J_pe[:, :, cols], v)
         sweep[g] = {"direction": v, "position_m": dp, "orientation_rad": dphi,

@@ -19,7 +19,7 @@ from ..core.budget import BudgetError, budget_from_dict, load_budget
 from ..core.campaign import load_campaign
 from ..core.jsonio import dumps_fast
 from ..core.models import load_robot
-from ..core.models.base import transform
+from ..core.geometry import transform
 from ..core.monitor import MonitorLogic
 from .common import LATCHED_QOS, REQUEST_QOS, SERVICE_NAMESPACE, STREAM_QOS, declare, run
 

@@ -10,7 +10,7 @@ from sensor_msgs.msg import JointState
 from ..core.accuracy.simulate import SimulatedTracker
 from ..core.budget import load_budget
 from ..core.models import load_robot
-from ..core.models.base import transform
+from ..core.geometry import transform
 from ..core.monitor import pose_message_fields
 from .common import STREAM_QOS, declare, run
 

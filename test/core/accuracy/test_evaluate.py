@@ -10,7 +10,7 @@ from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
 from tolerance_ros.core.accuracy.stream import AccuracyAccumulator
 from tolerance_ros.core.budget import Budget
 from tolerance_ros.core.campaign import Campaign, TestPose
-from tolerance_ros.core.models.base import transform
+from tolerance_ros.core.geometry import transform
 
 T_TB = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
 

@@ -5,7 +5,7 @@ import pytest
 
 from tolerance_ros.core.accuracy.io import (Measurements, MeasurementError, pair_by_stamp, read_csv, read_rosbag,
                                             write_csv, write_rosbag)
-from tolerance_ros.core.models.base import transform
+from tolerance_ros.core.geometry import transform
 
 
 def _meas(n=12, seed=0, joints=True):

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from tolerance_ros.core.accuracy.iso9283 import iso_cube_points, pose_characteristics, wrap
-from tolerance_ros.core.models.base import rpy_from_matrix
-from tolerance_ros.core.models.base import rpy_to_matrix, transform
+from tolerance_ros.core.geometry import rpy_from_matrix
+from tolerance_ros.core.geometry import rpy_to_matrix, transform
 
 
 def test_ap_rp_from_the_definitions():

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from tolerance_ros.core.accuracy.registration import register
-from tolerance_ros.core.models.base import transform
+from tolerance_ros.core.geometry import transform
 
 
 def _poses(n, seed):

@@ -11,8 +11,9 @@ from helpers import fd_jacobian, pose_difference
 from tolerance_ros.core import analysis
 from tolerance_ros.core.campaign import load_campaign
 from tolerance_ros.core.models import ModelError, load_robot
-from tolerance_ros.core.models.base import rpy_to_matrix, transform
-from tolerance_ros.core.models.pups import PUPS3, axis_rotation, pups_from_dict
+from tolerance_ros.core.geometry import transform
+from tolerance_ros.core.geometry import axis_rotations as axis_rotation
+from tolerance_ros.core.models.pups import PUPS3, pups_from_dict
 from tolerance_ros.core.resources import config_dir
 
 DEG = np.pi / 180
@@ -299,8 +300,12 @@ def test_invalid_fields_are_named(raw, tmp_path, change, field):
     assert field in str(exc.value) and str(path) in str(exc.value)
 
 
-def test_rpy_convention_matches_the_project(model):
-    """The sampled box uses R = Rz(yaw) Ry(pitch) Rx(roll), the project's (REP 103) convention."""
-    from tolerance_ros.core.models.base import rpy_to_matrices as rpy_matrix
-    rpy = np.array([0.1, -0.2, 0.3])
-    np.testing.assert_allclose(rpy_matrix(rpy)[0], rpy_to_matrix(rpy), atol=1e-15)
+def test_sampled_poses_lie_in_the_workspace_box_read_with_rep103_angles(model):
+    """The workspace box is in R = Rz(yaw) Ry(pitch) Rx(roll) angles: scipy's extrinsic 'xyz' Euler
+    angles of the sampled platform rotations fall inside it."""
+    from scipy.spatial.transform import Rotation
+    _, T = model.sample_poses(200, seed=3)
+    rpy = Rotation.from_matrix(T[:, :3, :3]).as_euler("xyz")
+    box = model.workspace
+    assert np.all(T[:, :3, 3] >= box[:3, 0] - 1e-12) and np.all(T[:, :3, 3] <= box[:3, 1] + 1e-12)
+    assert np.all(rpy >= box[3:, 0] - 1e-9) and np.all(rpy <= box[3:, 1] + 1e-9)

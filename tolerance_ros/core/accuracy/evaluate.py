@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import criterion_bound
-from ..models.base import matrix_log_vec
+from ..geometry import rotation_error
 from .iso9283 import pose_characteristics
 
 
@@ -15,7 +15,7 @@ def pose_errors(T_nominal, T_actual):
     """(dp (n, 3) m, dphi (n, 3) rad): position and small-rotation errors of actual vs nominal poses."""
     Tn, Ta = np.asarray(T_nominal, float), np.asarray(T_actual, float)
     dp = Ta[:, :3, 3] - Tn[:, :3, 3]
-    dphi = matrix_log_vec(np.einsum("nij,nkj->nik", Ta[:, :3, :3], Tn[:, :3, :3]))
+    dphi = rotation_error(Ta[:, :3, :3], Tn[:, :3, :3])
     return dp, dphi
 
 

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..models.base import rpy_from_matrix, rpy_to_matrices
+from ..geometry import matrices_to_quat, quat_to_matrices, rpy_from_matrix, rpy_to_matrices
 from ..units import ANGLE_UNITS, LENGTH_UNITS
 
 _COL = re.compile(r"^\s*([A-Za-z_][\w:.\-/]*)\s*(?:\[\s*([^\]]*)\s*\])?\s*$")
@@ -56,42 +56,6 @@ class Measurements:
 
     def __len__(self):
         return len(self.stamps)
-
-
-def quat_to_matrix(q) -> np.ndarray:
-    """(n, 3, 3) rotations of (n, 4) quaternions (x, y, z, w), normalised."""
-    q = np.asarray(q, dtype=float).reshape(-1, 4)
-    n = np.linalg.norm(q, axis=1)
-    if np.any(n < 1e-9):
-        raise MeasurementError("quaternion with zero norm")
-    x, y, z, w = (q / n[:, None]).T
-    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-                     np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-                     np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], 1)
-
-
-def matrix_to_quat(R) -> np.ndarray:
-    """(n, 4) quaternions (x, y, z, w), w >= 0, of (n, 3, 3) rotations."""
-    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
-    tr = np.trace(R, axis1=1, axis2=2)
-    q = np.empty((len(R), 4))
-    for i in range(len(R)):  # Shepperd's method; per row, but only for output of small batches
-        m = R[i]
-        k = int(np.argmax([tr[i], m[0, 0], m[1, 1], m[2, 2]]))
-        if k == 0:
-            s = np.sqrt(1 + tr[i]) * 2
-            q[i] = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4]
-        elif k == 1:
-            s = np.sqrt(1 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
-            q[i] = [s / 4, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
-        elif k == 2:
-            s = np.sqrt(1 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
-            q[i] = [(m[0, 1] + m[1, 0]) / s, s / 4, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
-        else:
-            s = np.sqrt(1 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
-            q[i] = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, s / 4, (m[1, 0] - m[0, 1]) / s]
-    q[q[:, 3] < 0] *= -1
-    return q
 
 
 def _parse_header(header, source):
@@ -305,8 +269,8 @@ def _pack(block, joint_cols, has_orientation, source, skipped):
             T[:, :3, :3] = rpy_to_matrices(vals)
         else:
             try:
-                T[:, :3, :3] = quat_to_matrix(vals)
-            except MeasurementError as exc:
+                T[:, :3, :3] = quat_to_matrices(vals)
+            except ValueError as exc:
                 raise MeasurementError(f"{source}: {exc}") from None
     joints = block.joints if joint_cols else None
     return Measurements(block.stamps, T, joints, tuple(n for n, _ in joint_cols),
@@ -385,7 +349,7 @@ def read_log(path, skip_bad=False) -> Measurements:
     if not seqs:
         raise MeasurementError(f"{path}: no paired measurements")
     T = np.tile(np.eye(4), (len(seqs), 1, 1))
-    T[:, :3, :3] = quat_to_matrix(np.array([meas[s][2] for s in seqs]))
+    T[:, :3, :3] = quat_to_matrices(np.array([meas[s][2] for s in seqs]))
     T[:, :3, 3] = [meas[s][1] for s in seqs]
     return Measurements(np.array([meas[s][0] for s in seqs]), T, np.array([pairs[s][0] for s in seqs], float),
                         names or (), np.array([pairs[s][1] for s in seqs], dtype=object), np.full(len(seqs), -1),
@@ -443,7 +407,7 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
                     skipped.append({"message": k, "reason": err})
                     continue
                 Ti = np.eye(4)
-                Ti[:3, :3] = quat_to_matrix(vals[3:])[0]
+                Ti[:3, :3] = quat_to_matrices(vals[3:])[0]
                 Ti[:3, 3] = vals[:3]
                 poses.append(Ti)
                 pstamps.append(st)
@@ -496,7 +460,7 @@ def write_rosbag(path, m: Measurements, storage="sqlite3", pose_topic="/measured
     Point, Quaternion = T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/Quaternion"]
     JointState = T["sensor_msgs/msg/JointState"]
     plugin = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}[storage]
-    quats = matrix_to_quat(m.T[:, :3, :3])
+    quats = matrices_to_quat(m.T[:, :3, :3])
 
     def stamp(t):
         ns = int(round(t * 1e9))

@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..models.base import rpy_from_matrix
+from ..geometry import rpy_from_matrix
 
 
 def wrap(angle):

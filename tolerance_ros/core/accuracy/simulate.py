@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..analysis import sample_errors
-from ..models.base import Mechanism, exp_so3
+from ..geometry import exp_so3
+from ..models.base import Mechanism
 
 
 def as_built_errors(delta, seed=0, distribution="uniform") -> np.ndarray:

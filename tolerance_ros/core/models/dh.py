@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError, cross3
+from ..geometry import cross3
+from .base import PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError
 
 CONVENTIONS = ("standard", "modified")
 SMALL_BATCH = 64  # up to this many poses the Jacobian columns are built all at once

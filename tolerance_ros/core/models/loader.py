@@ -8,7 +8,8 @@ import yaml
 
 from ..resources import resolve
 from ..units import UnitError, angle_scale, length_scale, parse_number
-from .base import PRISMATIC, REVOLUTE, Mechanism, ModelError, transform
+from ..geometry import transform
+from .base import PRISMATIC, REVOLUTE, Mechanism, ModelError
 from .dh import DHChain
 from .urdf import URDFChain
 

@@ -63,8 +63,8 @@ from pathlib import Path
 import numpy as np
 
 from ..units import angle_scale, length_scale, parse_number
-from .base import (PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError, exp_so3, rpy_from_matrix,
-                   rpy_to_matrices)
+from ..geometry import axis_rotations, exp_so3, pose_matrices, rpy_from_matrix, rpy_to_matrices
+from .base import PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError
 
 AXES = {"x": 0, "y": 1, "z": 2}
 GROUPS = ("a", "b", "l")
@@ -75,20 +75,6 @@ LOCKABLE = ("a", "psi")
 _KEYS = {"name", "kind", "units", "source", "description", "notes", "slider_angles", "slider_travel",
          "platform_radius", "leg_length", "psi_range", "theta_range", "u_joint_axes", "redundancy", "workspace",
          "locked"}
-
-
-def axis_rotation(axis: int, angle) -> np.ndarray:
-    """(..., 3, 3) rotations by ``angle`` (rad, any shape) about base axis 0, 1 or 2."""
-    angle = np.asarray(angle, dtype=float)
-    c, s = np.cos(angle), np.sin(angle)
-    R = np.zeros(angle.shape + (3, 3))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    R[..., axis, axis] = 1.0
-    R[..., i, i] = c
-    R[..., j, j] = c
-    R[..., i, j] = -s
-    R[..., j, i] = s
-    return R
 
 
 class PUPS3(Mechanism):
@@ -124,7 +110,7 @@ class PUPS3(Mechanism):
             raise ModelError(f"u_joint_axes: expected [x, y] or [y, x], got {list(axes)}")
         self.u_joint_axes = axes
         self.e1, self.e2 = AXES[axes[0]], AXES[axes[1]]
-        self.RA = axis_rotation(2, s)
+        self.RA = axis_rotations(2, s)
         self.c_local = -self.c * self.RA[:, :, 0]
         red = np.full(3, self.travel.mean()) if redundancy is None else np.asarray(redundancy, dtype=float)
         if red.shape != (3,) or np.any(red < self.travel[0]) or np.any(red > self.travel[1]):
@@ -196,7 +182,7 @@ class PUPS3(Mechanism):
         E = np.zeros((n, 3, 3, 3)) if dx is None else np.broadcast_to(dx, (n, 27)).reshape(n, 3, 3, 3)
         RA = self.RA
         hub = -a[:, :, None] * RA[None, :, :, 0] + E[:, :, 0] + np.einsum("ijk,nik->nij", RA, E[:, :, 1])
-        M = np.einsum("ijk,nikl->nijl", RA, axis_rotation(self.e1, psi))
+        M = np.einsum("ijk,nikl->nijl", RA, axis_rotations(self.e1, psi))
         L = E[:, :, 2].copy()
         L[:, :, 2] += l
         along = L[:, :, self.e2]
@@ -290,7 +276,7 @@ class PUPS3(Mechanism):
             if redo.size == 0:
                 break
             gi = {key: v[redo] for key, v in g.items()}
-            Ry = np.broadcast_to(axis_rotation(2, yaw), (redo.size, 3, 3)).copy()
+            Ry = np.broadcast_to(axis_rotations(2, yaw), (redo.size, 3, 3)).copy()
             pr, Rr, dr, nr = self._newton(p0[redo].copy(), Ry, gi)
             take = (nr <= 1e-10) & (Rr[:, 2, 2] > 0.0)
             rows = redo[take]
@@ -353,7 +339,7 @@ class PUPS3(Mechanism):
         """(n, 6, 27) G = J1^-1 J2 (see the module docstring)."""
         n = len(s["p"])
         g = s["g"]
-        B = np.einsum("nkij,nkjl->nkil", g["M"], axis_rotation(self.e2, s["theta"]))
+        B = np.einsum("nkij,nkjl->nkil", g["M"], axis_rotations(self.e2, s["theta"]))
         J2 = np.zeros((n, 6, 27))
         for i in range(3):
             D = s["dirs"][:, 2 * i:2 * i + 2]
@@ -439,7 +425,7 @@ class PUPS3(Mechanism):
         if okq.any():
             dirs = np.empty((int(okq.sum()), 6, 3))
             dirs[:, 0::2] = np.einsum("kij,nkj->nki", self.RA, w[okq])
-            M = np.einsum("ijk,nikl->nijl", self.RA, axis_rotation(self.e1, psi[okq]))
+            M = np.einsum("ijk,nikl->nijl", self.RA, axis_rotations(self.e1, psi[okq]))
             dirs[:, 1::2] = M[:, :, :, self.e2]
             J1 = self._jacobian_rows(R[okq], dirs)
             J1[:, :, 3:] /= self.c
@@ -460,9 +446,9 @@ class PUPS3(Mechanism):
                 continue
             psi = self.locked[("psi", i)]
             if self.e1 == AXES["x"]:
-                out.append((i, self.RA[i] @ axis_rotation(0, psi)[:, 1], np.zeros(3)))
+                out.append((i, self.RA[i] @ axis_rotations(0, psi)[:, 1], np.zeros(3)))
             elif ("a", i) in self.locked:
-                out.append((i, self.RA[i] @ axis_rotation(1, psi)[:, 0], -self.locked[("a", i)] * self.RA[i][:, 0]))
+                out.append((i, self.RA[i] @ axis_rotations(1, psi)[:, 0], -self.locked[("a", i)] * self.RA[i][:, 0]))
         return out
 
     def project_poses(self, T):
@@ -508,7 +494,7 @@ class PUPS3(Mechanism):
         while got < m:
             batch = max(64, 2 * (m - got))
             x = lo + (hi - lo) * rng.random((batch, 6))
-            T, keep = self.project_poses(_pose_matrix(x[:, :3], rpy_to_matrices(x[:, 3:])))
+            T, keep = self.project_poses(pose_matrices(x[:, :3], rpy_to_matrices(x[:, 3:])))
             x = np.concatenate([T[:, :3, 3], rpy_from_matrix(T[:, :3, :3])], axis=1)
             keep &= np.all((x >= lo - 1e-12) & (x <= hi + 1e-12), axis=1)
             q, _, reason = self._ik(T)
@@ -535,7 +521,7 @@ class PUPS3(Mechanism):
 
         def to_joints(x):
             x = np.atleast_2d(x)
-            q, _, reason = self._ik(_pose_matrix(x[:, :3], rpy_to_matrices(x[:, 3:])))
+            q, _, reason = self._ik(pose_matrices(x[:, :3], rpy_to_matrices(x[:, 3:])))
             q = np.array(q, dtype=float)
             q[reason != ""] = np.nan
             return q
@@ -556,14 +542,6 @@ class PUPS3(Mechanism):
                     "redundancy_a_m": self.redundancy.tolist(),
                     "locked": {f"{k}{i + 1}": v for (k, i), v in sorted(self.locked.items())}})
         return out
-
-
-def _pose_matrix(p, R):
-    T = np.zeros((len(p), 4, 4))
-    T[:, :3, :3] = R
-    T[:, :3, 3] = p
-    T[:, 3, 3] = 1.0
-    return T
 
 
 def _fmt_q(q):

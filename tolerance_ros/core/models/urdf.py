@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .base import PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError, cross3 as _cross, rpy_to_matrix
+from ..geometry import axis_angle_matrix, cross3, rpy_matrix, rpy_to_matrix
+from .base import PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError
 
 ORIGIN_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -28,24 +29,6 @@ def _pin():
     except ImportError as exc:  # pragma: no cover - pinocchio is a hard dependency
         raise ModelError("URDF chains need pinocchio (pip install pin)") from exc
     return pinocchio
-
-
-def _rpy_stack(r, p, y):
-    """(3, 3, ...) rotation Rz(y) Ry(p) Rx(r) for scalar or (n,) angles."""
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
-
-
-def _axis_rotation(axis, angle):
-    """(3, 3, n) rotation by ``angle`` (n,) about unit ``axis`` (3,) (Rodrigues)."""
-    c, s = np.cos(angle), np.sin(angle)
-    v = 1.0 - c
-    x, y, z = axis
-    return np.array([[c + x * x * v, x * y * v - z * s, x * z * v + y * s],
-                     [y * x * v + z * s, c + y * y * v, y * z * v - x * s],
-                     [z * x * v - y * s, z * y * v + x * s, c + z * z * v]])
 
 
 def _mul(A, B):
@@ -194,12 +177,12 @@ class URDFChain(Mechanism):
             F = self._fixed[k]
             RW = _mul(R, F[:3, :3])
             oW = o + _apply(R, F[:3, 3])
-            RJ = _mul(RW, _rpy_stack(roll, pitch, yaw))
+            RJ = _mul(RW, rpy_matrix(roll, pitch, yaw))
             oJ = oW + _apply(RW, np.stack([x, y, z]))
             w_pitch = _apply(RW, np.stack([-np.sin(yaw), np.cos(yaw), np.zeros_like(yaw)]))
             w_joint = _apply(RJ, self._axes[k])
             if self.joint_types[k] == REVOLUTE:
-                R = _mul(RJ, _axis_rotation(self._axes[k], q[:, k] + off))
+                R = _mul(RJ, axis_angle_matrix(self._axes[k], q[:, k] + off))
                 o = oJ
             else:
                 R = RJ
@@ -220,10 +203,10 @@ class URDFChain(Mechanism):
             for i, u in enumerate(shifts):
                 Jt[c + i, :3] = u
             for i, w in enumerate(turns):
-                Jt[c + 3 + i, :3] = _cross(w, arm)
+                Jt[c + 3 + i, :3] = cross3(w, arm)
                 Jt[c + 3 + i, 3:] = w
             if self.joint_types[k] == REVOLUTE:
-                Jt[c + 6, :3] = _cross(w_joint, arm)
+                Jt[c + 6, :3] = cross3(w_joint, arm)
                 Jt[c + 6, 3:] = w_joint
             else:
                 Jt[c + 6, :3] = w_joint
