@@ -44,7 +44,7 @@ def test_sensitivity_table_json_and_plot(capsys, tmp_path):
 def test_verify_with_bounds_and_histogram(capsys, tmp_path):
     code, out, err = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2",
                          "--samples", "2000", "--errors", "fixed", "--bounds", "--plot", str(tmp_path))
-    assert code == 0 and "pass rate" in out and "worst_case" in out
+    assert code == 0 and "pass rate" in out and "worst-case" in out
     assert "verify:" in err  # progress on stderr
     assert (tmp_path / "error_histogram.png").exists()
     code, out, _ = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2",
@@ -52,7 +52,7 @@ def test_verify_with_bounds_and_histogram(capsys, tmp_path):
     doc = json.loads(out)
     pos = doc["position_m"]
     assert pos["limit"] == pytest.approx(1.4e-3) and 0.99 <= pos["pass_rate"] <= 1.0
-    assert doc["bounds_m"]["worst_case"]["max"] >= doc["bounds_m"]["paper"]["max"]
+    assert doc["bounds_m"]["worst-case"]["max"] >= doc["bounds_m"]["paper"]["max"]
 
 
 @pytest.mark.parametrize("argv, message", [

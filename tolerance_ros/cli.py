@@ -488,8 +488,8 @@ def print_rong2018(res):
                     [[x["fit"], x["size_mm"], f"{x['tolerance_m'] * 1e6:.2f}", f"IT{x['grade']}" if x["grade"] else "-",
                       f"IT{x['paper_grade']} ({x['paper_fit']})"] for x in g["fits"]], ["<", ">", ">", ">", "<"]))
         ps = g["paper_set"]
-        print(f"the paper's grades as tolerances: position up to {ps['position']['rss_max'] * 1e3:.4f} mm (rss), "
-              f"{ps['position']['worst_case_max'] * 1e3:.4f} mm (worst case) against {ps['position']['limit'] * 1e3:g} mm")
+        print(f"the paper's grades as tolerances: position up to {ps['position']['max']['rss'] * 1e3:.4f} mm (rss), "
+              f"{ps['position']['max']['worst-case'] * 1e3:.4f} mm (worst-case) against {ps['position']['limit'] * 1e3:g} mm")
     t = res["table3"]
     print(f"\nTable 3 from {t['source']} (simulated measurements, 30 cycles; mean error, mm and deg), beside the "
           f"published values:")
@@ -662,7 +662,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", choices=["min-cost", "optimal-precision"], default="min-cost")
     p.add_argument("--solver", choices=["active-set", "ga"], default="active-set",
                    help="active-set: exact convex method with adversarial pose search; ga: the paper's GA")
-    p.add_argument("--criterion", choices=["paper", "worst-case", "rss"], default="paper",
+    p.add_argument("--criterion", choices=errors.LIMIT_CRITERIA, default="paper",
                    help="paper: |J delta|; worst-case: over every error sign; rss: statistical")
     p.add_argument("--confidence", type=float, help="rss confidence (default 0.9973, i.e. 3 sigma)")
     p.add_argument("--floor-length", default="0.05mm", help="floor of length tolerances (default 0.05mm)")

@@ -64,9 +64,9 @@ def test_bound_ordering(seed):
     delta = rng.uniform(0, 1e-3, model.n_params)
     b = bounds(J, delta)
     tol = 1e-12
-    assert np.all(b["rss"] <= b["worst_case"] + tol)
-    assert np.all(b["worst_case"] <= b["per_axis"] + tol)
-    assert np.all(b["paper"] <= b["worst_case"] + tol)
+    assert np.all(b["rss"] <= b["worst-case"] + tol)
+    assert np.all(b["worst-case"] <= b["per-axis"] + tol)
+    assert np.all(b["paper"] <= b["worst-case"] + tol)
 
 
 def test_zero_tolerances_give_zero_bounds(gao):

@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from .errors import LIMIT_CRITERIA
 from .resources import resolve
 from .units import UnitError, angle_scale, length_scale, parse_number
 
 _KEYS = {"robot", "units", "limit", "criterion", "tolerances", "free", "default", "source", "meta"}
-CRITERIA = ("paper", "worst-case", "rss")
 
 
 class BudgetError(ValueError):
@@ -157,8 +157,8 @@ def budget_from_dict(data, kinds=None, field_prefix="") -> Budget:
         if v is not None and v <= 0:
             raise BudgetError(f"{f}limit.{nm}: must be > 0")
     criterion = data.get("criterion", "paper")
-    if criterion not in CRITERIA:
-        raise BudgetError(f"{f}criterion: expected one of {CRITERIA}, got {criterion!r}")
+    if criterion not in LIMIT_CRITERIA:
+        raise BudgetError(f"{f}criterion: expected one of {LIMIT_CRITERIA}, got {criterion!r}")
     free = data.get("free") or []
     if not isinstance(free, list) or not all(isinstance(n, str) for n in free):
         raise BudgetError(f"{f}free: expected a list of parameter names")

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .budget import BudgetError, budget_from_dict
-from .errors import CRITERIA as BOUND_CRITERIA
+from .errors import CRITERIA, LIMIT_CRITERIA
 from .errors import criterion_bound
 from .jsonio import dumps_fast, loads_strict
 from .models.base import ModelError
@@ -247,9 +247,9 @@ class ErrorModelService:
         if "tolerances" in req:
             delta, default_criterion = parse_tolerances(req["tolerances"], model, self.current_budget)
             criteria = req.get("criteria", ["paper", "rss", "per-axis"])
-            bad = [c for c in criteria if c not in BOUND_CRITERIA]
+            bad = [c for c in criteria if c not in CRITERIA]
             if bad:
-                raise ContractError("invalid_request", f"criteria: unknown {bad}; allowed: {list(BOUND_CRITERIA)}")
+                raise ContractError("invalid_request", f"criteria: unknown {bad}; allowed: {list(CRITERIA)}")
             resp["bounds"] = {"position": {c: criterion_bound(EJ.position, delta, c) for c in criteria}}
             if outputs == "pose":
                 resp["bounds"]["orientation"] = {c: criterion_bound(EJ.orientation, delta, c) for c in criteria}
@@ -266,7 +266,7 @@ ALLOCATE_FIELDS = {"command": ((str,), False), "robot": ((str,), False), "limit"
 
 def parse_allocate_request(text, models: dict, default_robot: str, limits: Limits) -> dict:
     """Validated allocation job (SI) or a 'status' query; raises ContractError naming the field."""
-    from .synthesis import CRITERIA, MODELS, SOLVERS
+    from .synthesis import MODELS, SOLVERS
     req = parse_request(text, ALLOCATE_FIELDS, limits)
     command = req.get("command", "allocate")
     if command not in ("allocate", "status"):
@@ -282,7 +282,7 @@ def parse_allocate_request(text, models: dict, default_robot: str, limits: Limit
            "criterion": req.get("criterion", "paper"), "confidence": req.get("confidence"),
            "floors": req.get("floors"), "seed": req.get("seed", 0), "mc_poses": req.get("mc_poses", 10000),
            "ga_tol": req.get("ga_tol", 1000), "ga_rounds": req.get("ga_rounds", 50)}
-    for field, allowed in (("model", MODELS), ("solver", SOLVERS), ("criterion", CRITERIA)):
+    for field, allowed in (("model", MODELS), ("solver", SOLVERS), ("criterion", LIMIT_CRITERIA)):
         if job[field] not in allowed:
             raise ContractError("invalid_request", f"{field}: expected one of {list(allowed)}, got {job[field]!r}")
     for field in ("limit", "orientation_limit", "confidence"):

@@ -146,6 +146,9 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
 
 
 CRITERIA = ("paper", "worst-case", "per-axis", "rss")
+"""Every named bound, spelled the same in Python, the command line, JSON and files."""
+LIMIT_CRITERIA = ("paper", "worst-case", "rss")
+"""The criteria a design limit is judged by (budgets, allocation); per-axis is only a cheap upper bound."""
 
 
 def criterion_bound(J, delta, criterion: str, k_sigma: float = 3.0) -> np.ndarray:
@@ -162,8 +165,10 @@ def criterion_bound(J, delta, criterion: str, k_sigma: float = 3.0) -> np.ndarra
 
 
 def bounds(J, delta, worst_case: bool = True) -> dict:
-    """All bounds at once: {'paper', 'worst_case', 'per_axis', 'rss'} -> (n,) arrays."""
-    out = {"paper": paper_bound(J, delta), "per_axis": per_axis_bound(J, delta), "rss": rss_bound(J, delta)}
+    """All bounds at once, keyed by criterion name (``CRITERIA``) -> (n,) arrays."""
+    out = {"paper": paper_bound(J, delta)}
     if worst_case:
-        out["worst_case"] = worst_case_bound(J, delta)
+        out["worst-case"] = worst_case_bound(J, delta)
+    out["per-axis"] = per_axis_bound(J, delta)
+    out["rss"] = rss_bound(J, delta)
     return out

@@ -272,8 +272,8 @@ def grades(model=None, limit_position: float = LIMIT_POSITION, limit_orientation
     paper_set = {"tolerances": dict(zip(model.param_names, paper.tolist())), "poses": int(len(q))}
     for rows, lim in (("position", limit_position), ("orientation", limit_orientation)):
         Jr = J.select(rows)
-        paper_set[rows] = {"limit": lim, "rss_max": float(rss_bound(Jr, paper).max()),
-                           "worst_case_max": float(worst_case_bound(Jr, paper).max())}
+        paper_set[rows] = {"limit": lim, "max": {"rss": float(rss_bound(Jr, paper).max()),
+                                                 "worst-case": float(worst_case_bound(Jr, paper).max())}}
     return {"limits": {"position_m": limit_position, "orientation_rad": limit_orientation},
             "criterion": criterion, "model_type": model_type, "floor_m": floor, "status": res.status,
             "success": bool(res.success), "message": res.message,

@@ -19,13 +19,14 @@ from ..budget import Budget
 from ..iso286 import coarsest_grade
 from .active_set import solve_active_set
 from .ga import TABLE2, solve_ga
-from .problem import CRITERIA, MODELS, SynthesisError, SynthesisProblem, build_problem
+from ..errors import LIMIT_CRITERIA
+from .problem import MODELS, SynthesisError, SynthesisProblem, build_problem
 from .search import maximize, select_poses
 
 SOLVERS = ("active-set", "ga")
 MC_DISTRIBUTION = {"paper": "fixed", "worst-case": "extreme", "rss": "normal"}
 
-__all__ = ["Allocation", "CRITERIA", "MODELS", "SOLVERS", "SynthesisError", "SynthesisProblem", "TABLE2",
+__all__ = ["Allocation", "MODELS", "SOLVERS", "SynthesisError", "SynthesisProblem", "TABLE2",
            "allocate", "build_problem", "select_poses", "supremum", "verify_allocation"]
 
 
@@ -110,7 +111,7 @@ def verify_allocation(problem: SynthesisProblem, delta, n_mc=10000, seed=0, n_sa
     model = problem.model
     d = np.where(problem.active, delta, 0.0)
     sup = {}
-    for crit in CRITERIA:
+    for crit in LIMIT_CRITERIA:
         sup[crit] = {}
         for rows, lim in problem.rows:
             s = supremum(problem, d, crit, rows, n_samples, n_starts, seed)

@@ -19,11 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import criterion_bound, per_axis_bound, worst_case_bound
+from ..errors import LIMIT_CRITERIA, criterion_bound, per_axis_bound, worst_case_bound
 from ..models.base import Mechanism
 from .search import column_maxima
 
-CRITERIA = ("paper", "worst-case", "rss")
 MODELS = ("min-cost", "optimal-precision")
 DEFAULT_FLOORS = {"length": 0.05e-3, "angle": 0.0003}
 DEFAULT_K = {"length": 1.0, "angle": 1.5}
@@ -79,8 +78,8 @@ class SynthesisProblem:
     def values(self, J, delta, criterion=None) -> np.ndarray:
         """(n,) criterion values for Jacobian rows J (n, 3, p) and tolerances delta (p,)."""
         criterion = criterion or self.criterion
-        if criterion not in CRITERIA:
-            raise SynthesisError(f"criterion: expected one of {CRITERIA}, got {criterion!r}")
+        if criterion not in LIMIT_CRITERIA:
+            raise SynthesisError(f"criterion: expected one of {LIMIT_CRITERIA}, got {criterion!r}")
         return criterion_bound(J, np.where(self.active, delta, 0.0), criterion, self.k_sigma)
 
     def upper(self, J, delta, criterion=None) -> np.ndarray | None:
@@ -103,7 +102,7 @@ class SynthesisProblem:
         if criterion == "rss":
             c2 = np.einsum("nkp,nkp->np", J, J) * (self.k_sigma / 3.0) ** 2
             return np.einsum("np,pq->npq", c2, np.eye(J.shape[2]))
-        raise SynthesisError(f"criterion: expected one of {CRITERIA}, got {criterion!r}")
+        raise SynthesisError(f"criterion: expected one of {LIMIT_CRITERIA}, got {criterion!r}")
 
     def to_dict(self) -> dict:
         names = self.model.param_names
@@ -123,8 +122,8 @@ def build_problem(model: Mechanism, limit: float, orientation_limit: float | Non
         parameter name, or both (names override kinds).  cost_K : dict by kind or name (defaults 1 for
         lengths, 1.5 for angles).  cost_alpha : scalar or dict.
     """
-    if criterion not in CRITERIA:
-        raise SynthesisError(f"criterion: expected one of {CRITERIA}, got {criterion!r}")
+    if criterion not in LIMIT_CRITERIA:
+        raise SynthesisError(f"criterion: expected one of {LIMIT_CRITERIA}, got {criterion!r}")
     if not (isinstance(limit, (int, float)) and np.isfinite(limit) and limit > 0):
         raise SynthesisError(f"limit: the position limit must be a positive length in m, got {limit!r}")
     if orientation_limit is not None and not (np.isfinite(orientation_limit) and orientation_limit > 0):
