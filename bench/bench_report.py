@@ -31,7 +31,7 @@ from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.campaign import Campaign, TestPose  # noqa: E402
 from tolerance_ros.core.models import load_robot  # noqa: E402
 from tolerance_ros.core.geometry import transform  # noqa: E402
-from tolerance_ros.reporting import write_report  # noqa: E402
+from tolerance_ros.render.accuracy_report import write_report  # noqa: E402
 
 
 def synth(model, q, delta, path, labels=None):

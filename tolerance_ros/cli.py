@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -20,59 +19,11 @@ from .core.jsonio import dumps
 from .core.models import ModelError, load_robot
 from .core.resources import shipped
 from .core.units import UnitError, parse_quantity
+from .render.text import Progress, fmt, table
 
 
 class CLIError(Exception):
     """A user error reported as one line on stderr (and as a JSON error with --json)."""
-
-
-class Progress:
-    """Progress on stderr: a bar on a terminal, a line every 10 % otherwise; silent with --quiet."""
-
-    def __init__(self, label: str, enabled: bool = True, stream=None):
-        self.label = label
-        self.stream = stream or sys.stderr
-        self.enabled = enabled
-        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
-        self.last = -1
-        self.start = time.perf_counter()
-
-    def __call__(self, done, total):
-        if not self.enabled or total <= 0:
-            return
-        frac = min(1.0, done / total)
-        step = int(frac * (50 if self.tty else 10))
-        if step == self.last and done < total:
-            return
-        self.last = step
-        elapsed = time.perf_counter() - self.start
-        if self.tty:
-            bar = "#" * int(frac * 30)
-            self.stream.write(f"\r{self.label} [{bar:<30}] {frac * 100:5.1f}% {elapsed:6.1f}s")
-            if done >= total:
-                self.stream.write("\n")
-        else:
-            self.stream.write(f"{self.label}: {frac * 100:.0f}% ({elapsed:.1f}s)\n")
-        self.stream.flush()
-
-
-def table(headers, rows, aligns=None) -> str:
-    """Plain-text table with right-aligned numbers."""
-    cells = [[str(h) for h in headers]] + [[str(c) for c in r] for r in rows]
-    widths = [max(len(r[i]) for r in cells) for i in range(len(headers))]
-    aligns = aligns or ["<"] + [">"] * (len(headers) - 1)
-    lines = []
-    for k, r in enumerate(cells):
-        lines.append("  ".join(f"{c:{a}{w}}" for c, a, w in zip(r, aligns, widths)).rstrip())
-        if k == 0:
-            lines.append("  ".join("-" * w for w in widths))
-    return "\n".join(lines)
-
-
-def fmt(x, digits=4) -> str:
-    if x is None or (isinstance(x, float) and not np.isfinite(x)):
-        return "inf" if x is not None and x > 0 else "-"
-    return f"{x:.{digits}g}" if abs(x) >= 1e4 or (abs(x) < 1e-3 and x != 0) else f"{x:.{digits}f}"
 
 
 def _limit(text, kind="length"):
@@ -159,7 +110,7 @@ def cmd_sensitivity(args):
     prog(1, 1)
     plots = []
     if args.plot:
-        from . import plots as P
+        from .render import plots as P
         plots.append(str(P.salience_bars(sens, Path(args.plot) / "salience.png")))
     if args.json:
         out = sens.to_dict()
@@ -219,7 +170,7 @@ def cmd_verify(args):
         out["bounds_m"] = {k: analysis.summarize(v, limit) for k, v in b.items()}
     plots = []
     if args.plot:
-        from . import plots as P
+        from .render import plots as P
         plots.append(str(P.error_histogram(ver.position, Path(args.plot) / "error_histogram.png", limit,
                                            f"{model.name}: {args.errors} errors, {len(ver.position)} poses")))
     out["plots"] = plots
@@ -279,7 +230,7 @@ def cmd_allocate(args):
         doc["budget_file"] = str(out_path)
     plots = []
     if args.plot:
-        from . import plots as P
+        from .render import plots as P
         plots.append(str(_convergence_plot(P, res, Path(args.plot) / "convergence.png")))
         mc = synthesis.analysis.monte_carlo(model, res.delta, n=args.mc_poses,
                                             distribution=res.verification["monte_carlo"]["distribution"],
@@ -352,7 +303,7 @@ def print_allocation(doc):
 def cmd_report(args):
     from .core.accuracy.report import evaluate_file, read_measurements
     from .core.campaign import load_campaign
-    from .reporting import write_report
+    from .render.accuracy_report import write_report
     model = load_robot(args.robot)
     budget = load_budget(args.budget, model) if args.budget else None
     campaign = load_campaign(args.campaign, model) if args.campaign else None
@@ -400,211 +351,22 @@ def cmd_report(args):
             print(f"wrote {f}")
 
 
-def cmd_paper(args):
-    if args.name == "rong2018":
-        return cmd_paper_rong2018(args)
-    if args.name != "gao2023":
-        raise CLIError(f"paper: unknown paper {args.name!r}; known: gao2023, rong2018")
-    from .core import gao2023
-    prog = Progress("gao2023 analysis", not args.quiet)
-    res = gao2023.reproduce(n_poses=args.poses, seed=args.seed, progress=prog)
-    if not args.no_synthesis:
-        res["synthesis"] = gao2023.synthesis_study(seed=args.seed, n_mc=args.poses,
-                                                   ga_options={"tol_runs": args.ga_tol},
-                                                   progress=Progress("gao2023 synthesis", not args.quiet))
-    if args.plot:
-        from . import plots as P
-        model = load_robot(gao2023.ROBOT)
-        sens = analysis.sensitivity(model, 1000, args.seed, length_unit="mm")
-        res["plots"] = [str(P.salience_bars(sens, Path(args.plot) / "gao2023_fig2_salience.png"))]
-        for key, spec in gao2023.SETS.items():
-            delta = load_budget(spec, model).vector_for(model)
-            q = model.sample_joints(args.poses, np.random.default_rng(args.seed))
-            ver = analysis.monte_carlo(model, delta, distribution="fixed", q=q)
-            res["plots"].append(str(P.error_histogram(ver.position, Path(args.plot) / f"gao2023_fig6_{key}.png",
-                                                      gao2023.LIMIT_MM * 1e-3, f"Gao 2023 {key}: |J delta|")))
-    if args.json:
-        return res
-    print_gao2023(res)
-
-
-def cmd_paper_rong2018(args):
-    from .core import rong2018
-    from .core.accuracy.io import read_csv
-    from .core.resources import config_dir
-    prog = Progress("rong2018", not args.quiet)
-    model, campaign = load_robot(rong2018.ROBOT), None
-    from .core.campaign import load_campaign
-    campaign = load_campaign(rong2018.CAMPAIGN, model)
-    prog(0, 3)
-    res = {"fig3": rong2018.fig3_study(model, campaign, seed=args.seed % 1000)}
-    prog(1, 3)
-    if not args.no_synthesis:
-        res["grades"] = rong2018.grades(model, seed=args.seed % 1000)
-    prog(2, 3)
-    path = config_dir() / "data" / rong2018.EXAMPLE_CSV
-    meas = read_csv(path)
-    res["table3"] = rong2018.table3(campaign, model, {n: meas.T[meas.pose == n] for n in campaign.names})
-    res["table3"]["source"] = str(path)
-    prog(3, 3)
-    if args.plot:
-        from . import plots as P
-        f = res["fig3"]
-        mags = np.array(f["magnitudes_m"]) * 1e3
-        series = {}
-        for g in ("a", "b", "l"):
-            sw = f["sweep"][g]
-            series[f"d{g}1 position [um]"] = np.array(sw["position_m"]).mean(axis=0) * 1e6
-            series[f"d{g}1 orientation [urad]"] = np.array(sw["orientation_rad"]).mean(axis=0) * 1e6
-        res["plots"] = [str(P.line_plot(mags, series, Path(args.plot) / "rong2018_fig3.png", "|error| [mm]",
-                                        "um / urad", "Fig. 3: platform error vs source error (mean over PE1-PE6)"))]
-    if args.json:
-        return res
-    print_rong2018(res)
-
-
-def print_rong2018(res):
-    f = res["fig3"]
-    print("Rong, Han, Liu, Qu (2018): 3-PUPS parallel manipulator, error analysis.")
-    print(f"\nFig. 3: limb {f['limb']} sources swept 0.001-0.01 mm along their worst direction; errors at 0.01 mm "
-          f"(position um / orientation urad):")
-    rows = []
-    for k, name in enumerate(f["test_poses"]):
-        rows.append([name] + [f"{f['sweep'][g]['position_m'][k][-1] * 1e6:.3f} / "
-                              f"{f['sweep'][g]['orientation_rad'][k][-1] * 1e6:.2f}" for g in ("a", "b", "l")])
-    print(table(["pose", "da1", "db1", "dl1"], rows))
-    print("\nPaper's conclusion 'da and db dominate, dl is weak', by the direction the error vectors are taken along:")
-    print(table(["direction", "verdict", "meaning"], [[k, v, f["conventions"][k]] for k, v in f["verdict"].items()],
-                ["<", "<", "<"]))
-    sal = f["salience"]["position"]["all_limbs"]
-    print(f"salience by group (position, all limbs): a {sal['a']:.3f}, b {sal['b']:.3f}, l {sal['l']:.3f}")
-    print(f"note: {f['facts']['note']}")
-    if "grades" in res:
-        g = res["grades"]
-        print(f"\nTable 1, ISO 286 grades from an allocation ({g['criterion']}, {g['model_type']}; limits "
-              f"{g['limits']['position_m'] * 1e3:g} mm and {np.degrees(g['limits']['orientation_rad']):g} deg; "
-              f"{g['status']}):")
-        print(table(["fit", "size mm", "tolerance um", "grade", "paper"],
-                    [[x["fit"], x["size_mm"], f"{x['tolerance_m'] * 1e6:.2f}", f"IT{x['grade']}" if x["grade"] else "-",
-                      f"IT{x['paper_grade']} ({x['paper_fit']})"] for x in g["fits"]], ["<", ">", ">", ">", "<"]))
-        ps = g["paper_set"]
-        print(f"the paper's grades as tolerances: position up to {ps['position']['max']['rss'] * 1e3:.4f} mm (rss), "
-              f"{ps['position']['max']['worst-case'] * 1e3:.4f} mm (worst-case) against {ps['position']['limit'] * 1e3:g} mm")
-    t = res["table3"]
-    print(f"\nTable 3 from {t['source']} (simulated measurements, 30 cycles; mean error, mm and deg), beside the "
-          f"published values:")
-    rows = []
-    for r in t["rows"]:
-        me, pub, iso = r["mean_error"], r["published"], r["iso9283"]
-        rows.append([r["pose"], r["n"]] + [f"{me[k] * 1e3:+.4f} ({pub[k] * 1e3:.3f})" for k in ("dX", "dY", "dZ")]
-                    + [f"{np.degrees(me[k]):+.4f} ({np.degrees(pub[k]):.3f})" for k in ("dalpha", "dbeta", "dgamma")]
-                    + [f"{iso['AP_p'] * 1e3:.4f}", f"{iso['RP_l'] * 1e3:.4f}"])
-    print(table(["pose", "n", "dX", "dY", "dZ", "dalpha", "dbeta", "dgamma", "AP_p mm", "RP_l mm"], rows))
-    for p in res.get("plots", []):
-        print(f"plot: {p}")
-
-
-def print_gao2023(res):
-    print("Gao, Fang, Jiang, Gong (2023): 7-DOF arm, D-H precision analysis. Lengths in mm, angles in rad.")
-    it = res["interpretation"]
-    print(f"Interpretation: joints {it['joint_range']}; Table 4 errors: {it['table4_errors']}; "
-          f"Table 5: {it['table5_rule']}.\n")
-    s = res["salience"]
-    print(f"Fig. 2 salience ({s['samples']} poses):")
-    print(f"  angle ranking (alpha_i ~ theta_i): published {s['angle_ranking']['published']}, "
-          f"reproduced {s['angle_ranking']['reproduced']} -> {'match' if s['angle_ranking']['match'] else 'DIFFERS'}")
-    a7, t7 = s["alpha7_theta7"]["reproduced"]
-    print(f"  D(alpha7), D(theta7): published 0, reproduced {a7:.1e}, {t7:.1e}")
-    le = s["lengths_equal"]
-    print(f"  length errors equal: {le['min'] * 100:.4f} % .. {le['max'] * 100:.4f} % -> "
-          f"{'match' if le['match'] else 'DIFFERS'}\n")
-    print(f"Table 3, ceilings Delta_j (eq. 18, {res['poses']} poses; lengths: "
-          f"{res['ceilings_lengths_mm']['reproduced']} mm, published 1.4):")
-    print(table(["param", "published", "reproduced", "rounded", "match"],
-                [[c["parameter"], f"{c['published']:.4f}", f"{c['reproduced']:.6f}", f"{c['reproduced']:.4f}",
-                  "yes" if round(c["reproduced"], 4) == c["published"] else "no"] for c in res["ceilings"]]))
-    print("\nSection 5.2, correlation of Jacobian columns (pooled over x, y, z and poses):")
-    print(table(["paper (i,j)", "parameters", "published", "reproduced"],
-                [[f"({c['paper_indices'][0]},{c['paper_indices'][1]})", "/".join(c["parameters"]),
-                  f"{c['published']:+.2f}", f"{c['reproduced']:+.3f}"] for c in res["correlations"]]))
-    print(f"\nTable 4, verification over {res['poses']} poses (|dP| in mm):")
-    rows = []
-    for key, t in res["table4"].items():
-        p, r, lo, hi = t["published"], t["reproduced"], t["rounding_band"]["low"], t["rounding_band"]["high"]
-        rows.append([key, "cost index", f"{p['cost']}", f"{r['cost']:.0f}", "-"])
-        for k, label in (("pass_rate", "pass rate %"), ("max", "max"), ("mean", "mean"), ("std", "std ('RMSE')")):
-            sc = 100.0 if k == "pass_rate" else 1.0
-            band = f"{min(lo[k], hi[k]) * sc:.4f} .. {max(lo[k], hi[k]) * sc:.4f}"
-            inside = min(lo[k], hi[k]) - 1e-12 <= p[k] <= max(lo[k], hi[k]) + 1e-12
-            rows.append([key, label, f"{p[k] * sc:.4f}", f"{r[k] * sc:.4f}", band + ("" if inside else "  (outside)")])
-    print(table(["set", "figure", "published", "reproduced", "band from rounding of Table 3"], rows,
-                ["<", "<", ">", ">", "<"]))
-    print("\nTable 5, after sign control of the correlated pairs (|dP| in mm):")
-    rows = []
-    for key, t in res["table5"].items():
-        for k in ("max", "mean", "std"):
-            rows.append([key, k, f"{t['published'][k]:.4f}", f"{t['reproduced'][k]:.4f}"])
-    print(table(["set", "figure", "published", "reproduced"], rows))
-    flips = ", ".join(sorted(next(iter(res["table5"].values()))["signs"]))
-    print(f"  (parameters assembled at -delta: {flips})")
-    print("\nInterpretations tried for Table 4 (mean relative deviation of mean, std and max from the paper):")
-    print(table(["joint range", "errors", "deviation", "delta1 mean", "delta2 mean"],
-                [[r["joint_range"], r["errors"], f"{r['mean_relative_deviation'] * 100:.1f} %",
-                  f"{r['sets']['delta1']['mean']:.4f}", f"{r['sets']['delta2']['mean']:.4f}"]
-                 for r in res["interpretation_study"]]))
-    print("\nThe published tolerances are rounded to 4 decimals (most angles to one significant digit), so\n"
-          "Tables 4 and 5 can only be matched within the band that rounding allows. Not reproduced:")
-    for note in res["not_reproduced"] or ["nothing"]:
-        print(f"  - {note}")
-    if "synthesis" in res:
-        print_gao2023_synthesis(res["synthesis"])
-    for p in res.get("plots", []):
-        print(f"plot: {p}")
-
-
-def print_gao2023_synthesis(syn):
-    sets = syn["sets"]
-    keys = list(sets)
-    short = {k: k.replace("published ", "pub ").replace("active-set", "AS").replace("optimal-precision", "opt-prec")
-             .replace("min-cost", "min-cost") for k in keys}
-    print(f"\n=== Precision synthesis, [Delta] = {syn['limit_mm']} mm, paper floors, cost model and criterion ===")
-    print("Table 3, tolerances (mm for a, d; rad for alpha, theta):")
-    rows = []
-    for j, (n, u) in enumerate(zip(syn["names"], syn["units"])):
-        if n in syn["free"]:
-            continue
-        sc = 1e3 if u == "m" else 1.0
-        c = syn["ceilings"][n]
-        rows.append([n, f"{c * sc:.4f}"] + [f"{sets[k]['delta'][j] * sc:.4f}" for k in keys])
-    print(table(["param", "Delta_j"] + [short[k] for k in keys], rows))
-    print("\nTable 4, verification (10,000-pose Monte Carlo with every error at +delta, as the paper; searched")
-    print("supremum over the joint space under each criterion; mm):")
-    rows = []
-    for k in keys:
-        v = sets[k]["verification"]
-        mc = v["monte_carlo"]["position_m"]
-        sup = v["supremum"]
-        pub = f" ({sets[k]['published_cost']})" if "published_cost" in sets[k] else ""
-        rows.append([short[k], f"{sets[k]['cost']:.0f}{pub}", f"{sets[k]['index_I_mm']:.3f}",
-                     f"{mc['pass_rate'] * 100:.2f}", f"{mc['max'] * 1e3:.4f}", f"{mc['mean'] * 1e3:.4f}",
-                     f"{mc['std'] * 1e3:.4f}", f"{sup['paper']['position']['value'] * 1e3:.4f}",
-                     f"{sup['worst-case']['position']['value'] * 1e3:.4f}", f"{sup['rss']['position']['value'] * 1e3:.4f}",
-                     "-" if sets[k]["time_s"] is None else f"{sets[k]['time_s']:.1f}"])
-    print(table(["set", "cost", "I", "pass %", "max", "mean", "std", "sup paper", "sup worst", "sup rss", "time s"],
-                rows))
-    print("\nTable 5, Monte Carlo after the paper's sign control of correlated pairs (mm):")
-    rows = []
-    for k in keys:
-        t = sets[k]["verification"]["sign_control"]["position_m"]
-        rows.append([short[k], f"{t['pass_rate'] * 100:.2f}", f"{t['max'] * 1e3:.4f}", f"{t['mean'] * 1e3:.4f}",
-                     f"{t['std'] * 1e3:.4f}"])
-    print(table(["set", "pass %", "max", "mean", "std"], rows))
-    for k in keys:
-        for w in sets[k].get("warnings", []):
-            print(f"WARNING ({short[k]}): {w}")
-
-
 # ---------------------------------------------------------------- parser
+
+
+def cmd_paper(args):
+    from .papers import gao2023, rong2018
+    if args.name == "gao2023":
+        paper = gao2023
+        res = gao2023.run(args.poses, args.seed, args.plot, not args.no_synthesis, args.ga_tol, args.quiet)
+    elif args.name == "rong2018":
+        paper = rong2018
+        res = rong2018.run(args.seed, args.plot, not args.no_synthesis, args.quiet)
+    else:
+        raise CLIError(f"paper: unknown paper {args.name!r}; known: gao2023, rong2018")
+    if args.json:
+        return res
+    paper.print_report(res)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from helpers import pose_difference
-from tolerance_ros.core import rong2018
+from tolerance_ros.papers import rong2018
 from tolerance_ros.core.accuracy.io import read_csv
 from tolerance_ros.core.geometry import rpy_from_matrix
 from tolerance_ros.core.campaign import load_campaign

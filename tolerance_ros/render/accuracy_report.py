@@ -1,5 +1,5 @@
 """Writes an accuracy report (Markdown, PNG plots, and the JSON and CSV behind them) from the dict of
-``tolerance_ros.core.accuracy.report.evaluate_file``. Lengths in mm and angles in mrad in the human
+``tolerance_ros.core.accuracy.evaluation.evaluate_file``. Lengths in mm and angles in mrad in the human
 report, as its headers say; JSON and CSV in SI."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .core.jsonio import dumps
+from ..core.jsonio import dumps
 
 
 def _plots(res, out, budget_delta, names):

@@ -17,9 +17,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .analysis import ceilings, correlated_pairs, correlation, monte_carlo, sensitivity, sign_control
-from .budget import load_budget
-from .models import load_robot
+from pathlib import Path
+
+from ..core.analysis import ceilings, correlated_pairs, correlation, monte_carlo, sensitivity, sign_control
+from ..core.budget import load_budget
+from ..core.models import load_robot
+from ..core.synthesis import allocate, build_problem, verify_allocation
+from ..core.synthesis.problem import COST_UNIT, DEFAULT_K
+from ..render import plots
+from ..render.text import Progress, table
 
 ROBOT = "gao2023_7dof"
 SETS = {"delta1": "gao2023_delta1", "delta2": "gao2023_delta2"}
@@ -43,7 +49,6 @@ SIGN_MODELS = {"all +delta (eq. 11)": "fixed", "random +-delta": "extreme", "uni
 def cost_index(model, delta) -> float:
     """Eq. 17 cost with the paper's K and alpha = 1, lengths in mm and angles in rad (zero tolerances skipped;
     the same model as ``SynthesisProblem.cost``)."""
-    from .synthesis.problem import COST_UNIT, DEFAULT_K
     return float(sum(DEFAULT_K[k] / (d * COST_UNIT[k]) for k, d in zip(model.param_kinds, delta) if d > 0))
 
 
@@ -185,8 +190,6 @@ def synthesis_study(seed: int = 2023, n_mc: int = 10000, ga_options=None, progre
     """Tables 3-5 of the synthesis: the published sets, this project's GA reproduction and the
     active-set solver, all verified the same way ([Delta] = 1.4 mm, the paper's floors, cost model
     and criterion)."""
-    from .synthesis import allocate, build_problem, verify_allocation
-
     model = load_robot(ROBOT)
     problem = build_problem(model, LIMIT_MM * 1e-3, criterion="paper", seed=seed)
     out = {"limit_mm": LIMIT_MM, "criterion": "paper", "ceilings": dict(zip(model.param_names, problem.ceilings)),
@@ -215,3 +218,129 @@ def synthesis_study(seed: int = 2023, n_mc: int = 10000, ga_options=None, progre
     out["units"] = list(model.param_units)
     out["free"] = [n for n, a in zip(model.param_names, problem.active) if not a]
     return out
+
+
+def run(poses: int = 10000, seed: int = 2023, plot_dir=None, synthesis: bool = True, ga_tol: int = 1000,
+        quiet: bool = False) -> dict:
+    """The whole reproduction (analysis, and synthesis unless ``synthesis=False``); plots into ``plot_dir``."""
+    res = reproduce(n_poses=poses, seed=seed, progress=Progress("gao2023 analysis", not quiet))
+    if synthesis:
+        res["synthesis"] = synthesis_study(seed=seed, n_mc=poses, ga_options={"tol_runs": ga_tol},
+                                           progress=Progress("gao2023 synthesis", not quiet))
+    if plot_dir:
+        res["plots"] = write_plots(plot_dir, poses, seed)
+    return res
+
+
+def write_plots(plot_dir, poses: int = 10000, seed: int = 2023) -> list:
+    """Fig. 2 (salience) and Fig. 6 (error histograms of the published sets) as PNG files; their paths."""
+    model = load_robot(ROBOT)
+    sens = sensitivity(model, 1000, seed, length_unit="mm")
+    files = [plots.salience_bars(sens, Path(plot_dir) / "gao2023_fig2_salience.png")]
+    q = model.sample_joints(poses, np.random.default_rng(seed))
+    for key, spec in SETS.items():
+        delta = load_budget(spec, model).vector_for(model)
+        ver = monte_carlo(model, delta, distribution="fixed", q=q)
+        files.append(plots.error_histogram(ver.position, Path(plot_dir) / f"gao2023_fig6_{key}.png",
+                                           LIMIT_MM * 1e-3, f"Gao 2023 {key}: |J delta|"))
+    return [str(f) for f in files]
+
+
+def print_report(res):
+    print("Gao, Fang, Jiang, Gong (2023): 7-DOF arm, D-H precision analysis. Lengths in mm, angles in rad.")
+    it = res["interpretation"]
+    print(f"Interpretation: joints {it['joint_range']}; Table 4 errors: {it['table4_errors']}; "
+          f"Table 5: {it['table5_rule']}.\n")
+    s = res["salience"]
+    print(f"Fig. 2 salience ({s['samples']} poses):")
+    print(f"  angle ranking (alpha_i ~ theta_i): published {s['angle_ranking']['published']}, "
+          f"reproduced {s['angle_ranking']['reproduced']} -> {'match' if s['angle_ranking']['match'] else 'DIFFERS'}")
+    a7, t7 = s["alpha7_theta7"]["reproduced"]
+    print(f"  D(alpha7), D(theta7): published 0, reproduced {a7:.1e}, {t7:.1e}")
+    le = s["lengths_equal"]
+    print(f"  length errors equal: {le['min'] * 100:.4f} % .. {le['max'] * 100:.4f} % -> "
+          f"{'match' if le['match'] else 'DIFFERS'}\n")
+    print(f"Table 3, ceilings Delta_j (eq. 18, {res['poses']} poses; lengths: "
+          f"{res['ceilings_lengths_mm']['reproduced']} mm, published 1.4):")
+    print(table(["param", "published", "reproduced", "rounded", "match"],
+                [[c["parameter"], f"{c['published']:.4f}", f"{c['reproduced']:.6f}", f"{c['reproduced']:.4f}",
+                  "yes" if round(c["reproduced"], 4) == c["published"] else "no"] for c in res["ceilings"]]))
+    print("\nSection 5.2, correlation of Jacobian columns (pooled over x, y, z and poses):")
+    print(table(["paper (i,j)", "parameters", "published", "reproduced"],
+                [[f"({c['paper_indices'][0]},{c['paper_indices'][1]})", "/".join(c["parameters"]),
+                  f"{c['published']:+.2f}", f"{c['reproduced']:+.3f}"] for c in res["correlations"]]))
+    print(f"\nTable 4, verification over {res['poses']} poses (|dP| in mm):")
+    rows = []
+    for key, t in res["table4"].items():
+        p, r, lo, hi = t["published"], t["reproduced"], t["rounding_band"]["low"], t["rounding_band"]["high"]
+        rows.append([key, "cost index", f"{p['cost']}", f"{r['cost']:.0f}", "-"])
+        for k, label in (("pass_rate", "pass rate %"), ("max", "max"), ("mean", "mean"), ("std", "std ('RMSE')")):
+            sc = 100.0 if k == "pass_rate" else 1.0
+            band = f"{min(lo[k], hi[k]) * sc:.4f} .. {max(lo[k], hi[k]) * sc:.4f}"
+            inside = min(lo[k], hi[k]) - 1e-12 <= p[k] <= max(lo[k], hi[k]) + 1e-12
+            rows.append([key, label, f"{p[k] * sc:.4f}", f"{r[k] * sc:.4f}", band + ("" if inside else "  (outside)")])
+    print(table(["set", "figure", "published", "reproduced", "band from rounding of Table 3"], rows,
+                ["<", "<", ">", ">", "<"]))
+    print("\nTable 5, after sign control of the correlated pairs (|dP| in mm):")
+    rows = []
+    for key, t in res["table5"].items():
+        for k in ("max", "mean", "std"):
+            rows.append([key, k, f"{t['published'][k]:.4f}", f"{t['reproduced'][k]:.4f}"])
+    print(table(["set", "figure", "published", "reproduced"], rows))
+    flips = ", ".join(sorted(next(iter(res["table5"].values()))["signs"]))
+    print(f"  (parameters assembled at -delta: {flips})")
+    print("\nInterpretations tried for Table 4 (mean relative deviation of mean, std and max from the paper):")
+    print(table(["joint range", "errors", "deviation", "delta1 mean", "delta2 mean"],
+                [[r["joint_range"], r["errors"], f"{r['mean_relative_deviation'] * 100:.1f} %",
+                  f"{r['sets']['delta1']['mean']:.4f}", f"{r['sets']['delta2']['mean']:.4f}"]
+                 for r in res["interpretation_study"]]))
+    print("\nThe published tolerances are rounded to 4 decimals (most angles to one significant digit), so\n"
+          "Tables 4 and 5 can only be matched within the band that rounding allows. Not reproduced:")
+    for note in res["not_reproduced"] or ["nothing"]:
+        print(f"  - {note}")
+    if "synthesis" in res:
+        print_synthesis(res["synthesis"])
+    for p in res.get("plots", []):
+        print(f"plot: {p}")
+
+
+def print_synthesis(syn):
+    sets = syn["sets"]
+    keys = list(sets)
+    short = {k: k.replace("published ", "pub ").replace("active-set", "AS").replace("optimal-precision", "opt-prec")
+             .replace("min-cost", "min-cost") for k in keys}
+    print(f"\n=== Precision synthesis, [Delta] = {syn['limit_mm']} mm, paper floors, cost model and criterion ===")
+    print("Table 3, tolerances (mm for a, d; rad for alpha, theta):")
+    rows = []
+    for j, (n, u) in enumerate(zip(syn["names"], syn["units"])):
+        if n in syn["free"]:
+            continue
+        sc = 1e3 if u == "m" else 1.0
+        c = syn["ceilings"][n]
+        rows.append([n, f"{c * sc:.4f}"] + [f"{sets[k]['delta'][j] * sc:.4f}" for k in keys])
+    print(table(["param", "Delta_j"] + [short[k] for k in keys], rows))
+    print("\nTable 4, verification (10,000-pose Monte Carlo with every error at +delta, as the paper; searched")
+    print("supremum over the joint space under each criterion; mm):")
+    rows = []
+    for k in keys:
+        v = sets[k]["verification"]
+        mc = v["monte_carlo"]["position_m"]
+        sup = v["supremum"]
+        pub = f" ({sets[k]['published_cost']})" if "published_cost" in sets[k] else ""
+        rows.append([short[k], f"{sets[k]['cost']:.0f}{pub}", f"{sets[k]['index_I_mm']:.3f}",
+                     f"{mc['pass_rate'] * 100:.2f}", f"{mc['max'] * 1e3:.4f}", f"{mc['mean'] * 1e3:.4f}",
+                     f"{mc['std'] * 1e3:.4f}", f"{sup['paper']['position']['value'] * 1e3:.4f}",
+                     f"{sup['worst-case']['position']['value'] * 1e3:.4f}", f"{sup['rss']['position']['value'] * 1e3:.4f}",
+                     "-" if sets[k]["time_s"] is None else f"{sets[k]['time_s']:.1f}"])
+    print(table(["set", "cost", "I", "pass %", "max", "mean", "std", "sup paper", "sup worst", "sup rss", "time s"],
+                rows))
+    print("\nTable 5, Monte Carlo after the paper's sign control of correlated pairs (mm):")
+    rows = []
+    for k in keys:
+        t = sets[k]["verification"]["sign_control"]["position_m"]
+        rows.append([short[k], f"{t['pass_rate'] * 100:.2f}", f"{t['max'] * 1e3:.4f}", f"{t['mean'] * 1e3:.4f}",
+                     f"{t['std'] * 1e3:.4f}"])
+    print(table(["set", "pass %", "max", "mean", "std"], rows))
+    for k in keys:
+        for w in sets[k].get("warnings", []):
+            print(f"WARNING ({short[k]}): {w}")

@@ -1,7 +1,7 @@
 """The paper's figures reproduced (Gao et al. 2023): what matches exactly, and the documented bands."""
 import pytest
 
-from tolerance_ros.core import gao2023
+from tolerance_ros.papers import gao2023
 
 
 @pytest.fixture(scope="module")

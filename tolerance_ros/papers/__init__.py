@@ -1,0 +1,1 @@
+"""Reproductions of the two source papers: their published figures beside this project's results."""

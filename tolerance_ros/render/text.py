@@ -1,0 +1,56 @@
+"""Text rendering for people: tables, numbers and a progress indicator (stderr)."""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+
+class Progress:
+    """Progress on stderr: a bar on a terminal, a line every 10 % otherwise; silent with --quiet."""
+
+    def __init__(self, label: str, enabled: bool = True, stream=None):
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.enabled = enabled
+        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.last = -1
+        self.start = time.perf_counter()
+
+    def __call__(self, done, total):
+        if not self.enabled or total <= 0:
+            return
+        frac = min(1.0, done / total)
+        step = int(frac * (50 if self.tty else 10))
+        if step == self.last and done < total:
+            return
+        self.last = step
+        elapsed = time.perf_counter() - self.start
+        if self.tty:
+            bar = "#" * int(frac * 30)
+            self.stream.write(f"\r{self.label} [{bar:<30}] {frac * 100:5.1f}% {elapsed:6.1f}s")
+            if done >= total:
+                self.stream.write("\n")
+        else:
+            self.stream.write(f"{self.label}: {frac * 100:.0f}% ({elapsed:.1f}s)\n")
+        self.stream.flush()
+
+
+def table(headers, rows, aligns=None) -> str:
+    """Plain-text table with right-aligned numbers."""
+    cells = [[str(h) for h in headers]] + [[str(c) for c in r] for r in rows]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(headers))]
+    aligns = aligns or ["<"] + [">"] * (len(headers) - 1)
+    lines = []
+    for k, r in enumerate(cells):
+        lines.append("  ".join(f"{c:{a}{w}}" for c, a, w in zip(r, aligns, widths)).rstrip())
+        if k == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def fmt(x, digits=4) -> str:
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return "inf" if x is not None and x > 0 else "-"
+    return f"{x:.{digits}g}" if abs(x) >= 1e4 or (abs(x) < 1e-3 and x != 0) else f"{x:.{digits}f}"
