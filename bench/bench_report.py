@@ -25,7 +25,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 from tolerance_ros.core.accuracy.io import Measurements, read_csv, write_csv  # noqa: E402
-from tolerance_ros.core.accuracy.report import evaluate_file, stream_file  # noqa: E402
+from tolerance_ros.core.accuracy.evaluation import evaluate_file, stream_file  # noqa: E402
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure  # noqa: E402
 from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.campaign import Campaign, TestPose  # noqa: E402

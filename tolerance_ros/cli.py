@@ -301,14 +301,15 @@ def print_allocation(doc):
 
 
 def cmd_report(args):
-    from .core.accuracy.report import evaluate_file, read_measurements
+    from .core.accuracy.evaluation import evaluate_file
+    from .core.accuracy.io import read_measurements
     from .core.campaign import load_campaign
     from .render.accuracy_report import write_report
     model = load_robot(args.robot)
     budget = load_budget(args.budget, model) if args.budget else None
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     if args.stream:
-        from .core.accuracy.report import stream_file
+        from .core.accuracy.evaluation import stream_file
         if args.registration == "base+tool":
             raise CLIError("--stream: the tool offset needs all measurements at once; use --registration base")
         res = stream_file(model, args.measurements, budget, campaign, registration=args.registration)

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .geometry import matrices_to_quat, quat_to_matrices
-from .accuracy.stream import AccuracyAccumulator
+from .accuracy.accumulator import AccuracyAccumulator
 
 OK, WARN, ERROR = 0, 1, 2
 
@@ -59,16 +59,9 @@ class MonitorLogic:
 
     def set_budget(self, budget):
         """Use a new budget (Budget or None) from now on; statistics restart with it."""
+        self.acc = AccuracyAccumulator.from_budget(self.model, budget, self.campaign, self.T_tracker_base,
+                                                   self.tool_offset, self.pose_tolerance, identify=False)
         self.budget = budget
-        delta = budget.vector_for(self.model) if budget is not None else None
-        names = self.campaign.names if self.campaign is not None else []
-        self.acc = AccuracyAccumulator(self.model, delta, budget.criterion if budget else "paper",
-                                       budget.limit_position if budget else None,
-                                       budget.limit_orientation if budget else None, self.T_tracker_base,
-                                       self.tool_offset,
-                                       self.campaign.joints_for(self.model) if self.campaign is not None else None,
-                                       names, self.campaign.cycles if self.campaign is not None else 30,
-                                       self.pose_tolerance, identify=False)
         if self.log:
             self._write({"event": "budget", "robot": budget.robot if budget else None,
                          "source": budget.source if budget else None})

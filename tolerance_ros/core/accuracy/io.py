@@ -483,3 +483,13 @@ def write_rosbag(path, m: Measurements, storage="sqlite3", pose_topic="/measured
                                         orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])))
             w.write(cp, ns + 1, ts.serialize_cdr(msg, PoseStamped.__msgtype__))
     return Path(path)
+
+
+def read_measurements(path, joint_names=None, skip_bad=False, slop=0.005):
+    """Measurements from a CSV file, a campaign log (.jsonl) or a rosbag2 directory / .db3 / .mcap."""
+    p = Path(path)
+    if p.is_dir() or p.suffix in (".db3", ".mcap"):
+        return read_rosbag(p, joint_names=joint_names, skip_bad=skip_bad, slop=slop)
+    if p.suffix in (".jsonl", ".log"):
+        return read_log(p, skip_bad=skip_bad)
+    return read_csv(p, skip_bad=skip_bad)

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .evaluate import BASE_NAMES, base_jacobian, budget_check, pose_errors, predicted_bounds
+from .identification import base_jacobian, identify_from_normal_equations
 from .iso9283 import pose_characteristics
+from .verdicts import VERDICTS, budget_check, pose_errors, predicted_bounds
 
 
 class _Running:
@@ -69,7 +70,7 @@ class AccuracyAccumulator:
         self.position = _Running()
         self.orientation = _Running()
         self.margin = _Running()
-        self.counts = {"within": 0, "over bound": 0, "over limit": 0, "no budget": 0}
+        self.counts = dict.fromkeys(VERDICTS, 0)
         self.worst = None
         self.n = 0
         p = model.n_params + 6
@@ -78,6 +79,18 @@ class AccuracyAccumulator:
         self.Jtr = np.zeros(p)
         self.rtr = 0.0
         self.rows = 0
+
+    @classmethod
+    def from_budget(cls, model, budget=None, campaign=None, T_tracker_base=None, tool_offset=None,
+                    pose_tolerance=1e-3, identify=True) -> "AccuracyAccumulator":
+        """Accumulator checking against a Budget (or none) with a Campaign's test poses (or none)."""
+        return cls(model, budget.vector_for(model) if budget is not None else None,
+                   budget.criterion if budget is not None else "paper",
+                   budget.limit_position if budget is not None else None,
+                   budget.limit_orientation if budget is not None else None, T_tracker_base, tool_offset,
+                   campaign.joints_for(model) if campaign is not None else None,
+                   campaign.names if campaign is not None else (), campaign.cycles if campaign is not None else 30,
+                   pose_tolerance, identify=identify)
 
     def to_base(self, T_tracker) -> np.ndarray:
         T = self.T_base_tracker @ np.asarray(T_tracker, float)
@@ -102,15 +115,11 @@ class AccuracyAccumulator:
         T_nom, EJ = self.model.fk_and_jacobian(q)
         dp, dphi = pose_errors(T_nom, T_meas)
         e_pos, e_ori = np.linalg.norm(dp, axis=1), np.linalg.norm(dphi, axis=1)
+        b_pos = b_ori = None
         if self.delta is not None:
             b_pos, b_ori = predicted_bounds(self.model, q, self.delta, self.criterion, self.k_sigma, EJ)
-            check = budget_check(e_pos, b_pos, self.limit, e_ori, b_ori if self.limit_orientation else None,
-                                 self.limit_orientation)
-        else:
-            check = {"error": e_pos, "bound": np.full(len(q), np.nan), "margin": np.full(len(q), np.nan),
-                     "verdict": np.array(["no budget"] * len(q), dtype=object)}
-            if self.limit is not None:
-                check["verdict"][e_pos > self.limit] = "over limit"
+        check = budget_check(e_pos, b_pos, self.limit, e_ori, b_ori if self.limit_orientation else None,
+                             self.limit_orientation)
         labels = self.label(q) if labels is None else np.asarray(labels, dtype=object)
         self.n += len(q)
         self.position.update(e_pos)
@@ -118,7 +127,7 @@ class AccuracyAccumulator:
         if self.delta is not None:
             self.margin.update(check["margin"])
         for v in check["verdict"]:
-            self.counts[v] = self.counts.get(v, 0) + 1
+            self.counts[v] += 1
         k = int(np.argmax(e_pos))
         if self.worst is None or e_pos[k] > self.worst["error"]:
             self.worst = {"error": float(e_pos[k]), "joints": q[k].tolist(), "label": str(labels[k])}
@@ -160,26 +169,10 @@ class AccuracyAccumulator:
                 entry.update(pose_characteristics(cmd[name], np.array(samples)).to_dict())
             out["test_poses"][name] = entry
         if self.identify and self.rows:
-            out["identification"] = self.linear_identification(sigma_position)
+            out["identification"] = self.linear_identification(sigma_position).to_dict()
         return out
 
-    def linear_identification(self, sigma_position=1e-5) -> dict:
-        """One regularised least-squares step from the accumulated normal equations (positions)."""
-        p = self.model.n_params
-        scale = np.concatenate([np.where(self.delta > 0, self.delta, 1e-3) if self.delta is not None
-                                else np.full(p, 1e-3), np.full(6, 1e-3)])
-        prior = (sigma_position / scale) ** 2
-        A = self.JtJ + np.diag(prior)
-        x = np.linalg.solve(A, self.Jtr)
-        cov = np.linalg.inv(A) * sigma_position ** 2
-        names = tuple(self.model.param_names) + BASE_NAMES
-        res = {"parameters": [{"name": n, "error": float(v), "std": float(s)}
-                              for n, v, s in zip(names, x, np.sqrt(np.diag(cov)))],
-               "residual_rms_before_m": float(np.sqrt(self.rtr / self.rows)),
-               "out_of_tolerance": []}
-        if self.delta is not None:
-            for j, n in enumerate(self.model.param_names):
-                if self.delta[j] > 0 and abs(x[j]) > self.delta[j] and np.sqrt(cov[j, j]) < 0.5 * self.delta[j]:
-                    res["out_of_tolerance"].append({"name": n, "error": float(x[j]), "tolerance": float(self.delta[j]),
-                                                    "ratio": float(abs(x[j]) / self.delta[j])})
-        return res
+    def linear_identification(self, sigma_position=1e-5):
+        """Identification from the accumulated normal equations (see ``identification``)."""
+        return identify_from_normal_equations(self.model, self.JtJ, self.Jtr, self.rtr, self.rows, self.delta,
+                                              sigma_position)

@@ -1,26 +1,17 @@
-"""Offline accuracy report of a measurement file: registration, errors, budget check, ISO 9283 per
-test pose and identification, returned as a plain dict (SI) by ``evaluate_file``."""
+"""The numbers of an accuracy report: registration, errors, the budget check, ISO 9283 per test pose and
+identification of a set of measurements, as a plain dict (SI): ``evaluate_file`` (all in memory) and
+``stream_file`` (constant memory, large CSV files)."""
 from __future__ import annotations
 
 import numpy as np
 
-from .evaluate import identify, measurement_joints, per_pose_statistics
-from .io import MeasurementError, read_csv, read_log, read_rosbag
+from .accumulator import AccuracyAccumulator
+from .identification import identify
+from .io import MeasurementError, read_csv
+from .iso9283 import pose_characteristics
 from .registration import KabschAccumulator, Registration, register
-from .stream import AccuracyAccumulator
 
 IDENTIFY_MAX = 20000  # up to this many measurements the nonlinear identification runs on all of them
-
-
-def read_measurements(path, joint_names=None, skip_bad=False, slop=0.005):
-    """Measurements from a CSV file, a campaign log (.jsonl) or a rosbag2 directory / .db3 / .mcap."""
-    from pathlib import Path
-    p = Path(path)
-    if p.is_dir() or p.suffix in (".db3", ".mcap"):
-        return read_rosbag(p, joint_names=joint_names, skip_bad=skip_bad, slop=slop)
-    if p.suffix in (".jsonl", ".log"):
-        return read_log(p, skip_bad=skip_bad)
-    return read_csv(p, skip_bad=skip_bad)
 
 
 def evaluate_file(model, meas, budget=None, campaign=None, registration="base", keep_rows=True,
@@ -43,12 +34,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     else:
         raise ValueError(f"registration: expected 'base', 'base+tool' or 'none', got {registration!r}")
     delta = budget.vector_for(model) if budget is not None else None
-    names = campaign.names if campaign is not None else []
-    acc = AccuracyAccumulator(model, delta, budget.criterion if budget else "paper",
-                              budget.limit_position if budget else None,
-                              budget.limit_orientation if budget else None, reg.T_tracker_base, reg.tool_offset,
-                              campaign.joints_for(model) if campaign is not None else None, names,
-                              campaign.cycles if campaign is not None else 30)
+    acc = AccuracyAccumulator.from_budget(model, budget, campaign, reg.T_tracker_base, reg.tool_offset)
     labels = None
     if meas.pose is not None and any(str(p) for p in meas.pose):
         labels = np.array([str(p) for p in meas.pose], dtype=object)
@@ -63,7 +49,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     T_base = reg.to_base(meas.T)
     if campaign is not None:
         lab = labels if labels is not None else acc.label(q)
-        out["per_pose"] = per_pose_statistics(names, acc.commanded(), T_base, lab)
+        out["per_pose"] = per_pose_statistics(campaign.names, acc.commanded(), T_base, lab)
     if len(q) <= IDENTIFY_MAX:
         ident = identify(model, q, T_base, delta, sigma_position,
                          sigma_orientation if meas.has_orientation else None)
@@ -80,7 +66,6 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
 def stream_file(model, path, budget=None, campaign=None, chunk_rows=5000, registration="base") -> dict:
     """Constant-memory evaluation of a large CSV file: pass 1 registers the base (position sums),
     pass 2 feeds the accumulator chunk by chunk. Identification is the linearised one."""
-    delta = budget.vector_for(model) if budget is not None else None
     T_tb = np.eye(4)
     if registration == "base":
         kab = KabschAccumulator()
@@ -89,11 +74,7 @@ def stream_file(model, path, budget=None, campaign=None, chunk_rows=5000, regist
         T_tb = kab.result()
     elif registration != "none":
         raise ValueError("stream_file: registration must be 'base' or 'none'")
-    acc = AccuracyAccumulator(model, delta, budget.criterion if budget else "paper",
-                              budget.limit_position if budget else None, budget.limit_orientation if budget else None,
-                              T_tb, None, campaign.joints_for(model) if campaign is not None else None,
-                              campaign.names if campaign is not None else [],
-                              campaign.cycles if campaign is not None else 30)
+    acc = AccuracyAccumulator.from_budget(model, budget, campaign, T_tb)
     skipped = []
     for m in read_csv(path, chunk_rows=chunk_rows):
         labels = np.array([str(p) for p in m.pose], dtype=object) if m.pose is not None and any(m.pose) else None
@@ -101,3 +82,36 @@ def stream_file(model, path, budget=None, campaign=None, chunk_rows=5000, regist
         skipped += m.skipped
     return {"source": str(path), "robot": model.name, "measurements": acc.n, "skipped_rows": skipped,
             "T_tracker_base": T_tb, "summary": acc.summary()}
+
+
+def per_pose_statistics(names, T_commanded: dict, T_measured, labels) -> dict:
+    """ISO 9283 characteristics for each test pose name (measured poses grouped by ``labels``)."""
+    out = {}
+    labels = np.asarray(labels, dtype=object)
+    for name in names:
+        sel = labels == name
+        if sel.sum() >= 2:
+            out[name] = pose_characteristics(T_commanded[name], np.asarray(T_measured)[sel]).to_dict()
+        else:
+            out[name] = {"n": int(sel.sum()), "note": "fewer than 2 measurements"}
+    return out
+
+
+def measurement_joints(model, meas, campaign=None) -> np.ndarray:
+    """(n, dof) joints of each measurement in the model's order: from the joint columns, or from the
+    campaign's test pose named in the ``pose`` column."""
+    if meas.joints is not None and len(meas.joint_names):
+        missing = [n for n in model.joint_names if n not in meas.joint_names]
+        if missing:
+            raise ValueError(f"{meas.source}: no joint columns for {missing} (have {list(meas.joint_names)})")
+        idx = [list(meas.joint_names).index(n) for n in model.joint_names]
+        return meas.joints[:, idx]
+    if campaign is None or meas.pose is None:
+        raise ValueError(f"{meas.source}: measurements carry no joints; give a campaign and label each row with "
+                         f"its test pose")
+    table = dict(zip(campaign.names, campaign.joints_for(model)))
+    unknown = sorted({str(p) for p in meas.pose if p not in table})
+    if unknown:
+        raise ValueError(f"{meas.source}: test pose(s) {unknown} are not in campaign {campaign.name!r} "
+                         f"({campaign.names})")
+    return np.array([table[p] for p in meas.pose])
