@@ -21,11 +21,11 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
 from tolerance_ros.core.geometry import matrices_to_quat  # noqa: E402
-from tolerance_ros.core.accuracy.simulate import SimulatedTracker  # noqa: E402
+from tolerance_ros.services.tracker import SimulatedTracker  # noqa: E402
 from tolerance_ros.core.budget import load_budget  # noqa: E402
-from tolerance_ros.core.contracts import ErrorModelService  # noqa: E402
+from tolerance_ros.services.error_model import ErrorModelService  # noqa: E402
 from tolerance_ros.core.models import load_robot  # noqa: E402
-from tolerance_ros.core.monitor import MonitorLogic  # noqa: E402
+from tolerance_ros.services.monitor import MonitorLogic  # noqa: E402
 
 
 def per_call(fn, repeat):

@@ -23,9 +23,15 @@ def test_jacobian_json_is_si_and_complete(capsys):
     assert np.array(doc["poses"]).shape == (1, 4, 4)
 
 
-def test_jacobian_table_and_degrees(capsys):
+def test_jacobian_table_and_degrees(capsys, gao):
     code, out, _ = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0,10,20,30,40,50,60", "--deg")
     assert code == 0 and "theta7" in out and "tool position [mm]" in out
+    code, out, _ = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0,10,20,30,40,50,60", "--deg",
+                       "--json")
+    doc = json.loads(out)
+    q = np.radians([[0, 10, 20, 30, 40, 50, 60]])
+    np.testing.assert_allclose(doc["joints"], q, atol=1e-15)
+    np.testing.assert_allclose(doc["poses"], gao.fk(q), atol=1e-15)
 
 
 def test_sensitivity_table_json_and_plot(capsys, tmp_path):
@@ -156,7 +162,7 @@ def test_report_bad_file_names_the_line(capsys, tmp_path):
     p = tmp_path / "bad.csv"
     p.write_text("stamp[s],x[mm],y[mm],z[mm],joint:joint1[rad]\n0,1,2,3,0\n")
     code, _, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", str(p))
-    assert code == 2 and "no joint columns for" in err
+    assert code == 2 and "joint columns: no value for joint(s) ['joint2'" in err
 
 
 def test_the_3pups_robot_through_the_existing_subcommands(capsys, tmp_path):

@@ -4,7 +4,6 @@ file), publishes /diagnostics (DiagnosticArray) and a JSON report on ``/toleranc
 and appends every measurement to a campaign log as it arrives."""
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -15,13 +14,14 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from ..core.budget import BudgetError, budget_from_dict, load_budget
+from ..core.budget import load_budget
 from ..core.campaign import load_campaign
+from ..core.geometry import transform
 from ..core.jsonio import dumps_fast
 from ..core.models import load_robot
-from ..core.geometry import transform
-from ..core.monitor import MonitorLogic
-from .common import LATCHED_QOS, REQUEST_QOS, SERVICE_NAMESPACE, STREAM_QOS, declare, run
+from ..services.contracts import ContractError, budget_from_message
+from ..services.monitor import MonitorLogic
+from .common import BUDGET_QOS, MEASUREMENT_QOS, STATUS_QOS, SERVICE_NAMESPACE, declare, run
 
 
 class AccuracyMonitor(Node):
@@ -46,10 +46,10 @@ class AccuracyMonitor(Node):
         self.logic = MonitorLogic(self.model, bud, camp, slop, max_wait, transform(base[:3], base[3:]),
                                   np.asarray(tool, float) if np.any(tool) else None, log_path, tol)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.report_pub = self.create_publisher(String, f"{SERVICE_NAMESPACE}/accuracy_report", REQUEST_QOS)
-        self.create_subscription(PoseStamped, "measured_pose", self.on_pose, STREAM_QOS)
-        self.create_subscription(JointState, "joint_states", self.on_joint_state, STREAM_QOS)
-        self.create_subscription(String, "tolerance_budget", self.on_budget, LATCHED_QOS)
+        self.report_pub = self.create_publisher(String, f"{SERVICE_NAMESPACE}/accuracy_report", STATUS_QOS)
+        self.create_subscription(PoseStamped, "measured_pose", self.on_pose, MEASUREMENT_QOS)
+        self.create_subscription(JointState, "joint_states", self.on_joint_state, MEASUREMENT_QOS)
+        self.create_subscription(String, "tolerance_budget", self.on_budget, BUDGET_QOS)
         self.create_timer(period, self.publish_status)
         self.get_logger().info(f"monitoring {self.model.name}; campaign log {log_path}")
 
@@ -61,14 +61,12 @@ class AccuracyMonitor(Node):
 
     def on_budget(self, msg):
         try:
-            doc = json.loads(msg.data)
-            if doc.get("robot") != self.model.name:
-                return
-            kinds = dict(zip(self.model.param_names, self.model.param_kinds))
-            self.logic.set_budget(budget_from_dict(doc["budget"], kinds))
-            self.get_logger().info(f"budget from {doc.get('file') or 'tolerance_budget'}")
-        except (ValueError, KeyError, TypeError, BudgetError) as exc:
-            self.get_logger().error(f"invalid budget message: {exc}")
+            _, budget = budget_from_message(msg.data, {self.model.name: self.model})
+        except ContractError as exc:
+            self.get_logger().error(f"budget message ignored: {exc.message}")
+            return
+        self.logic.set_budget(budget)
+        self.get_logger().info(f"new budget: {budget.source or 'tolerance_budget'}")
 
     def publish_status(self):
         self.logic.resolve()

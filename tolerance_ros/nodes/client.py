@@ -19,7 +19,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import String
 
-from .common import REQUEST_QOS, RESPONSE_QOS, SERVICE_NAMESPACE
+from .common import SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, SERVICE_NAMESPACE
 
 SERVICES = ("compute_error_jacobian", "allocate_tolerances")
 
@@ -59,9 +59,9 @@ class ToleranceClient:
         for s in SERVICES:
             base = f"{namespace}/{s}"
             self._topics[s] = base
-            self._pubs[s] = node.create_publisher(String, f"{base}/request", REQUEST_QOS)
-            node.create_subscription(String, f"{base}/response", self._on_response, RESPONSE_QOS)
-        node.create_subscription(String, f"{namespace}/allocate_tolerances/progress", self._on_progress, RESPONSE_QOS)
+            self._pubs[s] = node.create_publisher(String, f"{base}/request", SERVICE_REQUEST_QOS)
+            node.create_subscription(String, f"{base}/response", self._on_response, SERVICE_RESPONSE_QOS)
+        node.create_subscription(String, f"{namespace}/allocate_tolerances/progress", self._on_progress, SERVICE_RESPONSE_QOS)
 
     def _on_response(self, msg):
         try:

@@ -1,10 +1,10 @@
 """Shared pieces of the nodes: parameters with descriptors, QoS profiles, the main loop.
 
-QoS choices: requests, responses, progress, measured poses and joint states are reliable with
-keep-last history (depth 10 for requests and joint states, 100 for responses and measurements, so
-that bursts are not dropped); the budget topic is reliable and transient-local with depth 1, so a
-late subscriber gets the latest budget; /diagnostics uses the default profile (reliable, depth 10),
-as the diagnostic aggregator expects.
+QoS profiles, named for what they carry, all reliable with keep-last history: service requests
+(depth 10), service responses and progress (100, so that bursts are not dropped), measurements
+(joint states and measured poses, 100), status (predicted bound, accuracy report, 10), and the
+budget (depth 1, transient local, so a late subscriber gets the latest one); /diagnostics uses the
+default profile (reliable, depth 10), as the diagnostic aggregator expects.
 """
 from __future__ import annotations
 
@@ -17,11 +17,12 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from ..core.models import load_robot
 
-REQUEST_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-RESPONSE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-STREAM_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+SERVICE_REQUEST_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+SERVICE_RESPONSE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+MEASUREMENT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+BUDGET_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 SERVICE_NAMESPACE = "/tolerance"
 
@@ -32,9 +33,14 @@ def declare(node, name, default, description):
     return node.get_parameter(name).value
 
 
-def load_models(names):
-    """{name: model} for robot names or paths; a bad entry raises with its name."""
-    return {load_robot(n).name: load_robot(n) for n in names}
+def load_models(specs, default):
+    """({robot name: model}, the default robot's name) for robot names or paths, each parsed once (the
+    default is loaded too when it is not among ``specs``); a bad entry raises with its name."""
+    loaded = {}
+    for spec in list(specs) + [default]:
+        if spec not in loaded:
+            loaded[spec] = load_robot(spec)
+    return {m.name: m for m in loaded.values()}, loaded[default].name
 
 
 def run(node_factory, args=None):

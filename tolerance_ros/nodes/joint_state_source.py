@@ -6,9 +6,9 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from ..core.campaign import load_campaign
-from ..core.joint_source import JointStateSequence
+from ..services.joint_source import JointStateSequence
 from ..core.models import load_robot
-from .common import REQUEST_QOS, declare, run
+from .common import MEASUREMENT_QOS, declare, run
 
 
 class JointStateSource(Node):
@@ -25,7 +25,7 @@ class JointStateSource(Node):
         self.model = load_robot(robot)
         camp = load_campaign(campaign, self.model) if campaign else None
         self.sequence = JointStateSequence(self.model, mode, camp, count, seed, dwell or None, loop)
-        self.publisher = self.create_publisher(JointState, "joint_states", REQUEST_QOS)
+        self.publisher = self.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
         self.start = self.get_clock().now()
         self.finished_logged = False
         self.timer = self.create_timer(1.0 / rate, self.publish_joint_state)

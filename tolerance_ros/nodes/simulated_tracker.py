@@ -7,12 +7,12 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from ..core.accuracy.simulate import SimulatedTracker
 from ..core.budget import load_budget
-from ..core.models import load_robot
 from ..core.geometry import transform
-from ..core.monitor import pose_message_fields
-from .common import STREAM_QOS, declare, run
+from ..core.ingest import IngestError
+from ..core.models import load_robot
+from ..services.tracker import SimulatedTracker, stamp_fields
+from .common import MEASUREMENT_QOS, declare, run
 
 
 class SimulatedTrackerNode(Node):
@@ -30,8 +30,8 @@ class SimulatedTrackerNode(Node):
         model = load_robot(robot)
         delta = load_budget(budget, model).vector_for(model)
         self.sim = SimulatedTracker(model, delta, seed, noise_p, noise_o, transform(base[:3], base[3:]))
-        self.pub = self.create_publisher(PoseStamped, "measured_pose", STREAM_QOS)
-        self.create_subscription(JointState, "joint_states", self.on_joint_state, STREAM_QOS)
+        self.pub = self.create_publisher(PoseStamped, "measured_pose", MEASUREMENT_QOS)
+        self.create_subscription(JointState, "joint_states", self.on_joint_state, MEASUREMENT_QOS)
         self.count = 0
         self.get_logger().info(f"simulating {model.name} built within {budget} (seed {seed})")
 
@@ -40,14 +40,13 @@ class SimulatedTrackerNode(Node):
         if (self.count - 1) % self.every:
             return
         try:
-            T = self.sim.on_joint_state(msg.name, msg.position)
-        except ValueError as exc:
+            stamp, p, q = self.sim.on_joint_state_msg(msg)
+        except IngestError as exc:
             self.get_logger().warning(f"joint state ignored: {exc}")
             return
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        sec, nsec, frame, p, q = pose_message_fields(stamp, T, self.frame_id)
         out = PoseStamped()
-        out.header.stamp.sec, out.header.stamp.nanosec, out.header.frame_id = sec, nsec, frame
+        out.header.stamp.sec, out.header.stamp.nanosec = stamp_fields(stamp)
+        out.header.frame_id = self.frame_id
         out.pose.position.x, out.pose.position.y, out.pose.position.z = (float(v) for v in p)
         o = out.pose.orientation
         o.x, o.y, o.z, o.w = (float(v) for v in q)

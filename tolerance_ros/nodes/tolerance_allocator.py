@@ -13,10 +13,11 @@ from pathlib import Path
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from ..core.contracts import ContractError, Limits, error_response, parse_allocate_request, request_id_of, run_allocation
+from ..core.budget import budget_from_dict
 from ..core.jsonio import dumps_fast
-from ..core.models import load_robot
-from .common import LATCHED_QOS, REQUEST_QOS, RESPONSE_QOS, SERVICE_NAMESPACE, declare, load_models, run
+from ..services.allocation import Command, parse_allocate_request, run_allocation
+from ..services.contracts import ContractError, Limits, error_response, request_id_of
+from .common import BUDGET_QOS, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, SERVICE_NAMESPACE, declare, load_models, run
 
 TOPIC = f"{SERVICE_NAMESPACE}/allocate_tolerances"
 
@@ -30,13 +31,12 @@ class ToleranceAllocator(Node):
                                        "directory where finished budgets are saved (YAML, mm and rad)")).expanduser()
         max_queue = declare(self, "max_queue", 4, "allocation requests that may wait behind the running one")
         max_bytes = declare(self, "max_request_bytes", 100_000, "size cap of a request, bytes")
-        self.models = load_models(list(robots) + [default])
-        self.default = load_robot(default).name
+        self.models, self.default = load_models(robots, default)
         self.limits = Limits(max_bytes, 10_000)
-        self.responses = self.create_publisher(String, f"{TOPIC}/response", RESPONSE_QOS)
-        self.progress_pub = self.create_publisher(String, f"{TOPIC}/progress", RESPONSE_QOS)
-        self.budget_pub = self.create_publisher(String, "tolerance_budget", LATCHED_QOS)
-        self.create_subscription(String, f"{TOPIC}/request", self.on_request, REQUEST_QOS)
+        self.responses = self.create_publisher(String, f"{TOPIC}/response", SERVICE_RESPONSE_QOS)
+        self.progress_pub = self.create_publisher(String, f"{TOPIC}/progress", SERVICE_RESPONSE_QOS)
+        self.budget_pub = self.create_publisher(String, "tolerance_budget", BUDGET_QOS)
+        self.create_subscription(String, f"{TOPIC}/request", self.on_request, SERVICE_REQUEST_QOS)
         self.jobs = queue.Queue(maxsize=max_queue)
         self.outbox = queue.Queue()
         self.running = None
@@ -52,17 +52,17 @@ class ToleranceAllocator(Node):
         except ContractError as exc:
             self.publish(error_response(request_id_of(msg.data), exc))
             return
-        if job["command"] == "status":
-            self.publish({"id": job["id"], "ok": True, "status": "status", "running": self.running,
+        if isinstance(job, Command):
+            self.publish({"id": job.id, "ok": True, "status": "status", "running": self.running,
                           "queued": self.jobs.qsize(), "finished": self.done[-10:]})
             return
         try:
             self.jobs.put_nowait(job)
         except queue.Full:
-            self.publish(error_response(job["id"], ContractError(
+            self.publish(error_response(job.id, ContractError(
                 "busy", f"allocator queue is full ({self.jobs.maxsize} waiting); retry later")))
             return
-        self.publish({"id": job["id"], "ok": True, "status": "accepted", "queued": self.jobs.qsize(),
+        self.publish({"id": job.id, "ok": True, "status": "accepted", "queued": self.jobs.qsize(),
                       "running": self.running})
 
     def work(self):
@@ -70,10 +70,10 @@ class ToleranceAllocator(Node):
             job = self.jobs.get()
             if job is None:
                 return
-            self.running = job["id"]
+            self.running = job.id
             start = time.perf_counter()
 
-            def progress(done, total, job_id=job["id"]):
+            def progress(done, total, job_id=job.id):
                 self.outbox.put(("progress", {"id": job_id, "fraction": min(1.0, done / max(total, 1)),
                                               "elapsed_s": time.perf_counter() - start}))
 
@@ -81,20 +81,19 @@ class ToleranceAllocator(Node):
                 resp = run_allocation(job, progress)
                 path = self.save(job, resp)
                 resp["budget_file"] = str(path)
-                self.outbox.put(("budget", {"id": job["id"], "robot": job["robot"], "file": str(path),
+                self.outbox.put(("budget", {"id": job.id, "robot": job.robot, "file": str(path),
                                             "budget": resp["budget"]}))
             except Exception as exc:  # every failure becomes a response; the worker keeps serving
-                resp = error_response(job["id"], exc)
+                resp = error_response(job.id, exc)
             self.outbox.put(("response", resp))
-            self.done.append({"id": job["id"], "ok": resp["ok"]})
+            self.done.append({"id": job.id, "ok": resp["ok"]})
             self.running = None
 
     def save(self, job, resp):
-        from ..core.budget import budget_from_dict
-        model = job["model_name"]
+        model = job.mechanism
         budget = budget_from_dict(resp["budget"], dict(zip(model.param_names, model.param_kinds)))
         self.budget_dir.mkdir(parents=True, exist_ok=True)
-        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in str(job["id"]))
+        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in str(job.id))
         path = self.budget_dir / f"{job['robot']}_{safe}.yaml"
         return budget.save(path, units={"length": "mm", "angle": "rad"},
                            kinds=dict(zip(model.param_names, model.param_kinds)))

@@ -308,7 +308,7 @@ def print_synthesis(syn):
     sets = syn["sets"]
     keys = list(sets)
     short = {k: k.replace("published ", "pub ").replace("active-set", "AS").replace("optimal-precision", "opt-prec")
-             .replace("min-cost", "min-cost") for k in keys}
+             for k in keys}
     print(f"\n=== Precision synthesis, [Delta] = {syn['limit_mm']} mm, paper floors, cost model and criterion ===")
     print("Table 3, tolerances (mm for a, d; rad for alpha, theta):")
     rows = []

@@ -3,7 +3,8 @@ tested with the monitor that writes it)."""
 import numpy as np
 import pytest
 
-from tolerance_ros.core.accuracy.io import (Measurements, MeasurementError, pair_by_stamp, read_csv, read_rosbag,
+from tolerance_ros.core.ingest import pair_by_stamp
+from tolerance_ros.core.accuracy.io import (Measurements, MeasurementError, read_csv, read_rosbag,
                                             write_csv, write_rosbag)
 from tolerance_ros.core.geometry import transform
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from .identification import base_jacobian, identify_from_normal_equations
 from .iso9283 import pose_characteristics
+from .registration import to_base_frame
 from .verdicts import VERDICTS, budget_check, pose_errors, predicted_bounds
 
 
@@ -93,11 +94,8 @@ class AccuracyAccumulator:
                    pose_tolerance, identify=identify)
 
     def to_base(self, T_tracker) -> np.ndarray:
-        T = self.T_base_tracker @ np.asarray(T_tracker, float)
-        if self.tool_offset is not None:
-            T = T.copy()
-            T[:, :3, 3] -= np.einsum("nij,j->ni", T[:, :3, :3], self.tool_offset)
-        return T
+        """(n, 4, 4) tracker-frame poses in the base frame (see ``registration.to_base_frame``)."""
+        return to_base_frame(T_tracker, self.T_base_tracker, self.tool_offset)
 
     def label(self, q) -> np.ndarray:
         """(n,) campaign test-pose name of each configuration, or '' when none is close enough."""

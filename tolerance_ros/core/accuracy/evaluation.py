@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..ingest import IngestError, JointOrder
 from .accumulator import AccuracyAccumulator
 from .identification import identify
 from .io import MeasurementError, read_csv
@@ -101,11 +102,10 @@ def measurement_joints(model, meas, campaign=None) -> np.ndarray:
     """(n, dof) joints of each measurement in the model's order: from the joint columns, or from the
     campaign's test pose named in the ``pose`` column."""
     if meas.joints is not None and len(meas.joint_names):
-        missing = [n for n in model.joint_names if n not in meas.joint_names]
-        if missing:
-            raise ValueError(f"{meas.source}: no joint columns for {missing} (have {list(meas.joint_names)})")
-        idx = [list(meas.joint_names).index(n) for n in model.joint_names]
-        return meas.joints[:, idx]
+        try:
+            return JointOrder(model.joint_names).rows(meas.joint_names, meas.joints)
+        except IngestError as exc:
+            raise MeasurementError(f"{meas.source}: joint columns: {exc}") from None
     if campaign is None or meas.pose is None:
         raise ValueError(f"{meas.source}: measurements carry no joints; give a campaign and label each row with "
                          f"its test pose")

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import matrices_to_quat, quat_to_matrices, rpy_from_matrix, rpy_to_matrices
+from ..ingest import IngestError, JointOrder, pair_by_stamp, pose_from_values, stamp_seconds
 from ..units import ANGLE_UNITS, LENGTH_UNITS
 
 _COL = re.compile(r"^\s*([A-Za-z_][\w:.\-/]*)\s*(?:\[\s*([^\]]*)\s*\])?\s*$")
@@ -356,24 +357,6 @@ def read_log(path, skip_bad=False) -> Measurements:
                         True, str(path), skipped)
 
 
-def pair_by_stamp(meas_stamps, state_stamps, slop: float) -> np.ndarray:
-    """(n,) index of the state nearest in time to each measurement within ``slop`` s, else -1."""
-    t = np.asarray(state_stamps, dtype=float)
-    m = np.asarray(meas_stamps, dtype=float)
-    if t.size == 0:
-        return np.full(m.shape, -1)
-    order = np.argsort(t, kind="stable")
-    ts = t[order]
-    k = np.clip(np.searchsorted(ts, m), 1, len(ts) - 1) if len(ts) > 1 else np.zeros(m.shape, int)
-    if len(ts) > 1:
-        left = k - 1
-        pick = np.where(np.abs(m - ts[left]) <= np.abs(ts[k] - m), left, k)
-    else:
-        pick = k
-    ok = np.abs(ts[pick] - m) <= slop
-    return np.where(ok, order[pick], -1)
-
-
 def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic="/joint_states",
                 slop: float = 0.005, skip_bad: bool = False) -> Measurements:
     """Measurements from a rosbag2 recording (sqlite3 or mcap) of PoseStamped and JointState.
@@ -388,7 +371,7 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
     if not path.exists():
         raise MeasurementError(f"{path}: no such bag")
     poses, pstamps, jstates, jstamps = [], [], [], []
-    names = tuple(joint_names) if joint_names else None
+    order = None
     skipped = []
     with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
         conns = [c for c in reader.connections if c.topic in (pose_topic, joint_topic)]
@@ -396,40 +379,27 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
             raise MeasurementError(f"{path}: no topic {pose_topic} (topics: {sorted({c.topic for c in reader.connections})})")
         for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
             msg = reader.deserialize(raw, conn.msgtype)
-            st = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-            if conn.topic == pose_topic:
-                p, o = msg.pose.position, msg.pose.orientation
-                vals = np.array([p.x, p.y, p.z, o.x, o.y, o.z, o.w], dtype=float)
-                if not np.all(np.isfinite(vals)) or np.linalg.norm(vals[3:]) < 1e-9:
-                    err = f"message {k} on {pose_topic} (stamp {st:.9f}): non-finite pose or zero quaternion"
-                    if not skip_bad:
-                        raise MeasurementError(f"{path}: {err}")
-                    skipped.append({"message": k, "reason": err})
-                    continue
-                Ti = np.eye(4)
-                Ti[:3, :3] = quat_to_matrices(vals[3:])[0]
-                Ti[:3, 3] = vals[:3]
-                poses.append(Ti)
-                pstamps.append(st)
-            else:
-                msg_names = tuple(msg.name)
-                if names is None:
-                    names = msg_names
-                try:
-                    idx = [msg_names.index(n) for n in names]
-                except ValueError:
-                    err = f"message {k} on {joint_topic} lacks joints {sorted(set(names) - set(msg_names))}"
-                    if not skip_bad:
-                        raise MeasurementError(f"{path}: {err}") from None
-                    skipped.append({"message": k, "reason": err})
-                    continue
-                jstates.append(np.asarray(msg.position, dtype=float)[idx])
-                jstamps.append(st)
+            try:
+                st = stamp_seconds(msg.header.stamp)
+                if conn.topic == pose_topic:
+                    p, o = msg.pose.position, msg.pose.orientation
+                    poses.append(pose_from_values((p.x, p.y, p.z), (o.x, o.y, o.z, o.w)))
+                    pstamps.append(st)
+                else:
+                    if order is None:
+                        order = JointOrder(joint_names or msg.name)
+                    jstates.append(order(msg.name, msg.position))
+                    jstamps.append(st)
+            except IngestError as exc:
+                err = f"message {k} on {conn.topic}: {exc}"
+                if not skip_bad:
+                    raise MeasurementError(f"{path}: {err}") from None
+                skipped.append({"message": k, "reason": err})
     if not poses:
         raise MeasurementError(f"{path}: no messages on {pose_topic}")
-    order = np.argsort(pstamps, kind="stable")
-    pst = np.array(pstamps)[order]
-    T = np.array(poses)[order]
+    by_time = np.argsort(pstamps, kind="stable")
+    pst = np.array(pstamps)[by_time]
+    T = np.array(poses)[by_time]
     joints = None
     if jstates:
         pair = pair_by_stamp(pst, jstamps, slop)
@@ -443,7 +413,7 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
             keep = pair >= 0
             pst, T, pair = pst[keep], T[keep], pair[keep]
         joints = np.array(jstates)[pair]
-    return Measurements(pst, T, joints, names or (), np.array([""] * len(pst), dtype=object),
+    return Measurements(pst, T, joints, order.joint_names if order else (), np.array([""] * len(pst), dtype=object),
                         np.full(len(pst), -1), True, str(path), skipped)
 
 

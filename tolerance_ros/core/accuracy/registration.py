@@ -29,15 +29,20 @@ class Registration:
 
     def to_base(self, T_tracker) -> np.ndarray:
         """(n, 4, 4) tracker-frame poses expressed in the base frame (tool offset removed)."""
-        T = np.linalg.inv(self.T_tracker_base) @ np.asarray(T_tracker, dtype=float)
-        if self.tool_offset is not None:
-            T = T.copy()
-            T[:, :3, 3] -= np.einsum("nij,j->ni", T[:, :3, :3], self.tool_offset)
-        return T
+        return to_base_frame(T_tracker, np.linalg.inv(self.T_tracker_base), self.tool_offset)
 
     def to_dict(self) -> dict:
         return {"T_tracker_base": self.T_tracker_base, "tool_offset_m": self.tool_offset, "n": self.n,
                 "residual_rms_m": self.rms, "residual_max_m": self.max}
+
+
+def to_base_frame(T_tracker, T_base_tracker, tool_offset=None) -> np.ndarray:
+    """(n, 4, 4) tracker-frame poses in the base frame (``T_base_tracker`` @ T), with the tool offset
+    (m, tool frame) removed from the measured point."""
+    T = np.asarray(T_base_tracker, dtype=float) @ np.asarray(T_tracker, dtype=float).reshape(-1, 4, 4)
+    if tool_offset is not None:
+        T[:, :3, 3] -= np.einsum("nij,j->ni", T[:, :3, :3], tool_offset)
+    return T
 
 
 def kabsch(P, M):

@@ -1,4 +1,4 @@
-"""A simulated measurement source: an as-built robot inside a tolerance budget, seen by a tracker.
+"""Simulated measurements: an as-built robot inside a tolerance budget, seen by a tracker.
 
 The as-built robot has parameter errors drawn within the budget (seeded); the tracker measures the
 tool pose in its own frame (``T_tracker_base`` maps base-frame poses into the tracker frame) with
@@ -35,29 +35,3 @@ def measure(model: Mechanism, q, dx=None, noise_position=0.0, noise_orientation=
     if T_tracker_base is not None:
         T = np.asarray(T_tracker_base, dtype=float) @ T
     return T
-
-
-class SimulatedTracker:
-    """A stand-in laser tracker: an as-built robot drawn within ``delta`` (seeded), measurement noise
-    and a base-frame offset. ``measure_at(q)`` gives the reading (4x4, tracker frame) at joints q."""
-
-    def __init__(self, model: Mechanism, delta, seed=0, noise_position=1e-5, noise_orientation=1e-5,
-                 T_tracker_base=None, distribution="uniform"):
-        self.model = model
-        self.dx = as_built_errors(delta, seed, distribution)
-        self.noise_position, self.noise_orientation = noise_position, noise_orientation
-        self.T_tracker_base = None if T_tracker_base is None else np.asarray(T_tracker_base, float)
-        self.rng = np.random.default_rng(seed + 1)
-
-    def measure_at(self, q) -> np.ndarray:
-        return measure(self.model, np.atleast_2d(q), self.dx, self.noise_position, self.noise_orientation,
-                       self.T_tracker_base, self.rng)[0]
-
-    def on_joint_state(self, names, positions) -> np.ndarray:
-        """Reading for a joint state (names in any order); raises ValueError if joints are missing."""
-        names = list(names)
-        missing = [n for n in self.model.joint_names if n not in names]
-        if missing:
-            raise ValueError(f"joint state lacks {missing}")
-        q = np.asarray(positions, float)[[names.index(n) for n in self.model.joint_names]]
-        return self.measure_at(q)

@@ -20,13 +20,13 @@ from ..iso286 import coarsest_grade
 from .active_set import solve_active_set
 from .ga import TABLE2, solve_ga
 from ..errors import LIMIT_CRITERIA
-from .problem import MODELS, SynthesisError, SynthesisProblem, build_problem
+from .problem import MODELS, InfeasibleError, SynthesisError, SynthesisProblem, build_problem
 from .search import maximize, select_poses
 
 SOLVERS = ("active-set", "ga")
 MC_DISTRIBUTION = {"paper": "fixed", "worst-case": "extreme", "rss": "normal"}
 
-__all__ = ["Allocation", "MODELS", "SOLVERS", "SynthesisError", "SynthesisProblem", "TABLE2",
+__all__ = ["Allocation", "InfeasibleError", "MODELS", "SOLVERS", "SynthesisError", "SynthesisProblem", "TABLE2",
            "allocate", "build_problem", "select_poses", "supremum", "verify_allocation"]
 
 

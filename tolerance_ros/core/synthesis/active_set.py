@@ -18,7 +18,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ..errors import paper_bound, per_axis_bound, rss_bound, worst_case_bound
-from .problem import COST_UNIT, MODELS, SynthesisError, SynthesisProblem
+from .problem import COST_UNIT, MODELS, InfeasibleError, SynthesisError, SynthesisProblem
 from .search import maximize
 
 MARGIN = 1e-7  # the program is solved against limit * (1 - MARGIN), so a found supremum stays <= limit
@@ -73,7 +73,7 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
                        if problem.criterion == "worst-case" else None)
         if res.value > lim * (1.0 - MARGIN):
             contrib = _largest_contributors(model, res.q, rows, tau, a)
-            raise SynthesisError(
+            raise InfeasibleError(
                 f"infeasible: with every tolerance at its floor the {problem.criterion} {rows} error reaches "
                 f"{res.value:.6g} (limit {lim:.6g}) at q = {np.round(res.q, 4).tolist()}; the floors of "
                 f"{contrib} contribute most there: lower them or raise the limit")

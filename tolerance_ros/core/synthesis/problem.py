@@ -33,6 +33,10 @@ class SynthesisError(ValueError):
     """An allocation problem that cannot be set up or solved; the message names the cause."""
 
 
+class InfeasibleError(SynthesisError):
+    """A well-posed allocation problem without a solution (the message says which constraint)."""
+
+
 @dataclass
 class SynthesisProblem:
     """A fully specified allocation problem (SI)."""
@@ -151,7 +155,7 @@ def build_problem(model: Mechanism, limit: float, orientation_limit: float | Non
     high = [f"{n} (floor {fl[j]:.4g} > ceiling {ceil[j]:.4g} {model.param_units[j]})"
             for j, n in enumerate(names) if active[j] and fl[j] > ceil[j]]
     if high:
-        raise SynthesisError("floors above ceilings: " + ", ".join(high) + "; even alone these errors exceed "
+        raise InfeasibleError("floors above ceilings: " + ", ".join(high) + "; even alone these errors exceed "
                              "the limit somewhere in the workspace: lower their floors or raise the limit")
     unit = np.array([COST_UNIT[k] for k in kinds])
     weights = mu_p / unit  # eq. 22: max mu_j in mm per mm or mm per rad

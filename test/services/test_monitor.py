@@ -6,12 +6,12 @@ import pytest
 from rosbags.typesys import Stores, get_typestore
 
 from tolerance_ros.core.accuracy.io import MeasurementError, read_log
-from tolerance_ros.core.accuracy.simulate import SimulatedTracker
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.campaign import Campaign, TestPose
 from tolerance_ros.core.jsonio import dumps_fast
-from tolerance_ros.core.geometry import transform
-from tolerance_ros.core.monitor import ERROR, OK, WARN, MonitorLogic, pose_message_fields
+from tolerance_ros.core.geometry import matrices_to_quat, transform
+from tolerance_ros.services.monitor import ERROR, OK, WARN, MonitorLogic
+from tolerance_ros.services.tracker import SimulatedTracker, stamp_fields
 
 TS = get_typestore(Stores.ROS2_JAZZY)
 T_TB = transform([1.5, 0.2, 0.0], [0, 0, 0.5])
@@ -29,11 +29,12 @@ def joint_state(t, names, q):
 
 
 def pose_stamped(t, T):
-    sec, nsec, frame, p, q = pose_message_fields(t, T)
+    sec, nsec = stamp_fields(t)
+    p, q = T[:3, 3], matrices_to_quat(T[None, :3, :3])[0]
     P, Q = TS.types["geometry_msgs/msg/Point"], TS.types["geometry_msgs/msg/Quaternion"]
     return TS.types["geometry_msgs/msg/PoseStamped"](
         header=TS.types["std_msgs/msg/Header"](stamp=TS.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
-                                               frame_id=frame),
+                                               frame_id="tracker"),
         pose=TS.types["geometry_msgs/msg/Pose"](position=P(x=p[0], y=p[1], z=p[2]),
                                                 orientation=Q(x=q[0], y=q[1], z=q[2], w=q[3])))
 
@@ -106,7 +107,7 @@ def test_diagnostic_levels(gao, setup):
     mon.on_joint_state(1.0, gao.joint_names, qk[0])
     T = sim.measure_at(qk[0])
     T[:3, 3] += [0.01, 0, 0]  # 10 mm off: above the 1.4 mm limit
-    mon.on_pose(1.0, "tracker", T[:3, 3], pose_message_fields(1.0, T)[4])
+    mon.on_pose(1.0, "tracker", T[:3, 3], matrices_to_quat(T[None, :3, :3])[0])
     mon.on_joint_state(1.01, gao.joint_names, qk[0])
     d = mon.diagnostic()
     assert d["level"] == ERROR and d["values"]["over_limit"] == "1"

@@ -35,7 +35,7 @@ class JointStateSequence:
             if mode == "random":
                 self.q = model.sample_joints(count, seed)
             else:
-                from .synthesis.search import select_poses
+                from ..core.synthesis.search import select_poses
                 self.q = select_poses(model, count, seed=seed)
             self.labels = [f"{mode}{k}" for k in range(len(self.q))]
             self.cycles = [None] * len(self.q)

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from tolerance_ros.core.campaign import Campaign, TestPose
-from tolerance_ros.core.joint_source import JointStateSequence
+from tolerance_ros.services.joint_source import JointStateSequence
 from tolerance_ros.core.synthesis.search import pose_index
 
 

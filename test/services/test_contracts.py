@@ -6,8 +6,10 @@ import jsonschema
 import numpy as np
 import pytest
 
-from tolerance_ros.core.contracts import (ContractError, ErrorModelService, Limits, parse_allocate_request,
-                                          run_allocation)
+from tolerance_ros.core.synthesis import InfeasibleError
+from tolerance_ros.services.allocation import AllocationJob, Command, parse_allocate_request, run_allocation
+from tolerance_ros.services.contracts import ContractError, Limits, error_response
+from tolerance_ros.services.error_model import ErrorModelService
 
 SCHEMAS = Path(__file__).resolve().parents[2] / "schemas"
 
@@ -92,9 +94,11 @@ def test_out_of_limits_can_be_allowed_and_is_reported(service):
 def test_allocate_request_parsing(gao):
     models = {"gao2023_7dof": gao}
     job = parse_allocate_request('{"id": "x", "limit": 0.0014}', models, "gao2023_7dof", Limits())
-    assert job["model"] == "min-cost" and job["solver"] == "active-set" and job["limit"] == 0.0014
+    assert isinstance(job, AllocationJob) and job.mechanism is gao and job.robot == "gao2023_7dof"
+    assert job.cost_model == "min-cost" and job.solver == "active-set" and job.limit == 0.0014
     jsonschema.validate({"id": "x", "limit": 0.0014}, schema("allocate_tolerances.request"))
-    assert parse_allocate_request('{"id": 3, "command": "status"}', models, "gao2023_7dof", Limits())["command"] == "status"
+    assert parse_allocate_request('{"id": 3, "command": "status"}', models, "gao2023_7dof", Limits()) == \
+        Command(3, "status")
     for text, code, needle in [('{"id": 1}', "invalid_request", "limit: required"),
                                ('{"id": 1, "limit": 0}', "invalid_request", "limit"),
                                ('{"id": 1, "limit": 0.001, "solver": "magic"}', "invalid_request", "solver"),
@@ -117,9 +121,9 @@ def test_run_allocation_and_infeasible(gao):
     assert resp["supremum_m"]["paper"] <= 0.0014
     job = parse_allocate_request('{"id": "b", "limit": 0.0014, "criterion": "worst-case"}', models, "gao2023_7dof",
                                  Limits())
-    with pytest.raises(ContractError) as exc:
+    with pytest.raises(InfeasibleError) as exc:
         run_allocation(job)
-    assert exc.value.code == "infeasible"
+    assert error_response("b", exc.value)["error"]["code"] == "infeasible"
 
 
 def test_bound_at_a_joint_state_uses_the_current_budget(gao):
@@ -129,8 +133,8 @@ def test_bound_at_a_joint_state_uses_the_current_budget(gao):
     names = list(reversed(gao.joint_names))
     assert svc.bound_at(names, list(reversed(Q))) is None            # no budget yet
     svc.current_budget = load_budget("gao2023_delta2", gao)
-    robot, crit, pos, ori = svc.bound_at(names, list(reversed(Q)))
+    b = svc.bound_at(names, list(reversed(Q)), stamp=12.5)
     J = gao.error_jacobian(np.array([Q])).position
-    assert robot == "gao2023_7dof" and crit == "paper"
-    assert pos == pytest.approx(paper_bound(J, svc.current_budget.vector_for(gao))[0])
+    assert (b["robot"], b["criterion"], b["stamp"]) == ("gao2023_7dof", "paper", 12.5)
+    assert b["position_bound_m"] == pytest.approx(paper_bound(J, svc.current_budget.vector_for(gao))[0])
     assert svc.bound_at(["joint1"], [0.0]) is None                   # joints missing

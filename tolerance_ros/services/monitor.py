@@ -10,24 +10,17 @@ reported.
 """
 from __future__ import annotations
 
-import bisect
-import json
 import time
 from collections import deque
 from pathlib import Path
 
 import numpy as np
 
-from .geometry import matrices_to_quat, quat_to_matrices
-from .accuracy.accumulator import AccuracyAccumulator
+from ..core.ingest import IngestError, JointOrder, StateBuffer, pose_from_values, stamp_seconds
+from ..core.jsonio import dumps
+from ..core.accuracy.accumulator import AccuracyAccumulator
 
 OK, WARN, ERROR = 0, 1, 2
-
-
-def stamp_of(msg) -> float:
-    """Seconds of a message's ``header.stamp`` (builtin_interfaces/Time: sec, nanosec)."""
-    st = msg.header.stamp
-    return float(st.sec) + float(st.nanosec) * 1e-9
 
 
 class MonitorLogic:
@@ -41,7 +34,8 @@ class MonitorLogic:
         self.T_tracker_base, self.tool_offset = T_tracker_base, tool_offset
         self.pose_tolerance = pose_tolerance
         self.clock = clock
-        self.states = deque(maxlen=state_buffer)  # (stamp, q) sorted by stamp
+        self.states = StateBuffer(model.dof, state_buffer)
+        self.joint_order = JointOrder(model.joint_names)
         self.pending = deque()                    # (seq, stamp, T, arrival)
         self.seq = 0
         self.counts = {"received": 0, "paired": 0, "unpaired": 0, "rejected": 0, "joint_states": 0,
@@ -67,8 +61,9 @@ class MonitorLogic:
                          "source": budget.source if budget else None})
 
     def _write(self, rec):
+        """Append one event to the campaign log (strict JSON: non-finite numbers become null)."""
         if self.log:
-            self.log.write(json.dumps(rec, allow_nan=False) + "\n")
+            self.log.write(dumps(rec) + "\n")
 
     def close(self):
         if self.log:
@@ -77,22 +72,15 @@ class MonitorLogic:
 
     def on_joint_state(self, stamp, names, positions) -> list:
         """Store a joint state (names in any order; extra joints ignored); returns newly decided results."""
-        names = list(names)
         try:
-            idx = [names.index(n) for n in self.model.joint_names]
-            q = np.asarray(positions, dtype=float)[idx]
-            if not np.all(np.isfinite(q)):
-                raise ValueError("non-finite position")
-        except (ValueError, IndexError) as exc:
+            t = stamp_seconds(stamp)
+            q = self.joint_order(names, positions)
+        except IngestError as exc:
             self.counts["joint_states_rejected"] += 1
-            self.last_reasons.append(f"joint state rejected: {exc} (names {names})")
+            self.last_reasons.append(f"joint state rejected: {exc}")
             return []
         self.counts["joint_states"] += 1
-        if self.states and stamp < self.states[-1][0]:
-            k = bisect.bisect([s for s, _ in self.states], stamp)
-            self.states.insert(k, (stamp, q))
-        else:
-            self.states.append((stamp, q))
+        self.states.add(t, q)
         return self.resolve()
 
     def on_pose(self, stamp, frame_id, position, quaternion) -> list:
@@ -100,36 +88,33 @@ class MonitorLogic:
         self.counts["received"] += 1
         seq = self.seq
         self.seq += 1
-        vals = np.concatenate([np.asarray(position, float).ravel(), np.asarray(quaternion, float).ravel()])
-        rec = {"event": "measurement", "seq": seq, "stamp": stamp, "frame": frame_id,
-               "position": [float(v) if np.isfinite(v) else None for v in vals[:3]],
-               "quaternion": [float(v) if np.isfinite(v) else None for v in vals[3:]]}
-        if vals.shape != (7,) or not np.all(np.isfinite(vals)) or np.linalg.norm(vals[3:]) < 1e-9:
+        rec = {"event": "measurement", "seq": seq, "stamp": None, "frame": str(frame_id),
+               "position": _numbers(position), "quaternion": _numbers(quaternion)}
+        try:
+            rec["stamp"] = t = stamp_seconds(stamp)
+            T = pose_from_values(position, quaternion)
+        except IngestError as exc:
             self.counts["rejected"] += 1
-            reason = "non-finite pose or zero quaternion"
-            self.last_reasons.append(f"measurement {seq} rejected: {reason}")
-            self._write({**rec, "rejected": reason})
+            self.last_reasons.append(f"measurement {seq} rejected: {exc}")
+            self._write({**rec, "rejected": str(exc)})
             return []
         self._write(rec)
-        T = np.eye(4)
-        T[:3, :3] = quat_to_matrices(vals[3:])[0]
-        T[:3, 3] = vals[:3]
-        self.pending.append((seq, float(stamp), T, self.clock()))
+        self.pending.append((seq, t, T, self.clock()))
         return self.resolve()
 
     def on_pose_msg(self, msg) -> list:
         """Duck-typed geometry_msgs/PoseStamped."""
         p, o = msg.pose.position, msg.pose.orientation
-        return self.on_pose(stamp_of(msg), msg.header.frame_id, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w))
+        return self.on_pose(msg.header.stamp, msg.header.frame_id, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w))
 
     def on_joint_state_msg(self, msg) -> list:
         """Duck-typed sensor_msgs/JointState."""
-        return self.on_joint_state(stamp_of(msg), msg.name, msg.position)
+        return self.on_joint_state(msg.header.stamp, msg.name, msg.position)
 
     def resolve(self, now=None) -> list:
         """Decide pending measurements whose neighbours are known or whose wait is over."""
         now = self.clock() if now is None else now
-        newest = self.states[-1][0] if self.states else -np.inf
+        newest = self.states.newest
         decided = []
         keep = deque()
         while self.pending:
@@ -142,23 +127,12 @@ class MonitorLogic:
         self.pending = keep
         return [d for d in decided if d is not None]
 
-    def _nearest_state(self, t):
-        """(stamp, q) of the stored joint state nearest to t within slop, else None (newest first)."""
-        best = None
-        for s, q in reversed(self.states):
-            if s < t - self.slop:
-                break
-            if abs(s - t) <= self.slop and (best is None or abs(s - t) < abs(best[0] - t)):
-                best = (s, q)
-        return best
-
     def _pair(self, seq, t, T):
-        found = self._nearest_state(t)
+        found = self.states.nearest(t, self.slop)
         if found is None:
-            stamps = [s for s, _ in self.states]
             self.counts["unpaired"] += 1
             reason = (f"no joint state within {self.slop} s of stamp {t:.6f}"
-                      + (f" (nearest {min(abs(s - t) for s in stamps):.4f} s away)" if stamps else " (none received)"))
+                      + (f" (nearest {self.states.distance(t):.4f} s away)" if len(self.states) else " (none received)"))
             self.last_reasons.append(f"measurement {seq} unpaired: {reason}")
             self._write({"event": "unpaired", "seq": seq, "reason": reason})
             return None
@@ -210,15 +184,18 @@ class MonitorLogic:
                                                              "limit_position_m": self.budget.limit_position}}
 
 
+def _numbers(values):
+    """The values as a plain list of floats for the log (None where not finite), or None if not numbers."""
+    try:
+        arr = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return [float(v) if np.isfinite(v) else None for v in arr]
+
+
 def _fmt(v):
     if v is None:
         return "-"
     if isinstance(v, float):
         return f"{v:.6g}"
     return str(v)
-
-
-def pose_message_fields(stamp, T, frame_id="tracker"):
-    """Plain values for a PoseStamped: (sec, nanosec, frame_id, position (3,), quaternion x y z w)."""
-    ns = int(round(stamp * 1e9))
-    return ns // 1_000_000_000, ns % 1_000_000_000, frame_id, T[:3, 3].copy(), matrices_to_quat(T[None, :3, :3])[0]

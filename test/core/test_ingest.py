@@ -1,0 +1,71 @@
+"""The one ingestion path: stamps, joint order, measured poses and pairing by stamp."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from tolerance_ros.core.ingest import (IngestError, JointOrder, StateBuffer, nearest_indices, pair_by_stamp,
+                                       pose_from_values, stamp_seconds)
+
+
+def test_stamps():
+    assert stamp_seconds(SimpleNamespace(sec=12, nanosec=500_000_000)) == 12.5
+    assert stamp_seconds(3) == 3.0
+    for bad in (SimpleNamespace(sec="x", nanosec=0), object(), float("nan"), SimpleNamespace(sec=10 ** 400, nanosec=0)):
+        with pytest.raises(IngestError, match="stamp"):
+            stamp_seconds(bad)
+
+
+def test_joint_order_reorders_ignores_extras_and_names_what_is_missing():
+    order = JointOrder(["j1", "j2", "j3"])
+    np.testing.assert_array_equal(order(["gripper", "j3", "j1", "j2"], [9.0, 3.0, 1.0, 2.0]), [1.0, 2.0, 3.0])
+    first = order.index(["gripper", "j3", "j1", "j2"])
+    assert order.index(("gripper", "j3", "j1", "j2")) is first          # the same names reuse the index
+    with pytest.raises(IngestError, match=r"no value for joint\(s\) \['j3'\]"):
+        order(["j1", "j2"], [1.0, 2.0])
+    with pytest.raises(IngestError, match="2 values for 3 joint names"):
+        order(["j1", "j2", "j3"], [1.0, 2.0])
+    with pytest.raises(IngestError, match="'j2': not a finite number"):
+        order(["j1", "j2", "j3"], [1.0, np.inf, 2.0])
+    with pytest.raises(IngestError, match="expected numbers"):
+        order(["j1", "j2", "j3"], ["a", "b", "c"])
+    np.testing.assert_array_equal(order.rows(["j3", "j2", "j1"], [[3, 2, 1], [6, 5, 4]]), [[1, 2, 3], [4, 5, 6]])
+
+
+def test_poses_from_position_and_quaternion():
+    R = Rotation.from_euler("xyz", [0.1, 0.2, 0.3])
+    T = pose_from_values([1.0, 2.0, 3.0], R.as_quat() * 2.0)
+    np.testing.assert_allclose(T[:3, :3], R.as_matrix(), atol=1e-15)
+    np.testing.assert_array_equal(T[:3, 3], [1, 2, 3])
+    for pos, quat, needle in [([0, 0, 0], [0, 0, 0, 0], "zero quaternion"),
+                              ([0, 0, np.nan], [0, 0, 0, 1], "non-finite"),
+                              ([0, 0], [0, 0, 0, 1], "3 position and 4 quaternion"),
+                              ([0, 0, 0], [0, 0, 1], "3 position and 4 quaternion"),
+                              (["x", 0, 0], [0, 0, 0, 1], "expected numbers")]:
+        with pytest.raises(IngestError, match=needle):
+            pose_from_values(pos, quat)
+
+
+def test_nearest_stamp_rule():
+    s = [0.0, 1.0, 2.0]
+    assert nearest_indices(s, [0.4, 0.5, 0.6, 2.05, 3.0], 0.1).tolist() == [-1, -1, -1, 2, -1]
+    assert nearest_indices(s, [0.5, 0.95, 1.04], 0.5).tolist() == [0, 1, 1]   # a tie goes to the earlier stamp
+    assert nearest_indices([], [1.0], 1.0).tolist() == [-1]
+    assert pair_by_stamp([0.0, 2.0], [2.01, 0.02, 1.0], 0.05).tolist() == [1, 0]  # states in any order
+
+
+def test_state_buffer_keeps_order_and_the_newest_states():
+    buf = StateBuffer(dof=2, capacity=4)
+    for t in (1.0, 3.0, 2.0, 0.5):                     # out of order: inserted at their place
+        buf.add(t, [t, -t])
+    np.testing.assert_array_equal(buf.stamps[:len(buf)], [0.5, 1.0, 2.0, 3.0])
+    stamp, q = buf.nearest(2.1, 0.2)
+    assert stamp == 2.0 and q.tolist() == [2.0, -2.0]
+    assert buf.nearest(2.5, 0.2) is None and buf.distance(2.4) == pytest.approx(0.4)
+    for t in np.arange(4.0, 20.0):
+        buf.add(t, [t, -t])
+    assert len(buf) >= 4 and buf.newest == 19.0
+    np.testing.assert_array_equal(np.diff(buf.stamps[:len(buf)]) > 0, True)
+    assert buf.nearest(19.0, 0.0)[1].tolist() == [19.0, -19.0]
+    assert StateBuffer(dof=1).newest == -np.inf
