@@ -3,7 +3,6 @@ import numpy as np
 import pytest
 
 from tolerance_ros.core.synthesis import SynthesisError, build_problem
-from tolerance_ros.core.synthesis.search import column_maxima, pose_index, select_poses
 
 
 def test_paper_ceilings_and_free_parameters(gao):
@@ -25,26 +24,6 @@ def test_cost_and_index_match_the_paper_units(gao):
     assert p.cost(d) == pytest.approx(14 * 10 + 12 * 1500)
     assert p.index_I(p.ceilings) == pytest.approx(0.0)
     assert p.index_I(p.floors) > p.index_I(d) > 0
-
-
-def test_column_maxima_of_a_planar_arm_are_exact(planar2r):
-    mu = column_maxima(planar2r, "position", 500)
-    names = list(planar2r.param_names)
-    assert mu[names.index("theta1")] == pytest.approx(0.7, rel=1e-9)   # reached by local refinement
-    assert mu[names.index("theta2")] == pytest.approx(0.3, rel=1e-9)
-    assert mu[names.index("alpha2")] == 0.0
-
-
-def test_pose_selection_index(planar2r):
-    q = np.array([[0.0, 0.0]])
-    # With 1 mm length errors and 1 rad angle errors, the stretched 2R arm moves by |(a) + (theta)|.
-    F = pose_index(planar2r, q)
-    J = planar2r.error_jacobian(q).position[0]
-    unit = np.array([1e-3 if k == "length" else 1.0 for k in planar2r.param_kinds])
-    assert F[0] == pytest.approx(np.linalg.norm(J @ unit))
-    poses = select_poses(planar2r, 3, n_samples=500)
-    assert poses.shape == (3, 2)
-    assert pose_index(planar2r, poses).min() >= np.sort(pose_index(planar2r, planar2r.sample_joints(500, 0)))[-50]
 
 
 @pytest.mark.parametrize("kwargs, message", [
