@@ -1,6 +1,12 @@
 """tolerance_ros: kinematic error models, precision analysis and tolerance allocation for robot arms.
 
-The math lives in ``tolerance_ros.core`` (no ROS); ``tolerance_ros.nodes`` holds the ROS 2 adapters and
-``tolerance_ros.cli`` the command line.
+Layers, each importing only from those below it:
+- ``tolerance_ros.core``: the math, ROS-free (SI units): geometry, mechanism models and their error
+  Jacobians, error bounds, analysis, synthesis, accuracy evaluation, budgets, campaigns, ingestion;
+- ``tolerance_ros.services``: what the ROS nodes run, ROS-free (JSON contracts, service logic, monitor);
+- ``tolerance_ros.render``: text tables, plots and the written accuracy report, for people;
+- ``tolerance_ros.papers``: the reproductions of the two source papers;
+- ``tolerance_ros.cli``: the command line; ``tolerance_ros.nodes``: the ROS 2 adapters (the only rclpy
+  imports).
 """
 __version__ = "0.1.0"
