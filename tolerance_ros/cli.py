@@ -2,37 +2,71 @@
 
 Every subcommand takes a robot (a shipped name such as ``gao2023_7dof``, or a YAML/URDF path), prints
 a readable table (lengths in mm where the header says so), and with ``--json`` prints one JSON
-document on stdout in SI units instead. Progress goes to stderr.
+document on stdout in SI units instead. Progress goes to stderr. Every length or angle option carries
+its unit (``1.4mm``, ``0.3mrad``); a bare number is an error.
+
+Exit codes: 0 done; 2 bad input (one line on stderr naming the option, file or field); 3 done, but
+the target was not met (an allocation that misses its limit, a verification or a report with
+errors over the limit; the last line on stderr says what failed); 1 an internal error (a bug).
 """
 from __future__ import annotations
 
-import argparse
-import os
-import sys
-from pathlib import Path
+from .core.threads import cap_environment
 
-import numpy as np
+cap_environment()  # before numpy loads: BLAS pools of one thread (see core/threads.py)
 
-from .core import analysis, errors
-from .core.budget import BudgetError, load_budget
-from .core.jsonio import dumps
-from .core.models import ModelError, load_robot
-from .core.resources import shipped
-from .core.units import UnitError, parse_quantity
-from .render.text import Progress, fmt, table
+import argparse  # noqa: E402
+import os  # noqa: E402
+import re  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from .core import analysis, errors  # noqa: E402
+from .core.budget import load_budget  # noqa: E402
+from .core.jsonio import dumps  # noqa: E402
+from .core.models import load_robot  # noqa: E402
+from .core.resources import ConfigNotFound, shipped  # noqa: E402
+from .core.synthesis.problem import InfeasibleError  # noqa: E402
+from .core.threads import limited  # noqa: E402
+from .core.units import UnitError, parse_quantity  # noqa: E402
+from .render.text import Progress, fmt, table  # noqa: E402
+
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_TARGET_MISSED = 0, 1, 2, 3
 
 
 class CLIError(Exception):
     """A user error reported as one line on stderr (and as a JSON error with --json)."""
 
 
-def _limit(text, kind="length"):
+class UsageError(CLIError):
+    """An argument the parser cannot read (unknown option, missing value)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error becomes a UsageError (one line, or JSON with --json), not an exit."""
+
+    def error(self, message):
+        raise UsageError(f"{message} (see '{self.prog} --help')")
+
+
+def quantity(text, kind, option, positive=True):
+    """SI value of an option written with its unit (``1.4mm``); None stays None; CLIError otherwise."""
     if text is None:
         return None
-    value = parse_quantity(text, kind, field="--limit" if kind == "length" else "--orientation-limit")
-    if value <= 0:
-        raise CLIError(f"{'--limit' if kind == 'length' else '--orientation-limit'}: must be > 0, got {text!r}")
+    try:
+        value = parse_quantity(text, kind, field=option)
+    except UnitError as exc:
+        raise CLIError(str(exc)) from None
+    if positive and not value > 0:
+        raise CLIError(f"{option}: must be > 0, got {text!r}")
     return value
+
+
+def missed(args, what: str):
+    """Record that the run's target was not met (exit code 3; ``what`` is printed last on stderr)."""
+    args.missed.append(what)
 
 
 def _joints(args, model):
@@ -105,7 +139,7 @@ def cmd_sensitivity(args):
     q, J = analysis.workspace_jacobian(model, args.samples, args.seed, rows=args.rows)
     R = analysis.correlation(J)
     pairs = analysis.correlated_pairs(R, model.param_names, args.correlation)
-    limit = _limit(args.limit, "length" if args.rows == "position" else "angle")
+    limit = quantity(args.limit, "length" if args.rows == "position" else "angle", "--limit")
     ceil = analysis.ceilings(J, limit) if limit else None
     prog(1, 1)
     plots = []
@@ -150,8 +184,9 @@ def cmd_verify(args):
     model = load_robot(args.robot)
     budget = load_budget(args.tolerances, model)
     delta = budget.vector_for(model)
-    limit = _limit(args.limit) if args.limit else budget.limit_position
-    olimit = _limit(args.orientation_limit, "angle") if args.orientation_limit else budget.limit_orientation
+    limit = quantity(args.limit, "length", "--limit") if args.limit else budget.limit_position
+    olimit = (quantity(args.orientation_limit, "angle", "--orientation-limit") if args.orientation_limit
+              else budget.limit_orientation)
     signs = None
     if args.signs:
         signs = np.ones(model.n_params)
@@ -196,14 +231,14 @@ def cmd_verify(args):
 
 
 def _floors(args, model):
-    floors = {"length": parse_quantity(args.floor_length, "length", field="--floor-length"),
-              "angle": parse_quantity(args.floor_angle, "angle", field="--floor-angle")}
+    floors = {"length": quantity(args.floor_length, "length", "--floor-length"),
+              "angle": quantity(args.floor_angle, "angle", "--floor-angle")}
     for item in args.floor or []:
         if "=" not in item:
             raise CLIError(f"--floor: expected NAME=VALUE (e.g. theta1=0.2mrad), got {item!r}")
         name, value = item.split("=", 1)
         j = model.param_index([name.strip()])[0]
-        floors[name.strip()] = parse_quantity(value, model.param_kinds[j], field=f"--floor {name}")
+        floors[name.strip()] = quantity(value, model.param_kinds[j], f"--floor {name.strip()}")
     return floors
 
 
@@ -211,8 +246,8 @@ def cmd_allocate(args):
     from .core import synthesis
     from .core.errors import k_for_confidence
     model = load_robot(args.robot)
-    limit = _limit(args.limit)
-    olimit = _limit(args.orientation_limit, "angle") if args.orientation_limit else None
+    limit = quantity(args.limit, "length", "--limit")
+    olimit = quantity(args.orientation_limit, "angle", "--orientation-limit")
     k_sigma = k_for_confidence(args.confidence) if args.confidence is not None else 3.0
     prog = Progress(f"allocate ({args.solver})", not args.quiet)
     ga = {"tol_runs": args.ga_tol, "max_rounds": args.ga_rounds}
@@ -371,7 +406,7 @@ def cmd_paper(args):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="tolerance-ros", description=__doc__.split("\n\n")[0])
+    parser = Parser(prog="tolerance-ros", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def common(p, robot=True):
@@ -462,27 +497,83 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_NEGATIVE = re.compile(r"^-(\d|\.\d)")
+
+
+def _attach_negative_values(argv, parser):
+    """``--limit -1.4mm`` -> ``--limit=-1.4mm``, so that a negative value reaches the option's own check
+    instead of being taken for an option."""
+    takes_value = set()
+    parsers = [parser] + [p for a in parser._actions if isinstance(a, argparse._SubParsersAction)
+                          for p in a.choices.values()]
+    for p in parsers:
+        for a in p._actions:
+            if a.option_strings and a.nargs is None:
+                takes_value.update(a.option_strings)
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in takes_value and i + 1 < len(argv) and _NEGATIVE.match(argv[i + 1]):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
+def error_code(exc) -> str:
+    """The stable code of an error, as the services use them (not a Python class name)."""
+    if isinstance(exc, ConfigNotFound) and exc.kind == "robots":
+        return "unknown_robot"
+    if isinstance(exc, InfeasibleError):
+        return "infeasible"
+    if isinstance(exc, (CLIError, ValueError, OSError, NotImplementedError)):
+        return "invalid_request"
+    return "internal"
+
+
+def _message(exc) -> str:
+    return str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+
+
+def _fail(prog, code, message, as_json) -> int:
+    if as_json:
+        print(dumps({"ok": False, "error": {"code": code, "message": message}}))
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    return EXIT_INTERNAL if code == "internal" else EXIT_INPUT
+
+
 def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    as_json = "--json" in argv
     parser = build_parser()
-    args = parser.parse_args(argv)
-    for name in ("samples", "poses", "random", "mc_poses", "ga_tol", "ga_rounds"):
-        if getattr(args, name, 1) is not None and getattr(args, name, 1) < 1:
-            parser.error(f"--{name.replace('_', '-')}: must be >= 1")
     try:
-        out = args.func(args)
+        args = parser.parse_args(_attach_negative_values(argv, parser))
+        for name in ("samples", "poses", "random", "mc_poses", "ga_tol", "ga_rounds", "n"):
+            if getattr(args, name, 1) is not None and getattr(args, name, 1) < 1:
+                raise UsageError(f"--{name.replace('_', '-')}: must be >= 1")
+    except UsageError as exc:
+        return _fail(parser.prog, "invalid_request", str(exc), as_json)
+    prog = f"{parser.prog} {args.command}"
+    args.missed = []
+    try:
+        with limited(1):
+            out = args.func(args)
     except BrokenPipeError:  # the reader (e.g. `| head`) went away: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
-    except (CLIError, ModelError, BudgetError, UnitError, FileNotFoundError, ValueError, NotImplementedError,
-            OSError) as exc:
-        msg = str(exc).strip("'\"")
-        if getattr(args, "json", False):
-            print(dumps({"ok": False, "error": {"code": type(exc).__name__, "message": msg}}))
-        print(f"tolerance-ros {args.command}: error: {msg}", file=sys.stderr)
-        return 2
-    if getattr(args, "json", False) and out is not None:
-        print(dumps({"ok": True, **out} if isinstance(out, dict) else out, indent=1))
-    return 0
+        return EXIT_OK
+    except Exception as exc:  # every error is one line (and a JSON document with --json)
+        code = error_code(exc)
+        message = _message(exc) if code != "internal" else f"internal error (a bug): {type(exc).__name__}: {exc}"
+        return _fail(prog, code, message, as_json)
+    if as_json and out is not None:
+        doc = {"ok": not args.missed, **out} if isinstance(out, dict) else out
+        if args.missed and isinstance(doc, dict):
+            doc["failed"] = list(args.missed)
+        print(dumps(doc, indent=1))
+    for what in args.missed:
+        print(f"{prog}: FAILED: {what}", file=sys.stderr)
+    return EXIT_TARGET_MISSED if args.missed else EXIT_OK
 
 
 if __name__ == "__main__":

@@ -7,17 +7,25 @@ from tolerance_ros.core.units import UnitError, parse_number, parse_quantity
 
 
 @pytest.mark.parametrize("text, kind, si", [("1.4mm", "length", 1.4e-3), ("1.4 mm", "length", 1.4e-3),
-                                            ("0.0014", "length", 0.0014), ("2um", "length", 2e-6),
+                                            ("0.0014m", "length", 0.0014), ("2um", "length", 2e-6),
+                                            ("-1.4mm", "length", -1.4e-3), ("+3 deg", "angle", math.pi / 60),
                                             ("0.3mrad", "angle", 3e-4), ("1deg", "angle", math.pi / 180),
                                             (".5m", "length", 0.5), ("1e-3m", "length", 1e-3)])
 def test_parse_quantity(text, kind, si):
     assert parse_quantity(text, kind) == pytest.approx(si)
 
 
-@pytest.mark.parametrize("text", ["1.4 furlong", "mm", "abc", "1.4mm mm", "nan", "inf"])
+@pytest.mark.parametrize("text", ["1.4 furlong", "mm", "abc", "1.4mm mm", "nan", "inf", "1e400m", "١.٤mm", 1.4])
 def test_parse_quantity_rejects(text):
-    with pytest.raises(UnitError):
+    with pytest.raises(UnitError, match="--limit"):
         parse_quantity(text, "length", field="--limit")
+
+
+@pytest.mark.parametrize("text, kind", [("1.4", "length"), ("-0.5", "angle"), ("3e-3", "length")])
+def test_a_bare_number_is_an_error_that_shows_the_accepted_forms(text, kind):
+    with pytest.raises(UnitError, match="has no unit; write it with its unit, e.g.") as exc:
+        parse_quantity(text, kind, field="--x")
+    assert ("1.4mm" if kind == "length" else "0.3mrad") in str(exc.value)
 
 
 @pytest.mark.parametrize("text, value", [("pi/2", math.pi / 2), ("-pi", -math.pi), (" 2*pi/3 ", 2 * math.pi / 3),

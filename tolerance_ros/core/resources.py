@@ -9,6 +9,14 @@ from pathlib import Path
 PACKAGE = "tolerance_ros"
 
 
+class ConfigNotFound(FileNotFoundError):
+    """No such file and no shipped config of that name; ``kind`` is the config folder ('robots', ...)."""
+
+    def __init__(self, kind: str, message: str):
+        super().__init__(message)
+        self.kind = kind
+
+
 def share_dirs() -> list[Path]:
     """Candidate ``share/tolerance_ros`` roots, most specific first."""
     here = Path(__file__).resolve()
@@ -43,8 +51,12 @@ def config_dir() -> Path:
 def resolve(kind: str, spec: str | os.PathLike, suffixes=(".yaml", ".yml")) -> Path:
     """A file path for ``spec``: an existing path, or the name of a shipped config under ``config/<kind>``."""
     path = Path(spec).expanduser()
+    what = kind[:-1] if kind.endswith("s") else kind
     if path.is_file():
         return path
+    if path.is_dir():
+        raise ConfigNotFound(kind, f"{what} {str(spec)!r}: is a directory; expected a file "
+                                   f"({', '.join(suffixes)}) or a shipped name")
     try:
         root = config_dir() / kind
     except FileNotFoundError:
@@ -55,8 +67,8 @@ def resolve(kind: str, spec: str | os.PathLike, suffixes=(".yaml", ".yml")) -> P
             if cand.is_file():
                 return cand
     known = sorted(p.stem for p in root.glob("*") if p.suffix in suffixes) if root and root.is_dir() else []
-    raise FileNotFoundError(f"{kind[:-1] if kind.endswith('s') else kind} {str(spec)!r}: no such file, and not a "
-                            f"shipped name (known: {', '.join(known) or 'none'})")
+    raise ConfigNotFound(kind, f"{what} {str(spec)!r}: no such file, and not a shipped name "
+                               f"(known: {', '.join(known) or 'none'})")
 
 
 def shipped(kind: str, suffixes=(".yaml", ".yml")) -> list[str]:

@@ -83,22 +83,24 @@ def parse_number(value, field: str) -> float:
     return out
 
 
-_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Zµ]*)\s*$")
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Zµ]*)\s*$", re.ASCII)
+_EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad"}
 
 
-def parse_quantity(text, kind: str = "length", default_unit: str | None = None, field: str = "value") -> float:
-    """Parse ``'1.4mm'``, ``'0.3 mrad'`` or a bare number into SI.
+def parse_quantity(text, kind: str = "length", field: str = "value") -> float:
+    """SI value of a length or angle written with its unit: ``'1.4mm'``, ``'0.3 mrad'``, ``'-2e-3 m'``.
 
-    A bare number takes ``default_unit`` (SI if None).
+    A number without a unit is an error (a bare 1.4 could be metres or millimetres), as is an unknown
+    unit or a non-finite value; the UnitError names ``field`` and shows the accepted forms.
     """
-    if isinstance(text, (int, float)) and not isinstance(text, bool):
-        number, unit = float(text), ""
-    else:
-        m = _QUANTITY.match(str(text))
-        if not m:
-            raise UnitError(f"{field}: cannot parse {text!r} as a {kind} (examples: 1.4mm, 0.0014m)")
-        number, unit = float(m.group(1)), m.group(2)
-    unit = unit or default_unit or ("m" if kind == "length" else "rad")
+    units = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
+    forms = f"write it with its unit, e.g. {_EXAMPLES[kind]} ({kind} units: {', '.join(sorted(units))})"
+    m = _QUANTITY.match(str(text)) if isinstance(text, str) else None
+    if not m:
+        raise UnitError(f"{field}: cannot read {text!r} as a {kind}; {forms}")
+    number, unit = float(m.group(1)), m.group(2)
+    if not unit:
+        raise UnitError(f"{field}: {text!r} has no unit; {forms}")
     scale = length_scale(unit, field) if kind == "length" else angle_scale(unit, field)
     value = number * scale
     if not math.isfinite(value):
