@@ -181,3 +181,67 @@ def test_paper_rong2018_prints_the_studies(capsys, tmp_path):
     code, out, _ = run(capsys, "paper", "rong2018", "--no-synthesis", "--quiet", "--plot", str(tmp_path))
     assert code == 0 and "Fig. 3" in out and "Table 3" in out and "PE6" in out
     assert (tmp_path / "rong2018_fig3.png").exists()
+
+
+# ---------------------------------------------------------------- mistakes that must not pass silently
+
+
+@pytest.mark.parametrize("argv", [
+    ["verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta1", "--limit", "1.4"],
+    ["allocate", "--robot", "gao2023_7dof", "--limit", "1.4", "--out", "-"],
+    ["allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--floor-length", "0.05", "--out", "-"],
+    ["sensitivity", "--robot", "gao2023_7dof", "--limit", "0.002"],
+])
+def test_a_bare_number_is_refused_at_once_with_the_accepted_forms(capsys, argv):
+    import time
+    t0 = time.perf_counter()
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and "has no unit; write it with its unit, e.g. 1.4mm or 0.0014m" in err
+    assert len(err.strip().splitlines()) == 1 and time.perf_counter() - t0 < 5
+
+
+def test_a_negative_value_reaches_the_options_own_check(capsys):
+    code, _, err = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta1", "--limit", "-1.4mm")
+    assert code == 2 and "--limit: must be > 0, got '-1.4mm'" in err and "usage" not in err.lower()
+
+
+def test_argument_errors_with_json_are_a_json_document_with_a_stable_code(capsys):
+    code, out, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "--json")
+    assert code == 2 and json.loads(out) == {"ok": False, "error": {"code": "invalid_request", "message": err.split(
+        "error: ", 1)[1].strip()}}
+    code, out, _ = run(capsys, "jacobian", "--robot", "no_such_robot", "--json")
+    assert json.loads(out)["error"]["code"] == "unknown_robot"
+    code, out, _ = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta1", "--limit",
+                       "2 furlong", "--json")
+    assert json.loads(out)["error"]["code"] == "invalid_request"
+
+
+def test_messages_keep_their_quotes_and_a_directory_is_not_a_missing_file(capsys, tmp_path):
+    code, _, err = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0,a,0.2,0.3,0.4,0.5,0.6")
+    assert "got '0,a,0.2,0.3,0.4,0.5,0.6'" in err
+    code, _, err = run(capsys, "jacobian", "--robot", str(tmp_path))
+    assert code == 2 and "is a directory" in err and "no such file" not in err
+
+
+def test_a_budget_missing_a_parameter_names_its_file(capsys, tmp_path):
+    import yaml
+    from tolerance_ros.core.resources import config_dir
+    data = yaml.safe_load((config_dir() / "budgets" / "gao2023_delta1.yaml").read_text())
+    data["tolerances"].pop("a3")
+    path = tmp_path / "short.yaml"
+    path.write_text(yaml.safe_dump(data))
+    code, _, err = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", str(path), "--samples", "10")
+    assert code == 2 and f"{path}: tolerances: no tolerance for ['a3']" in err
+
+
+def test_urdf_chains_are_chosen_on_the_command_line(capsys, tmp_path):
+    from helpers import example_urdf
+    panda = str(example_urdf("panda.urdf"))
+    code, _, err = run(capsys, "jacobian", "--robot", panda, "--random", "1")
+    assert code == 2 and "panda_leftfinger" in err and "--tip-link" in err
+    code, out, err = run(capsys, "jacobian", "--robot", panda, "--tip-link", "panda_hand", "--base-link", "panda_link0",
+                         "--json")
+    doc = json.loads(out)
+    assert code == 0 and len(doc["joint_names"]) == 7 and np.array(doc["jacobian"]).shape == (1, 6, 49)
+    code, _, err = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--tip-link", "tool0")
+    assert code == 2 and "only for URDF robots" in err

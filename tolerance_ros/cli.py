@@ -64,6 +64,16 @@ def quantity(text, kind, option, positive=True):
     return value
 
 
+def load_model(args):
+    """The model of ``--robot`` (with ``--tip-link`` / ``--base-link``); says which tip it took when the
+    choice was made for the user (a URDF whose only moving leaf link is the tip)."""
+    model = load_robot(args.robot, getattr(args, "tip_link", None), getattr(args, "base_link", None))
+    if getattr(model, "tip_chosen", False) and not args.quiet:
+        print(f"robot {model.name}: tip link {model.tip_link!r}, the only leaf link the joints move "
+              f"(choose another with --tip-link)", file=sys.stderr)
+    return model
+
+
 def missed(args, what: str):
     """Record that the run's target was not met (exit code 3; ``what`` is printed last on stderr)."""
     args.missed.append(what)
@@ -109,7 +119,7 @@ def cmd_robots(args):
 
 
 def cmd_jacobian(args):
-    model = load_robot(args.robot)
+    model = load_model(args)
     q = _joints(args, model)
     T, EJ = model.fk_and_jacobian(q)
     outside = model.out_of_limits(q)
@@ -132,14 +142,14 @@ def cmd_jacobian(args):
 
 
 def cmd_sensitivity(args):
-    model = load_robot(args.robot)
+    model = load_model(args)
+    limit = quantity(args.limit, "length" if args.rows == "position" else "angle", "--limit")
     prog = Progress("sensitivity", not args.quiet)
     prog(0, 1)
     sens = analysis.sensitivity(model, args.samples, args.seed, rows=args.rows, length_unit=args.length_unit)
     q, J = analysis.workspace_jacobian(model, args.samples, args.seed, rows=args.rows)
     R = analysis.correlation(J)
     pairs = analysis.correlated_pairs(R, model.param_names, args.correlation)
-    limit = quantity(args.limit, "length" if args.rows == "position" else "angle", "--limit")
     ceil = analysis.ceilings(J, limit) if limit else None
     prog(1, 1)
     plots = []
@@ -181,7 +191,7 @@ def cmd_sensitivity(args):
 
 
 def cmd_verify(args):
-    model = load_robot(args.robot)
+    model = load_model(args)
     budget = load_budget(args.tolerances, model)
     delta = budget.vector_for(model)
     limit = quantity(args.limit, "length", "--limit") if args.limit else budget.limit_position
@@ -245,7 +255,7 @@ def _floors(args, model):
 def cmd_allocate(args):
     from .core import synthesis
     from .core.errors import k_for_confidence
-    model = load_robot(args.robot)
+    model = load_model(args)
     limit = quantity(args.limit, "length", "--limit")
     olimit = quantity(args.orientation_limit, "angle", "--orientation-limit")
     k_sigma = k_for_confidence(args.confidence) if args.confidence is not None else 3.0
@@ -340,7 +350,7 @@ def cmd_report(args):
     from .core.accuracy.io import read_measurements
     from .core.campaign import load_campaign
     from .render.accuracy_report import write_report
-    model = load_robot(args.robot)
+    model = load_model(args)
     budget = load_budget(args.budget, model) if args.budget else None
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     if args.stream:
@@ -412,6 +422,8 @@ def build_parser() -> argparse.ArgumentParser:
     def common(p, robot=True):
         if robot:
             p.add_argument("--robot", required=True, help="shipped robot name or YAML/URDF path")
+            p.add_argument("--tip-link", help="URDF robots: the link the chain ends in (the tool)")
+            p.add_argument("--base-link", help="URDF robots: the link the chain starts from (fixed to the root)")
         p.add_argument("--json", action="store_true", help="print one JSON document (SI units) on stdout")
         p.add_argument("--quiet", action="store_true", help="no progress on stderr")
         return p
@@ -559,6 +571,11 @@ def main(argv=None) -> int:
     try:
         with limited(1):
             out = args.func(args)
+        if as_json and out is not None:
+            doc = {"ok": not args.missed, **out} if isinstance(out, dict) else out
+            if args.missed and isinstance(doc, dict):
+                doc["failed"] = list(args.missed)
+            print(dumps(doc, indent=1))
     except BrokenPipeError:  # the reader (e.g. `| head`) went away: not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK
@@ -566,11 +583,6 @@ def main(argv=None) -> int:
         code = error_code(exc)
         message = _message(exc) if code != "internal" else f"internal error (a bug): {type(exc).__name__}: {exc}"
         return _fail(prog, code, message, as_json)
-    if as_json and out is not None:
-        doc = {"ok": not args.missed, **out} if isinstance(out, dict) else out
-        if args.missed and isinstance(doc, dict):
-            doc["failed"] = list(args.missed)
-        print(dumps(doc, indent=1))
     for what in args.missed:
         print(f"{prog}: FAILED: {what}", file=sys.stderr)
     return EXIT_TARGET_MISSED if args.missed else EXIT_OK

@@ -48,15 +48,18 @@ class Budget:
     meta: dict = field(default_factory=dict)
     default: float | None = None
     free: tuple = ()
+    path: str | None = None
 
     def vector_for(self, model) -> np.ndarray:
         """(p,) tolerances in the model's parameter order (SI). Unknown or missing names raise."""
+        where = f"{self.path}: " if self.path else ""
         unknown = sorted((set(self.tolerances) | set(self.free)) - set(model.param_names))
         if unknown:
-            raise BudgetError(f"tolerances: unknown parameter name(s) {unknown} for robot {model.name!r}")
+            raise BudgetError(f"{where}tolerances: unknown parameter name(s) {unknown} for robot {model.name!r}")
         missing = [n for n in model.param_names if n not in self.tolerances and n not in self.free]
         if missing and self.default is None:
-            raise BudgetError(f"tolerances: no tolerance for {missing}; list them, mark them `free`, or set `default`")
+            raise BudgetError(f"{where}tolerances: no tolerance for {missing}; list them, mark them `free`, "
+                              f"or set `default`")
         return np.array([0.0 if n in self.free else self.tolerances.get(n, self.default)
                          for n in model.param_names], dtype=float)
 
@@ -203,5 +206,6 @@ def load_budget(spec, model=None) -> Budget:
         raise BudgetError(f"{path}: {exc}") from None
     if model is not None and budget.robot and budget.robot != model.name:
         raise BudgetError(f"{path}: budget is for robot {budget.robot!r}, not {model.name!r}")
+    budget.path = str(path)
     return budget
 

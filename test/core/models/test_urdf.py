@@ -8,7 +8,7 @@ import pytest
 from helpers import example_urdf, pose_difference
 from tolerance_ros.core.models import ModelError, URDFChain, load_robot
 
-CASES = [("ur5_robot.urdf", None), ("panda.urdf", "panda_hand")]
+CASES = [("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand")]
 
 
 def _pin_fk(xml_text, tip, chain, q):
@@ -79,7 +79,7 @@ def test_jacobian_matches_differences_of_pinocchio_fk_on_edited_urdf(name, tip):
 
 def test_offset_columns_are_pinocchio_joint_jacobian():
     path = example_urdf("ur5_robot.urdf")
-    chain = URDFChain(path)
+    chain = URDFChain(path, tip_link="tool0")
     model = pin.buildModelFromUrdf(str(path))
     data = model.createData()
     fid = model.getFrameId(chain.tip_link)
@@ -95,7 +95,7 @@ def test_offset_columns_are_pinocchio_joint_jacobian():
 
 
 def test_names_units_and_limits():
-    chain = URDFChain(example_urdf("ur5_robot.urdf"))
+    chain = URDFChain(example_urdf("ur5_robot.urdf"), tip_link="tool0")
     assert chain.param_names[:7] == tuple(f"shoulder_pan_joint.{f}" for f in
                                           ("x", "y", "z", "roll", "pitch", "yaw", "offset"))
     assert chain.param_units[:7] == ("m", "m", "m", "rad", "rad", "rad", "rad")
@@ -103,12 +103,27 @@ def test_names_units_and_limits():
     assert np.all(chain.joint_limits[:, 0] < chain.joint_limits[:, 1])
 
 
-def test_branching_urdf_needs_a_tip_and_names_the_branch():
-    path = example_urdf("anymal-kinova.urdf")
-    with pytest.raises(ModelError, match="not a serial chain"):
-        URDFChain(path)
-    chain = URDFChain(path, tip_link="LF_FOOT")
-    assert chain.dof == 3
+def test_branching_urdf_needs_a_tip_and_names_the_leaves():
+    with pytest.raises(ModelError, match="LF_FOOT"):
+        URDFChain(example_urdf("anymal-kinova.urdf"))
+    chain = URDFChain(example_urdf("anymal-kinova.urdf"), tip_link="LF_FOOT")
+    assert chain.dof == 3 and not chain.tip_chosen
+    with pytest.raises(ModelError, match=r"chains end in the links \['ee_link', 'tool0'\]"):
+        URDFChain(example_urdf("ur5_robot.urdf"))      # the fixed tool0 and ee_link both hang off wrist_3_link
+    with pytest.raises(ModelError, match="panda_leftfinger"):
+        URDFChain(example_urdf("panda.urdf"))
+
+
+def test_a_single_leaf_is_taken_as_the_tip_and_said_so(tmp_path):
+    root = ET.parse(example_urdf("ur5_robot.urdf")).getroot()
+    for j in list(root.findall("joint")):
+        if j.find("child").get("link") in ("ee_link", "base"):
+            root.remove(j)
+    for link in list(root.findall("link")):
+        if link.get("name") in ("ee_link", "base"):
+            root.remove(link)
+    chain = URDFChain(ET.tostring(root, encoding="unicode"))
+    assert chain.tip_link == "tool0" and chain.tip_chosen
 
 
 def test_bad_urdf_inputs(tmp_path):
@@ -120,6 +135,16 @@ def test_bad_urdf_inputs(tmp_path):
     bad.write_text("<robot name='x'><link name='a'/>")
     with pytest.raises(ModelError, match="urdf"):
         URDFChain(bad)
+
+
+def test_a_broken_urdf_says_why_in_the_error_and_nothing_on_stderr(tmp_path, capfd):
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'/><joint name='j' type='revolute'><parent link='a'/>"
+                   "<child link='missing'/></joint></robot>")
+    with pytest.raises(ModelError, match=f"urdf \\({bad}\\): not a valid URDF") as exc:
+        URDFChain(bad)
+    assert "joint xml is not initialized" in str(exc.value) and ".cpp" not in str(exc.value)
+    assert capfd.readouterr().err == ""
 
 
 def test_yaml_robot_file_with_relative_urdf(tmp_path):

@@ -18,13 +18,18 @@ _DH_JOINT_KEYS = {"name", "type", "a", "alpha", "d", "theta", "limits"}
 _URDF_KEYS = {"name", "kind", "urdf", "tip_link", "base_link", "description", "source", "notes"}
 
 
-def load_robot(spec) -> Mechanism:
-    """Model from a robot YAML path, a URDF path, a shipped robot name, or an already built model."""
+def load_robot(spec, tip_link=None, base_link=None) -> Mechanism:
+    """Model from a robot YAML path, a URDF path, a shipped robot name, or an already built model.
+
+    ``tip_link`` / ``base_link`` choose the chain of a URDF robot (overriding its YAML file's).
+    """
     if isinstance(spec, Mechanism):
+        if tip_link is not None or base_link is not None:
+            raise ModelError("tip_link, base_link: only for a robot loaded from a URDF or its file")
         return spec
     path = resolve("robots", spec, suffixes=(".yaml", ".yml", ".urdf"))
     if path.suffix == ".urdf":
-        return URDFChain(path)
+        return URDFChain(path, tip_link=tip_link, base_link=base_link)
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
@@ -35,6 +40,10 @@ def load_robot(spec) -> Mechanism:
     kind = data.get("kind")
     if kind not in kinds:
         raise ModelError(f"{path}: kind: expected one of {sorted(kinds)}, got {kind!r}")
+    if tip_link is not None or base_link is not None:
+        if kind != "urdf":
+            raise ModelError(f"{path}: tip_link, base_link: only for URDF robots, not kind {kind!r}")
+        data = {**data, **{k: v for k, v in (("tip_link", tip_link), ("base_link", base_link)) if v is not None}}
     try:
         model = kinds[kind](data, path)
     except UnitError as exc:

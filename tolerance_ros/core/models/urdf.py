@@ -12,6 +12,9 @@ our own numpy code, checked against pinocchio's FK in the tests.
 from __future__ import annotations
 
 import math
+import os
+import sys
+import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -49,18 +52,15 @@ class URDFChain(Mechanism):
     """Serial chain from ``base_link`` to ``tip_link`` of a URDF (see the module docstring)."""
 
     def __init__(self, urdf, tip_link=None, base_link=None, name=None):
-        pin = _pin()
         text, source = _read_urdf(urdf)
-        try:
-            model = pin.buildModelFromXML(text)
-        except Exception as exc:  # pinocchio raises plain RuntimeError / ValueError
-            raise ModelError(f"urdf ({source}): pinocchio could not parse it: {exc}") from None
+        model = _parse(text, source)
         root = ET.fromstring(text)
         self.name = str(name or root.get("name") or "urdf_robot")
         self.pin_model = model
         self.source = source
         joints_xml = {j.get("name"): j for j in root.findall("joint")}
-        tip_fid, tip_link = self._tip_frame(model, tip_link)
+        self.tip_chosen = tip_link is None
+        tip_fid, tip_link = self._tip_frame(model, root, tip_link)
         chain = []
         jid = model.frames[tip_fid].parentJoint
         while jid > 0:
@@ -136,24 +136,17 @@ class URDFChain(Mechanism):
         self.nominal = np.concatenate([np.append(o, 0.0) for o in origins])
 
     @staticmethod
-    def _tip_frame(model, tip_link):
-        """Frame id and name of the tip; without ``tip_link`` the tree must be a chain."""
+    def _tip_frame(model, root, tip_link):
+        """Frame id and name of the tip: ``tip_link``, or else the one leaf link moved by a joint."""
         if tip_link is not None:
             if not model.existFrame(tip_link):
                 raise ModelError(f"tip_link: no link or frame named {tip_link!r} in the URDF")
             return model.getFrameId(tip_link), tip_link
-        children = {j: [] for j in range(model.njoints)}
-        for j in range(1, model.njoints):
-            children[model.parents[j]].append(j)
-        for j, ch in children.items():
-            if len(ch) > 1:
-                raise ModelError(f"urdf is not a serial chain: {model.names[j]!r} has child joints "
-                                 f"{[model.names[c] for c in ch]}; give tip_link to pick one chain")
-        last = next(j for j in range(model.njoints) if not children[j])
-        body = [f for f, fr in enumerate(model.frames) if fr.parentJoint == last and fr.type == _pin().FrameType.BODY]
-        if not body:
-            raise ModelError("urdf: cannot find the last link of the chain; give tip_link")
-        return body[-1], model.frames[body[-1]].name
+        leaves = moving_leaves(model, root)
+        if len(leaves) != 1:
+            raise ModelError(f"urdf branches: its chains end in the links {leaves}; give tip_link (--tip-link on the command line) to choose one"
+                             if leaves else "urdf: no link is moved by a joint; nothing to model")
+        return model.getFrameId(leaves[0]), leaves[0]
 
     @staticmethod
     def _check_serial(model, chain):
@@ -223,6 +216,38 @@ class URDFChain(Mechanism):
             else:
                 cfg[iq] = q[k]
         return cfg
+
+
+def moving_leaves(model, root) -> list:
+    """Names of the URDF's leaf links (the parent of no joint) that some joint moves, in file order."""
+    parents = {j.find("parent").get("link") for j in root.findall("joint") if j.find("parent") is not None}
+    return [name for name in (link.get("name") for link in root.findall("link"))
+            if name not in parents and model.existFrame(name) and model.frames[model.getFrameId(name)].parentJoint > 0]
+
+
+def _parse(text, source):
+    """pinocchio model of URDF text; urdfdom's messages on stderr become part of the ModelError instead."""
+    pin = _pin()
+    with tempfile.TemporaryFile() as captured:
+        saved = os.dup(2)
+        os.dup2(captured.fileno(), 2)
+        try:
+            model = pin.buildModelFromXML(text)
+            failure = None
+        except Exception as exc:  # pinocchio raises plain RuntimeError / ValueError
+            failure = exc
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        captured.seek(0)
+        said = captured.read().decode(errors="replace").strip()
+    if failure is not None:
+        lines = [line.strip().removeprefix("Error:").strip() for line in said.splitlines()]
+        detail = "; ".join(line for line in lines if line and not line.startswith("at line"))[:500]
+        raise ModelError(f"urdf ({source}): not a valid URDF: {failure}" + (f" ({detail})" if detail else ""))
+    if said:
+        sys.stderr.write(said + "\n")
+    return model
 
 
 def _read_urdf(urdf):
