@@ -12,9 +12,9 @@ columns pose by pose in one compiled loop. Shared arguments:
 Compiled code is cached on disk: in ``NUMBA_CACHE_DIR`` when set, else beside this file when its
 directory is writable, else in numba's per-user cache directory (``~/.cache/numba``). When none of these
 is writable (numba then refuses to cache), a private directory ``<tmp>/tolerance_ros-numba-<uid>`` is
-used, and without one the kernels compile in every process. The first call in a process compiles (about
-10 s) or loads from the cache (under 1 s); ``warm_up()`` does it up front, so that a long-running node does
-not stall on its first request.
+used, and without one the kernels compile in every process. The first call in a process imports numba
+and compiles (5-10 s on a 2-core machine) or loads from the cache (about 1 s, most of it importing numba);
+``warm_up()`` does it up front, so that a long-running node does not stall on its first request.
 """
 from __future__ import annotations
 
