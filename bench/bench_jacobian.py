@@ -1,121 +1,285 @@
-"""Benchmark: FK plus the 6x28 parameter-error Jacobian of the paper's 7-DOF arm for 10,000 poses.
+"""Benchmark: FK plus the parameter-error Jacobian, tolerance_ros against pinocchio, N = 1, 100, 10,000 poses.
 
-Three ways, in one run, on one core (threads pinned to 1 before numpy loads):
-  batched    tolerance_ros's vectorised analytic model (one call for all poses);
-  per-pose   the textbook loop: 4x4 link matrices and the same analytic columns, pose by pose;
-  pinocchio  central finite differences of pinocchio's FK over the 28 D-H parameters, pose by pose.
-Prints ms total, us per pose and the ratios, and checks that the three agree.
+In one run, on one core (BLAS threads pinned to 1), for the 7-DOF D-H arm gao2023_7dof (6x28) and the URDF
+chains UR5 (6x42) and Panda to its hand (6x49):
+  compiled   ``model.fk_and_jacobian(q)``, the numba kernels (the default backend);
+  numpy      the same call with ``model.backend = 'numpy'``, the reference implementation;
+  pinocchio  a loop over the poses with one Data reused: ``computeJointJacobians`` (forward kinematics and
+             the joint frames) and ``getFrameJacobian`` on a pinocchio model with one joint per error
+             parameter (held at 0), whose frame Jacobian is the parameter-error Jacobian.
+Each row gives the best time of several repeats (CPU time of this process by default: other processes on a
+shared machine then inflate it less), the ratio to pinocchio, and the largest difference from pinocchio.
+Then the 3-PUPS G (``fk_and_jacobian`` of rong2018_3pups) at N = 1 and 1,000, and the warm-up: a fresh
+process importing the models and making its first call, with an empty kernel cache (compile) and again
+(load from the cache). Exits 1 when a target is missed or the results disagree.
 
-    python bench/bench_jacobian.py [--poses 10000] [--fd-poses 10000] [--repeat 7]
+    python bench/bench_jacobian.py [--repeat 9] [--clock cpu|wall] [--skip-warm-up]
 """
 import os
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(var, "1")
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
+import timeit  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
-from tolerance_ros.core.models import load_robot  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing
+from tolerance_ros.core.models import URDFChain, load_robot  # noqa: E402
+
+SIZES = (1, 100, 10_000)
+TARGETS_US = {1: 20.0, 100: 60.0, 10_000: 4000.0}  # compiled fk_and_jacobian, per call
+AGREE = 1e-12
+URDFS = (("ur5_robot.urdf", None), ("panda.urdf", "panda_hand"))
 
 
-def per_pose_loop(model, q):
-    """Textbook per-pose implementation (standard D-H), same column definitions as the batched one."""
-    n, dof = q.shape
-    out_T = np.empty((n, 4, 4))
-    out_J = np.empty((n, 6, 4 * dof))
+def pin_blas_threads():
+    """Limit BLAS to one thread with threadpoolctl when it is there (the environment variables are set too)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return "OMP/OPENBLAS/MKL_NUM_THREADS=1"
+    threadpool_limits(1)
+    return "threadpoolctl (1 thread) and OMP/OPENBLAS/MKL_NUM_THREADS=1"
+
+
+def machine():
+    cpu = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return f"{cpu}, {os.cpu_count()} cores ({usable} usable)"
+
+
+def load_average():
+    return "load average {:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
+
+
+def best_time(fn, repeat, clock):
+    """Best seconds per call over ``repeat`` repeats of enough calls to last >= 20 ms each."""
+    timer = timeit.Timer(fn, timer=time.process_time if clock == "cpu" else time.perf_counter)
+    single = min(timer.repeat(repeat=3, number=1))
+    number = max(1, math.ceil(0.02 / max(single, 1e-7)))
+    repeat = max(3, min(repeat, int(2.0 / max(single * number, 1e-9))))
+    return min(timer.repeat(repeat=repeat, number=number)) / number
+
+
+# ---------------------------------------------------------------- pinocchio: one joint per error parameter
+
+def _se3(R=None, p=(0.0, 0.0, 0.0)):
+    return pin.SE3(np.eye(3) if R is None else np.asarray(R, dtype=float), np.asarray(p, dtype=float))
+
+
+def _rot(axis, angle):
+    return pin.utils.rotate(axis, angle)
+
+
+def dh_error_model(model):
+    """pinocchio model with joints for a_i, d_i, alpha_i, theta_i; (pin model, tool frame id, column order, map)."""
+    pm = pin.Model()
+    parent, pending = 0, _se3(model.base[:3, :3], model.base[:3, 3])
+    dof = model.dof
+    order = {}
+    for i in range(dof):
+        a, d, alpha, theta = model.a[i], model.d[i], model.alpha[i], model.theta[i]
+        lead = _se3(p=(0, 0, d)) * _se3(_rot("z", theta))
+        if model.convention == "standard":
+            steps = [("theta", pin.JointModelRZ(), pending * lead), ("d", pin.JointModelPZ(), _se3()),
+                     ("a", pin.JointModelPX(), _se3(p=(a, 0, 0))), ("alpha", pin.JointModelRX(), _se3())]
+            after = _se3(_rot("x", alpha))
+        else:
+            steps = [("alpha", pin.JointModelRX(), pending), ("a", pin.JointModelPX(), _se3()),
+                     ("theta", pin.JointModelRZ(), _se3(_rot("x", alpha)) * _se3(p=(a, 0, 0)) * lead),
+                     ("d", pin.JointModelPZ(), _se3())]
+            after = _se3()
+        for kind, joint, place in steps:
+            parent = pm.addJoint(parent, joint, place, f"{kind}{i + 1}")
+            order[f"{kind}{i + 1}"] = pm.idx_vs[parent]
+        pending = after
+    fid = pm.addFrame(pin.Frame("tool", parent, 0, pending * _se3(model.tool[:3, :3], model.tool[:3, 3]),
+                                pin.FrameType.OP_FRAME))
+    cols = np.array([order[name] for name in model.param_names])
+    moving = np.array([order[("theta" if t == "revolute" else "d") + str(i + 1)]
+                       for i, t in enumerate(model.joint_types)])
+    return pm, fid, cols, moving
+
+
+def urdf_error_model(chain):
+    """pinocchio model with joints x, y, z, yaw, pitch, roll and the joint itself per movable URDF joint."""
+    pm = pin.Model()
+    parent, pending = 0, pin.SE3.Identity()
+    order = {}
+    for j, name in enumerate(chain.joint_names):
+        x, y, z, roll, pitch, yaw, _ = chain.nominal[7 * j:7 * j + 7]
+        fixed = chain._fixed[j]
+        u = chain._axes[j]
+        axis = "xyz"[int(np.argmax(np.abs(u)))] if np.count_nonzero(u) == 1 and np.abs(u).max() == 1.0 else None
+        if chain.joint_types[j] == "revolute":
+            joint = {"x": pin.JointModelRX, "y": pin.JointModelRY, "z": pin.JointModelRZ}[axis]() if axis and \
+                u.max() == 1.0 else pin.JointModelRevoluteUnaligned(u)
+        else:
+            joint = pin.JointModelPrismaticUnaligned(u)
+        steps = [("x", pin.JointModelPX(), pending * _se3(fixed[:3, :3], fixed[:3, 3])),
+                 ("y", pin.JointModelPY(), _se3()), ("z", pin.JointModelPZ(), _se3()),
+                 ("yaw", pin.JointModelRZ(), _se3(p=(x, y, z))), ("pitch", pin.JointModelRY(), _se3(_rot("z", yaw))),
+                 ("roll", pin.JointModelRX(), _se3(_rot("y", pitch))), ("offset", joint, _se3(_rot("x", roll)))]
+        for field, jm, place in steps:
+            parent = pm.addJoint(parent, jm, place, f"{name}.{field}")
+            order[f"{name}.{field}"] = pm.idx_vs[parent]
+        pending = pin.SE3.Identity()
+    fid = pm.addFrame(pin.Frame("tool", parent, 0, _se3(chain._tool[:3, :3], chain._tool[:3, 3]),
+                                pin.FrameType.OP_FRAME))
+    cols = np.array([order[name] for name in chain.param_names])
+    moving = np.array([order[f"{name}.offset"] for name in chain.joint_names])
+    return pm, fid, cols, moving
+
+
+def pinocchio_loop(pm, data, fid, cols, moving, q):
+    """FK and the parameter-error Jacobian of every pose with pinocchio, ``data`` reused."""
+    n = len(q)
+    T = np.empty((n, 4, 4))
+    J = np.empty((n, 6, len(cols)))
+    qv = np.zeros(pm.nq)
+    frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
     for k in range(n):
-        T = model.base.copy()
-        frames = [T.copy()]
-        for i in range(dof):
-            th = q[k, i] + model.theta[i]
-            ct, st = np.cos(th), np.sin(th)
-            ca, sa = np.cos(model.alpha[i]), np.sin(model.alpha[i])
-            A = np.array([[ct, -st * ca, st * sa, model.a[i] * ct], [st, ct * ca, -ct * sa, model.a[i] * st],
-                          [0.0, sa, ca, model.d[i]], [0.0, 0.0, 0.0, 1.0]])
-            T = T @ A
-            frames.append(T.copy())
-        T = T @ model.tool
-        p = T[:3, 3]
-        for i in range(dof):
-            z, o = frames[i][:3, 2], frames[i][:3, 3]
-            x, oi = frames[i + 1][:3, 0], frames[i + 1][:3, 3]
-            out_J[k, :, i] = np.r_[x, 0.0, 0.0, 0.0]
-            out_J[k, :, dof + i] = np.r_[z, 0.0, 0.0, 0.0]
-            out_J[k, :, 2 * dof + i] = np.r_[np.cross(x, p - oi), x]
-            out_J[k, :, 3 * dof + i] = np.r_[np.cross(z, p - o), z]
-        out_T[k] = T
-    return out_T, out_J
-
-
-def pinocchio_fd(model, q, h=1e-7):
-    """FK from pinocchio at every pose, and central differences over the 28 parameters."""
-    import pinocchio as pin
-
-    def fk_all(pm, fid):
-        data = pm.createData()
-        out = np.empty((len(q), 4, 4))
-        for k in range(len(q)):
-            pin.framesForwardKinematics(pm, data, q[k])
-            out[k] = data.oMf[fid].homogeneous
-        return out
-
-    T = fk_all(*model.to_pinocchio())
-    J = np.empty((len(q), 6, model.n_params))
-    for j in range(model.n_params):
-        e = np.zeros(model.n_params)
-        e[j] = h
-        Tp, Tm = fk_all(*model.to_pinocchio(e)), fk_all(*model.to_pinocchio(-e))
-        J[:, :3, j] = (Tp[:, :3, 3] - Tm[:, :3, 3]) / (2 * h)
-        dR = np.einsum("nij,nkj->nik", Tp[:, :3, :3], Tm[:, :3, :3])
-        J[:, 3:, j] = np.stack([dR[:, 2, 1] - dR[:, 1, 2], dR[:, 0, 2] - dR[:, 2, 0], dR[:, 1, 0] - dR[:, 0, 1]],
-                               axis=1) / (4 * h)
+        qv[moving] = q[k]
+        pin.computeJointJacobians(pm, data, qv)
+        T[k] = pin.updateFramePlacement(pm, data, fid).homogeneous
+        J[k] = pin.getFrameJacobian(pm, data, fid, frame)[:, cols]
     return T, J
 
 
-def best_of(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+# ---------------------------------------------------------------- runs
+
+def run_chain(label, model, error_model, args, verdicts):
+    pm, fid, cols, moving = error_model
+    data = pm.createData()
+    q_all = model.sample_joints(SIZES[-1], 0)
+    print(f"\n{label}: FK + 6x{model.n_params} parameter-error Jacobian ({model.dof} joints)")
+    print(f"{'N':>7} {'method':<10}{'us/call':>12}{'us/pose':>10}{'vs pinocchio':>14}{'max |diff|':>12}")
+    for n in SIZES:
+        q = np.ascontiguousarray(q_all[:n])
+        model.backend = "numba"
+        T_c, EJ_c = model.fk_and_jacobian(q)
+        t_c = best_time(lambda: model.fk_and_jacobian(q), args.repeat, args.clock)
+        model.backend = "numpy"
+        T_n, EJ_n = model.fk_and_jacobian(q)
+        t_n = best_time(lambda: model.fk_and_jacobian(q), args.repeat, args.clock)
+        model.backend = "numba"
+        T_p, J_p = pinocchio_loop(pm, data, fid, cols, moving, q)
+        t_p = best_time(lambda: pinocchio_loop(pm, data, fid, cols, moving, q), args.repeat, args.clock)
+        rows = (("compiled", t_c, T_c, EJ_c.J), ("numpy", t_n, T_n, EJ_n.J), ("pinocchio", t_p, T_p, J_p))
+        for method, t, T, J in rows:
+            diff = max(np.abs(T - T_p).max(), np.abs(J - J_p).max())
+            ratio = "1 (ref)" if method == "pinocchio" else f"{t / t_p:.3f}x"
+            print(f"{n:>7} {method:<10}{t * 1e6:>12.1f}{t / n * 1e6:>10.2f}{ratio:>14}{diff:>12.1e}")
+            if diff > AGREE:
+                verdicts.append((False, f"{label} N={n}: {method} differs from pinocchio by {diff:.1e} > {AGREE:g}"))
+        diff_ref = max(np.abs(T_c - T_n).max(), np.abs(EJ_c.J - EJ_n.J).max())
+        ok = diff_ref <= AGREE
+        verdicts.append((ok, f"{label} N={n}: compiled vs numpy reference max |diff| {diff_ref:.1e} "
+                             f"({'<=' if ok else '>'} {AGREE:g})"))
+        target = TARGETS_US[n]
+        met = t_c * 1e6 <= target
+        verdicts.append((met, f"{label} N={n}: compiled {t_c * 1e6:.1f} us "
+                              f"{'<=' if met else '>'} target {target:g} us"))
+
+
+def run_pups(args):
+    model = load_robot("rong2018_3pups")
+    print(f"\n3-PUPS {model.name}: G = J1^-1 J2 (fk_and_jacobian, 6x{model.n_params}; numpy, no compiled path)")
+    print(f"{'N':>7}{'us/call':>12}{'us/pose':>10}")
+    for n in (1, 1000):
+        q = model.sample_joints(n, 0)
+        t = best_time(lambda: model.fk_and_jacobian(q), args.repeat, args.clock)
+        print(f"{n:>7}{t * 1e6:>12.1f}{t / n * 1e6:>10.2f}")
+
+
+WARM_UP_PROBE = """
+import json, sys, time
+t0 = time.perf_counter()
+sys.path.insert(0, {root!r})
+from tolerance_ros.core.models import URDFChain, load_robot
+t_import = time.perf_counter() - t0
+model = load_robot("gao2023_7dof")
+q = model.sample_joints(2, 0)
+t1 = time.perf_counter()
+model.fk_and_jacobian(q[:1])
+t_first = time.perf_counter() - t1
+t2 = time.perf_counter()
+model.fk_and_jacobian(q[1:])
+t_second = time.perf_counter() - t2
+print(json.dumps({{"import": t_import, "first": t_first, "second": t_second, "backend": model.backend}}))
+"""
+
+
+def run_warm_up():
+    print("\nWarm-up: a fresh process imports the models and calls gao2023_7dof.fk_and_jacobian (one pose)")
+    code = WARM_UP_PROBE.format(root=str(ROOT))
+    with tempfile.TemporaryDirectory(prefix="numba-cache-") as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        for label in ("cold (empty cache: compile)", "cached (load from the cache)"):
+            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+            r = json.loads(out.stdout.strip().splitlines()[-1])
+            print(f"  {label:<30} import {r['import']:.2f} s, first call {r['first']:.2f} s, "
+                  f"second call {r['second'] * 1e6:.0f} us ({r['backend']})")
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--poses", type=int, default=10000)
-    ap.add_argument("--fd-poses", type=int, default=10000, help="poses for the pinocchio finite differences")
-    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--repeat", type=int, default=9, help="repeats per measurement (the best is kept)")
+    ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu",
+                    help="cpu: this process's CPU time (default); wall: elapsed time")
+    ap.add_argument("--skip-warm-up", action="store_true", help="skip the subprocess compile/load timings")
     args = ap.parse_args()
-    model = load_robot("gao2023_7dof")
-    q = model.sample_joints(args.poses, 0)
-    n = args.poses
+    threads = pin_blas_threads()
+    print("FK + parameter-error Jacobian: tolerance_ros compiled / numpy reference / pinocchio")
+    print(f"machine: {machine()}; {load_average()} (before)")
+    print(f"python {sys.version.split()[0]}, numpy {np.__version__}, pinocchio {pin.__version__}; BLAS: {threads}; "
+          f"clock: {'CPU time' if args.clock == 'cpu' else 'wall time'}, best of up to {args.repeat} repeats")
+    print("targets (compiled, per call): " + ", ".join(f"N={n}: <= {t:g} us" for n, t in TARGETS_US.items()))
+    verdicts = []
+    dh = load_robot("gao2023_7dof")
+    dh.warm_up()
+    run_chain("D-H gao2023_7dof", dh, dh_error_model(dh), args, verdicts)
+    for name, tip in URDFS:
+        chain = URDFChain(_example_urdf(name), tip_link=tip)
+        chain.warm_up()
+        run_chain(f"URDF {chain.name} (to {chain.tip_link})", chain, urdf_error_model(chain), args, verdicts)
+    run_pups(args)
+    if not args.skip_warm_up:
+        run_warm_up()
+    print(f"\n{load_average()} (after)")
+    print("verdict:")
+    for ok, text in verdicts:
+        print(f"  {'ok    ' if ok else 'MISSED'} {text}")
+    missed = [text for ok, text in verdicts if not ok]
+    print(f"{len(verdicts) - len(missed)} met, {len(missed)} missed")
+    return 1 if missed else 0
 
-    t_batch, (T_b, EJ) = best_of(lambda: model.fk_and_jacobian(q), args.repeat)
-    t_loop, (T_l, J_l) = best_of(lambda: per_pose_loop(model, q), 1)
-    nfd = min(args.fd_poses, n)
-    t_fd, (T_p, J_p) = best_of(lambda: pinocchio_fd(model, q[:nfd]), 1)
 
-    err_loop = np.abs(EJ.J - J_l).max()
-    err_fd = np.abs(EJ.J[:nfd] - J_p).max()
-    err_fk = max(np.abs(T_b - T_l).max(), np.abs(T_b[:nfd] - T_p).max())
-    print(f"FK + 6x{model.n_params} parameter-error Jacobian, {model.name}, one core")
-    print(f"{'method':<34}{'poses':>8}{'total ms':>12}{'us/pose':>10}{'vs batched':>12}")
-    rows = [("batched analytic (tolerance_ros)", n, t_batch), ("per-pose loop (numpy 4x4)", n, t_loop),
-            ("pinocchio FK, central differences", nfd, t_fd)]
-    per_pose_batch = t_batch / n
-    for name, count, t in rows:
-        print(f"{name:<34}{count:>8}{t * 1e3:>12.2f}{t / count * 1e6:>10.2f}{(t / count) / per_pose_batch:>11.1f}x")
-    print(f"max |difference|: FK {err_fk:.1e} m, Jacobian vs loop {err_loop:.1e}, vs pinocchio FD {err_fd:.1e}")
-    print(f"target: batched <= 10 ms for 10,000 poses -> {'met' if t_batch * 1e4 / n <= 0.010 else 'NOT met'}; "
-          f">= 20x faster than the loop -> {'met' if t_loop / t_batch >= 20 else 'NOT met'}")
+def _example_urdf(name):
+    import importlib.metadata
+    for f in importlib.metadata.files("example-robot-data") or []:
+        if str(f).endswith("/" + name):
+            return Path(f.locate())
+    raise SystemExit(f"{name} not found: pip install example-robot-data")
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -11,6 +11,7 @@ Conventions (SI, REP 103):
 from __future__ import annotations
 
 import copy
+import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
@@ -19,6 +20,22 @@ import numpy as np
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
 UNIT_OF_KIND = {"length": "m", "angle": "rad"}
+BACKENDS = ("numba", "numpy")
+_FLOAT64 = np.dtype(np.float64)
+_KERNELS = None  # the compiled kernels module once imported, False when numba cannot be imported
+
+
+def compiled_kernels():
+    """The compiled kernels module (imports numba on first use), or None when numba cannot be imported."""
+    global _KERNELS
+    if _KERNELS is None:
+        try:
+            from . import kernels
+        except ImportError:  # numba missing, or built for another numpy
+            _KERNELS = False
+        else:
+            _KERNELS = kernels
+    return _KERNELS or None
 
 
 class ModelError(ValueError):
@@ -74,6 +91,42 @@ class Mechanism(ABC):
     param_names: tuple
     param_kinds: tuple
     nominal: np.ndarray
+    compiled = False  # True where fk_and_jacobian has a compiled (numba) path
+    _backend = None   # None: compiled when numba can be imported
+    _units = (None, ())
+
+    @property
+    def backend(self) -> str:
+        """'numba' (compiled kernels) or 'numpy' (the reference implementation) for ``fk_and_jacobian``."""
+        if self._backend is not None:
+            return self._backend
+        return "numba" if self.compiled and compiled_kernels() is not None else "numpy"
+
+    @backend.setter
+    def backend(self, name: str):
+        if name not in BACKENDS:
+            raise ModelError(f"backend: expected one of {list(BACKENDS)}, got {name!r}")
+        if name == "numba" and not self.compiled:
+            raise ModelError(f"backend: {type(self).__name__} has no compiled kernels")
+        if name == "numba" and compiled_kernels() is None:
+            raise ModelError("backend: numba cannot be imported (pip install numba)")
+        self._backend = name
+
+    def _kernels(self):
+        """The kernels module when fk_and_jacobian takes the compiled path, else None."""
+        if self._backend == "numpy" or not self.compiled:
+            return None
+        return (_KERNELS if _KERNELS is not None else compiled_kernels()) or None
+
+    def warm_up(self) -> float:
+        """Compile or load from the cache the kernels this model calls; returns the seconds it took."""
+        t0 = time.perf_counter()
+        if self._kernels() is not None:
+            q = np.clip(np.zeros((1, self.dof)), self.joint_limits[:, 0], self.joint_limits[:, 1])
+            self.fk_and_jacobian(q)
+            self.fk_and_jacobian(q, np.zeros(self.n_params))
+            self.fk_and_jacobian(q, jacobian=False)
+        return time.perf_counter() - t0
 
     @property
     def dof(self) -> int:
@@ -85,7 +138,11 @@ class Mechanism(ABC):
 
     @property
     def param_units(self) -> tuple:
-        return tuple(UNIT_OF_KIND[k] for k in self.param_kinds)
+        kinds, units = self._units
+        if kinds is not self.param_kinds:
+            units = tuple(UNIT_OF_KIND[k] for k in self.param_kinds)
+            self._units = (self.param_kinds, units)
+        return units
 
     @property
     def orientation_observable(self) -> bool:
@@ -140,6 +197,31 @@ class Mechanism(ABC):
                 raise ModelError(f"{field}[{i}][{j}] ({self.joint_names[j]}) = {arr[i, j]:.6g} is outside "
                                  f"the joint limits [{lo[j]:.6g}, {hi[j]:.6g}]")
         return arr
+
+    def _joints_for_kernel(self, q) -> np.ndarray:
+        """Joints as a writable C-contiguous float64 (n, dof) array, without a copy when ``q`` is one.
+
+        Checks the shape only when ``q`` is such an array (or its (dof,) row): the kernels check that
+        the values are finite and the caller then raises through ``check_joints``. Anything else goes
+        through ``check_joints`` here.
+        """
+        if type(q) is np.ndarray and q.dtype is _FLOAT64:
+            flags = q.flags
+            if flags.c_contiguous and flags.writeable:
+                shape = q.shape
+                if len(shape) == 2 and shape[1] == self.dof:
+                    return q
+                if shape == (self.dof,):
+                    return q[None]
+        q = self.check_joints(q)
+        return q if q.flags.c_contiguous and q.flags.writeable else np.array(q, order="C")
+
+    def _dx_for_kernel(self, dx, n: int) -> np.ndarray | None:
+        """Validated parameter errors as a C-contiguous (1, p) or (n, p) float64 array, or None."""
+        if dx is None:
+            return None
+        dx = self.check_dx(dx, n)
+        return np.array(dx.reshape(-1, self.n_params), order="C")
 
     def out_of_limits(self, q) -> np.ndarray:
         """(n, dof) boolean mask of joints outside their limits."""

@@ -30,7 +30,10 @@ class DHChain(Mechanism):
     a, alpha, d, theta : (dof,) link lengths (m), twists (rad), offsets (m) and joint-angle offsets (rad).
     joint_types : 'revolute' or 'prismatic' per joint.  joint_limits : (dof, 2), rad or m.
     base, tool : 4x4 transforms (m).  convention : 'standard' or 'modified'.
+    ``fk_and_jacobian`` runs the compiled kernel (``kernels.dh_chain``) unless ``backend`` is 'numpy'.
     """
+
+    compiled = True
 
     def __init__(self, name, a, alpha, d, theta, joint_types=None, joint_limits=None, joint_names=None,
                  convention="standard", base=None, tool=None):
@@ -85,6 +88,21 @@ class DHChain(Mechanism):
         self._revolute = np.array([t == REVOLUTE for t in types])
 
     def fk_and_jacobian(self, q, dx=None, jacobian=True):
+        kernels = self._kernels()
+        if kernels is None:
+            return self._fk_and_jacobian_numpy(q, dx, jacobian)
+        q = self._joints_for_kernel(q)
+        n = q.shape[0]
+        dx = self._dx_for_kernel(dx, n)
+        T = np.empty((n, 4, 4))
+        J = np.empty((n, 6, self.n_params)) if jacobian else kernels.NO_J
+        if kernels.dh_chain(q, self.nominal, kernels.NO_DX if dx is None else dx, self._revolute,
+                            self.convention == "standard", self.base, self.tool, T, J, bool(jacobian)) >= 0:
+            self.check_joints(q)
+        return T, (ErrorJacobian(J, self.param_names, self.param_units) if jacobian else None)
+
+    def _fk_and_jacobian_numpy(self, q, dx=None, jacobian=True):
+        """The numpy reference implementation of ``fk_and_jacobian``."""
         q = self.check_joints(q)
         n, dof = q.shape
         dx = self.check_dx(dx, n)
@@ -199,4 +217,4 @@ def _check_transform(T, field):
     R = arr[:3, :3]
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0:
         raise ModelError(f"{field}: rotation part is not a proper rotation")
-    return arr
+    return np.array(arr, order="C")

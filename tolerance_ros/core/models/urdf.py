@@ -7,7 +7,7 @@ a prismatic joint). Fixed joints carry no parameters of their own: to first orde
 origin is an error of the next movable origin, which already has all six components.
 
 pinocchio parses the file and validates the tree; the batched forward kinematics and the Jacobian are
-our own numpy code, checked against pinocchio's FK in the tests.
+our own code (a compiled kernel, and numpy as the reference), checked against pinocchio's FK in the tests.
 """
 from __future__ import annotations
 
@@ -49,7 +49,12 @@ def _apply(R, v):
 
 
 class URDFChain(Mechanism):
-    """Serial chain from ``base_link`` to ``tip_link`` of a URDF (see the module docstring)."""
+    """Serial chain from ``base_link`` to ``tip_link`` of a URDF (see the module docstring).
+
+    ``fk_and_jacobian`` runs the compiled kernel (``kernels.urdf_chain``) unless ``backend`` is 'numpy'.
+    """
+
+    compiled = True
 
     def __init__(self, urdf, tip_link=None, base_link=None, name=None):
         text, source = _read_urdf(urdf)
@@ -107,7 +112,8 @@ class URDFChain(Mechanism):
             O = np.eye(4)
             O[:3, :3] = rpy_to_matrix(rpy)
             O[:3, 3] = xyz
-            fixed.append(model.jointPlacements[jid].homogeneous @ np.linalg.inv(O))
+            F = model.jointPlacements[jid].homogeneous @ np.linalg.inv(O)
+            fixed.append(np.eye(4) if np.abs(F - np.eye(4)).max() < 1e-12 else F)
             iq = model.idx_qs[jid]
             if jtype == "continuous" or jm.nq == 2:
                 limits.append((-math.pi, math.pi))
@@ -123,6 +129,7 @@ class URDFChain(Mechanism):
         self.chain_ids = tuple(chain)
         self.joint_names = tuple(names)
         self.joint_types = tuple(types)
+        self._revolute = np.array([t == REVOLUTE for t in types])
         self.joint_limits = np.array(limits, dtype=float)
         self.tip_link = tip_link
         self.base_link = base_link or model.frames[0].name
@@ -157,6 +164,21 @@ class URDFChain(Mechanism):
                                  f"a serial chain needs 1-DOF joints")
 
     def fk_and_jacobian(self, q, dx=None, jacobian=True):
+        kernels = self._kernels()
+        if kernels is None:
+            return self._fk_and_jacobian_numpy(q, dx, jacobian)
+        q = self._joints_for_kernel(q)
+        n = q.shape[0]
+        dx = self._dx_for_kernel(dx, n)
+        T = np.empty((n, 4, 4))
+        J = np.empty((n, 6, self.n_params)) if jacobian else kernels.NO_J
+        if kernels.urdf_chain(q, self.nominal, kernels.NO_DX if dx is None else dx, self._revolute, self._fixed,
+                              self._axes, self._tool, T, J, bool(jacobian)) >= 0:
+            self.check_joints(q)
+        return T, (ErrorJacobian(J, self.param_names, self.param_units) if jacobian else None)
+
+    def _fk_and_jacobian_numpy(self, q, dx=None, jacobian=True):
+        """The numpy reference implementation of ``fk_and_jacobian``."""
         q = self.check_joints(q)
         n, dof = q.shape
         dx = self.check_dx(dx, n)

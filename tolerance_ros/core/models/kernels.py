@@ -1,0 +1,429 @@
+"""Compiled (numba) kernels: batched forward kinematics and parameter-error Jacobians of serial chains.
+
+The numpy code of ``dh.py`` and ``urdf.py`` is the reference; these kernels compute the same poses and
+columns pose by pose in one compiled loop. Shared arguments:
+
+- ``q`` (n, dof) float64 joints (rad or m); ``nominal`` (p,) parameters; ``dx`` (m, p) parameter errors
+  with m = 0 (none), 1 (shared by all poses) or n (one row per pose), SI;
+- ``T`` (n, 4, 4) and ``J`` (n, 6, p) float64 outputs, filled in place (``J`` is ignored unless
+  ``jacobian``); J's rows 0-2 are position (m per unit), rows 3-5 a small rotation in the base frame;
+- the return value is -1, or the flat index of the first non-finite joint value (nothing computed then).
+
+Compiled code is cached on disk: in ``NUMBA_CACHE_DIR`` when set, else beside this file when its
+directory is writable, else in numba's per-user cache directory (``~/.cache/numba``). When none of these
+is writable (numba then refuses to cache), a private directory ``<tmp>/tolerance_ros-numba-<uid>`` is
+used, and without one the kernels compile in every process. The first call in a process imports numba
+and compiles (5-10 s on a 2-core machine) or loads from the cache (about 1 s, most of it importing numba);
+``warm_up()`` does it up front, so that a long-running node does not stall on its first request.
+"""
+from __future__ import annotations
+
+import math
+import os
+import stat
+import tempfile
+import time
+
+import numba
+import numpy as np
+
+
+def _private_cache_dir():
+    """``<tmp>/tolerance_ros-numba-<uid>``, created 0700; None unless it is a directory only we can write."""
+    path = os.path.join(tempfile.gettempdir(), f"tolerance_ros-numba-{os.getuid()}")
+    try:
+        os.makedirs(path, mode=0o700, exist_ok=True)
+        st = os.lstat(path)
+    except OSError:
+        return None
+    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or stat.S_IMODE(st.st_mode) & 0o022:
+        return None
+    return path
+
+
+def njit(fn):
+    """``numba.njit(cache=True)``, with the fallbacks of the module docstring when no cache directory is writable."""
+    try:
+        return numba.njit(cache=True)(fn)
+    except RuntimeError:  # "cannot cache function ...: no locator available"
+        path = _private_cache_dir()
+        if path is None:
+            return numba.njit(fn)
+        numba.config.CACHE_DIR = path
+        return numba.njit(cache=True)(fn)
+
+
+NO_DX = np.empty((0, 0))  # dx argument when there are no parameter errors
+NO_J = np.empty((0, 0, 0))  # J argument when only the poses are wanted
+BLOCK = 64  # poses per block: their joint angles' sines and cosines are computed together (SIMD)
+
+# sin and cos: reduction by pi/2 in three parts (Cody-Waite) and the fdlibm kernels' polynomials on
+# [-pi/4, pi/4]; within 1 ulp of libm for |x| <= SINCOS_LIMIT, libm beyond.
+SINCOS_LIMIT = 1e5
+_INV_PIO2 = 6.36619772367581382433e-01
+_PIO2_1 = 1.57079632673412561417e+00
+_PIO2_2 = 6.07710050630396597660e-11
+_PIO2_3 = 2.02226624871116645580e-21
+_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
+_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
+_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
+_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+
+
+@njit
+def sincos(x, s, c, m):
+    """s[:m], c[:m] = sin(x[:m]), cos(x[:m]) (rad); a branch-free loop that the compiler vectorises."""
+    for i in range(m):
+        k = math.floor(x[i] * _INV_PIO2 + 0.5)
+        r = ((x[i] - k * _PIO2_1) - k * _PIO2_2) - k * _PIO2_3
+        z = r * r
+        sr = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+        cr = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
+        quadrant = int(k) & 3
+        sv = cr if quadrant & 1 else sr
+        cv = sr if quadrant & 1 else cr
+        s[i] = -sv if quadrant & 2 else sv
+        c[i] = -cv if (quadrant + 1) & 2 else cv
+    for i in range(m):
+        if abs(x[i]) > SINCOS_LIMIT:
+            s[i] = math.sin(x[i])
+            c[i] = math.cos(x[i])
+
+
+@njit
+def _first_nonfinite(q):
+    n, dof = q.shape
+    for k in range(n):
+        for i in range(dof):
+            if not math.isfinite(q[k, i]):
+                return k * dof + i
+    return -1
+
+
+@njit
+def _param(nominal, dx, row, j):
+    if dx.shape[0] == 0:
+        return nominal[j]
+    return nominal[j] + dx[row, j]
+
+
+@njit
+def _angle_column(J, k, c, u0, u1, u2, r0, r1, r2):
+    """Column c of pose k for a turn about unit (u0, u1, u2) through a point at -r from the tool point."""
+    J[k, 0, c] = u1 * r2 - u2 * r1
+    J[k, 1, c] = u2 * r0 - u0 * r2
+    J[k, 2, c] = u0 * r1 - u1 * r0
+    J[k, 3, c] = u0
+    J[k, 4, c] = u1
+    J[k, 5, c] = u2
+
+
+@njit
+def _length_column(J, k, c, u0, u1, u2):
+    """Column c of pose k for a shift along unit (u0, u1, u2)."""
+    J[k, 0, c] = u0
+    J[k, 1, c] = u1
+    J[k, 2, c] = u2
+    J[k, 3, c] = 0.0
+    J[k, 4, c] = 0.0
+    J[k, 5, c] = 0.0
+
+
+@njit
+def _store_pose(T, k, x0, x1, x2, y0, y1, y2, z0, z1, z2, o0, o1, o2, tool):
+    """T[k] = [x y z o; 0 0 0 1] (frame axes and origin, base frame) times the tool; returns the tool point."""
+    for c in range(3):
+        T[k, 0, c] = x0 * tool[0, c] + y0 * tool[1, c] + z0 * tool[2, c]
+        T[k, 1, c] = x1 * tool[0, c] + y1 * tool[1, c] + z1 * tool[2, c]
+        T[k, 2, c] = x2 * tool[0, c] + y2 * tool[1, c] + z2 * tool[2, c]
+    p0 = o0 + x0 * tool[0, 3] + y0 * tool[1, 3] + z0 * tool[2, 3]
+    p1 = o1 + x1 * tool[0, 3] + y1 * tool[1, 3] + z1 * tool[2, 3]
+    p2 = o2 + x2 * tool[0, 3] + y2 * tool[1, 3] + z2 * tool[2, 3]
+    T[k, 0, 3] = p0
+    T[k, 1, 3] = p1
+    T[k, 2, 3] = p2
+    T[k, 3, 0] = 0.0
+    T[k, 3, 1] = 0.0
+    T[k, 3, 2] = 0.0
+    T[k, 3, 3] = 1.0
+    return p0, p1, p2
+
+
+@njit
+def dh_chain(q, nominal, dx, revolute, standard, base, tool, T, J, jacobian):
+    """D-H chain (see dh.py): parameters a1..an, d1..dn, alpha1..alphan, theta1..thetan (m, rad)."""
+    bad = _first_nonfinite(q)
+    if bad >= 0:
+        return bad
+    n, dof = q.shape
+    per_pose = dx.shape[0] > 1
+    ca = np.empty(dof)          # cos and sin of the twists when they are the same for every pose
+    sa = np.empty(dof)
+    for i in range(dof):
+        ca[i] = math.cos(_param(nominal, dx, 0, 2 * dof + i))
+        sa[i] = math.sin(_param(nominal, dx, 0, 2 * dof + i))
+    width = 2 * dof if per_pose else dof   # angles per pose: theta_i (+ alpha_i when per pose)
+    ang = np.empty(BLOCK * width)
+    sn = np.empty(BLOCK * width)
+    cs = np.empty(BLOCK * width)
+    ax = np.empty((dof, 6))     # line of a_i and alpha_i: unit vector, point (base frame)
+    az = np.empty((dof, 6))     # line of d_i and theta_i: unit vector, point (base frame)
+    for k0 in range(0, n, BLOCK):
+        m = min(BLOCK, n - k0)
+        for b in range(m):
+            k = k0 + b
+            row = k if per_pose else 0
+            for i in range(dof):
+                th = _param(nominal, dx, row, 3 * dof + i)
+                ang[b * width + i] = q[k, i] + th if revolute[i] else th
+                if per_pose:
+                    ang[b * width + dof + i] = _param(nominal, dx, row, 2 * dof + i)
+        sincos(ang, sn, cs, m * width)
+        for b in range(m):
+            k = k0 + b
+            row = k if per_pose else 0
+            x0, x1, x2 = base[0, 0], base[1, 0], base[2, 0]
+            y0, y1, y2 = base[0, 1], base[1, 1], base[2, 1]
+            z0, z1, z2 = base[0, 2], base[1, 2], base[2, 2]
+            o0, o1, o2 = base[0, 3], base[1, 3], base[2, 3]
+            for i in range(dof):
+                ct, st = cs[b * width + i], sn[b * width + i]
+                if per_pose:
+                    c, s = cs[b * width + dof + i], sn[b * width + dof + i]
+                else:
+                    c, s = ca[i], sa[i]
+                ai = _param(nominal, dx, row, i)
+                di = _param(nominal, dx, row, dof + i)
+                if not revolute[i]:
+                    di = q[k, i] + di
+                if standard:
+                    az[i, 0], az[i, 1], az[i, 2], az[i, 3], az[i, 4], az[i, 5] = z0, z1, z2, o0, o1, o2
+                    xn0, xn1, xn2 = ct * x0 + st * y0, ct * x1 + st * y1, ct * x2 + st * y2
+                    yr0, yr1, yr2 = ct * y0 - st * x0, ct * y1 - st * x1, ct * y2 - st * x2
+                    o0, o1, o2 = o0 + di * z0 + ai * xn0, o1 + di * z1 + ai * xn1, o2 + di * z2 + ai * xn2
+                    x0, x1, x2 = xn0, xn1, xn2
+                    y0, y1, y2 = c * yr0 + s * z0, c * yr1 + s * z1, c * yr2 + s * z2
+                    z0, z1, z2 = c * z0 - s * yr0, c * z1 - s * yr1, c * z2 - s * yr2
+                    ax[i, 0], ax[i, 1], ax[i, 2], ax[i, 3], ax[i, 4], ax[i, 5] = x0, x1, x2, o0, o1, o2
+                else:
+                    ax[i, 0], ax[i, 1], ax[i, 2], ax[i, 3], ax[i, 4], ax[i, 5] = x0, x1, x2, o0, o1, o2
+                    y10, y11, y12 = c * y0 + s * z0, c * y1 + s * z1, c * y2 + s * z2
+                    z0, z1, z2 = c * z0 - s * y0, c * z1 - s * y1, c * z2 - s * y2
+                    o0, o1, o2 = o0 + ai * x0, o1 + ai * x1, o2 + ai * x2
+                    xn0, xn1, xn2 = ct * x0 + st * y10, ct * x1 + st * y11, ct * x2 + st * y12
+                    y0, y1, y2 = ct * y10 - st * x0, ct * y11 - st * x1, ct * y12 - st * x2
+                    x0, x1, x2 = xn0, xn1, xn2
+                    o0, o1, o2 = o0 + di * z0, o1 + di * z1, o2 + di * z2
+                    az[i, 0], az[i, 1], az[i, 2], az[i, 3], az[i, 4], az[i, 5] = z0, z1, z2, o0, o1, o2
+            p0, p1, p2 = _store_pose(T, k, x0, x1, x2, y0, y1, y2, z0, z1, z2, o0, o1, o2, tool)
+            if not jacobian:
+                continue
+            for i in range(dof):
+                _length_column(J, k, i, ax[i, 0], ax[i, 1], ax[i, 2])
+                _length_column(J, k, dof + i, az[i, 0], az[i, 1], az[i, 2])
+                _angle_column(J, k, 2 * dof + i, ax[i, 0], ax[i, 1], ax[i, 2],
+                              p0 - ax[i, 3], p1 - ax[i, 4], p2 - ax[i, 5])
+                _angle_column(J, k, 3 * dof + i, az[i, 0], az[i, 1], az[i, 2],
+                              p0 - az[i, 3], p1 - az[i, 4], p2 - az[i, 5])
+    return -1
+
+
+@njit
+def _rpy_of(R, j, cr, sr, cp, sp, cy, sy):
+    """R[j] = Rz(yaw) Ry(pitch) Rx(roll) from the cosines and sines of roll, pitch, yaw."""
+    R[j, 0, 0] = cy * cp
+    R[j, 0, 1] = cy * sp * sr - sy * cr
+    R[j, 0, 2] = cy * sp * cr + sy * sr
+    R[j, 1, 0] = sy * cp
+    R[j, 1, 1] = sy * sp * sr + cy * cr
+    R[j, 1, 2] = sy * sp * cr - cy * sr
+    R[j, 2, 0] = -sp
+    R[j, 2, 1] = cp * sr
+    R[j, 2, 2] = cp * cr
+
+
+@njit
+def _rpy(R, j, roll, pitch, yaw):
+    """R[j] = Rz(yaw) Ry(pitch) Rx(roll), rad."""
+    _rpy_of(R, j, math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw))
+
+
+@njit
+def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian):
+    """URDF chain (see urdf.py): per joint j the fixed transform ``fixed[j]`` (4x4, m), the origin
+    parameters x y z (m), roll pitch yaw (rad) and the offset (rad or m), about or along ``axes[j]``."""
+    bad = _first_nonfinite(q)
+    if bad >= 0:
+        return bad
+    n, dof = q.shape
+    per_pose = dx.shape[0] > 1
+    rpy = np.empty((dof, 3, 3))      # origin rotation of each joint
+    pitch_axis = np.empty((dof, 2))  # -sin(yaw), cos(yaw): the pitch axis Rz(yaw) y before the rotation
+    lines = np.empty((dof, 21))      # x, y, z axes before the origin rotation, roll, pitch, joint axes; origin
+    plain = np.empty(dof, np.bool_)  # fixed[j] is exactly the identity
+    along = np.empty(dof, np.int64)  # the joint axis is exactly +-x, +-y or +-z (0, 1, 2), else -1
+    for j in range(dof):
+        plain[j] = True
+        for r in range(4):
+            for c in range(4):
+                if fixed[j, r, c] != (1.0 if r == c else 0.0):
+                    plain[j] = False
+        along[j] = -1
+        for e in range(3):
+            if abs(axes[j, e]) == 1.0 and axes[j, (e + 1) % 3] == 0.0 and axes[j, (e + 2) % 3] == 0.0:
+                along[j] = e
+    width = 4 * dof if per_pose else dof   # angles per pose: joint angle (+ roll, pitch, yaw when per pose)
+    ang = np.empty(BLOCK * width)
+    sn = np.empty(BLOCK * width)
+    cs = np.empty(BLOCK * width)
+    if not per_pose:
+        for j in range(dof):
+            _rpy(rpy, j, _param(nominal, dx, 0, 7 * j + 3), _param(nominal, dx, 0, 7 * j + 4),
+                 _param(nominal, dx, 0, 7 * j + 5))
+            pitch_axis[j, 0] = -math.sin(_param(nominal, dx, 0, 7 * j + 5))
+            pitch_axis[j, 1] = math.cos(_param(nominal, dx, 0, 7 * j + 5))
+    for k0 in range(0, n, BLOCK):
+        m = min(BLOCK, n - k0)
+        for b in range(m):
+            k = k0 + b
+            row = k if per_pose else 0
+            for j in range(dof):
+                ang[b * width + j] = q[k, j] + _param(nominal, dx, row, 7 * j + 6)
+                if per_pose:
+                    for e in range(3):
+                        ang[b * width + dof + 3 * j + e] = _param(nominal, dx, row, 7 * j + 3 + e)
+        sincos(ang, sn, cs, m * width)
+        for b in range(m):
+            k = k0 + b
+            row = k if per_pose else 0
+            if per_pose:
+                for j in range(dof):
+                    e = b * width + dof + 3 * j
+                    _rpy_of(rpy, j, cs[e], sn[e], cs[e + 1], sn[e + 1], cs[e + 2], sn[e + 2])
+                    pitch_axis[j, 0] = -sn[e + 2]
+                    pitch_axis[j, 1] = cs[e + 2]
+            _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, k, row, b * width, sn, cs,
+                       rpy, pitch_axis, plain, along, lines)
+    return -1
+
+
+@njit
+def _mul3(a00, a01, a02, a10, a11, a12, a20, a21, a22, B, j):
+    """The 3x3 product A B[j], A given by its entries (row-major), B a stack of 3x3 (or 4x4) blocks."""
+    return (a00 * B[j, 0, 0] + a01 * B[j, 1, 0] + a02 * B[j, 2, 0],
+            a00 * B[j, 0, 1] + a01 * B[j, 1, 1] + a02 * B[j, 2, 1],
+            a00 * B[j, 0, 2] + a01 * B[j, 1, 2] + a02 * B[j, 2, 2],
+            a10 * B[j, 0, 0] + a11 * B[j, 1, 0] + a12 * B[j, 2, 0],
+            a10 * B[j, 0, 1] + a11 * B[j, 1, 1] + a12 * B[j, 2, 1],
+            a10 * B[j, 0, 2] + a11 * B[j, 1, 2] + a12 * B[j, 2, 2],
+            a20 * B[j, 0, 0] + a21 * B[j, 1, 0] + a22 * B[j, 2, 0],
+            a20 * B[j, 0, 1] + a21 * B[j, 1, 1] + a22 * B[j, 2, 1],
+            a20 * B[j, 0, 2] + a21 * B[j, 1, 2] + a22 * B[j, 2, 2])
+
+
+@njit
+def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, k, row, at, sn, cs,
+               rpy, pitch_axis, plain, along, lines):
+    """Pose k of urdf_chain: walks the chain, stores T[k] and J[k]; joint angles' sin/cos at sn, cs[at:]."""
+    dof = q.shape[1]
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+    o0, o1, o2 = 0.0, 0.0, 0.0
+    for j in range(dof):
+        # frame W = R F before the origin rotation, then the joint frame G = W rpy at o + W xyz
+        if plain[j]:
+            w00, w01, w02, w10, w11, w12, w20, w21, w22 = r00, r01, r02, r10, r11, r12, r20, r21, r22
+        else:
+            o0 += r00 * fixed[j, 0, 3] + r01 * fixed[j, 1, 3] + r02 * fixed[j, 2, 3]
+            o1 += r10 * fixed[j, 0, 3] + r11 * fixed[j, 1, 3] + r12 * fixed[j, 2, 3]
+            o2 += r20 * fixed[j, 0, 3] + r21 * fixed[j, 1, 3] + r22 * fixed[j, 2, 3]
+            w00, w01, w02, w10, w11, w12, w20, w21, w22 = _mul3(r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                                                                fixed, j)
+        g00, g01, g02, g10, g11, g12, g20, g21, g22 = _mul3(w00, w01, w02, w10, w11, w12, w20, w21, w22, rpy, j)
+        sx, sy, sz = _param(nominal, dx, row, 7 * j), _param(nominal, dx, row, 7 * j + 1), \
+            _param(nominal, dx, row, 7 * j + 2)
+        o0 += w00 * sx + w01 * sy + w02 * sz
+        o1 += w10 * sx + w11 * sy + w12 * sz
+        o2 += w20 * sx + w21 * sy + w22 * sz
+        u0, u1, u2 = axes[j, 0], axes[j, 1], axes[j, 2]
+        a = along[j]
+        if a == 0:
+            v0, v1, v2 = g00 * u0, g10 * u0, g20 * u0
+        elif a == 1:
+            v0, v1, v2 = g01 * u1, g11 * u1, g21 * u1
+        elif a == 2:
+            v0, v1, v2 = g02 * u2, g12 * u2, g22 * u2
+        else:
+            v0 = g00 * u0 + g01 * u1 + g02 * u2
+            v1 = g10 * u0 + g11 * u1 + g12 * u2
+            v2 = g20 * u0 + g21 * u1 + g22 * u2
+        px, py = pitch_axis[j, 0], pitch_axis[j, 1]
+        lines[j, 0], lines[j, 1], lines[j, 2] = w00, w10, w20
+        lines[j, 3], lines[j, 4], lines[j, 5] = w01, w11, w21
+        lines[j, 6], lines[j, 7], lines[j, 8] = w02, w12, w22
+        lines[j, 9], lines[j, 10], lines[j, 11] = g00, g10, g20
+        lines[j, 12], lines[j, 13], lines[j, 14] = w00 * px + w01 * py, w10 * px + w11 * py, w20 * px + w21 * py
+        lines[j, 15], lines[j, 16], lines[j, 17] = v0, v1, v2
+        lines[j, 18], lines[j, 19], lines[j, 20] = o0, o1, o2
+        if not revolute[j]:
+            s = q[k, j] + _param(nominal, dx, row, 7 * j + 6)
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = g00, g01, g02, g10, g11, g12, g20, g21, g22
+            o0 += v0 * s
+            o1 += v1 * s
+            o2 += v2 * s
+            continue
+        c, s = cs[at + j], sn[at + j]
+        if a >= 0:
+            # about +-x, +-y or +-z: two columns of G turn in their plane
+            s = s * axes[j, a]
+            if a == 0:
+                r00, r10, r20 = g00, g10, g20
+                r01, r11, r21 = c * g01 + s * g02, c * g11 + s * g12, c * g21 + s * g22
+                r02, r12, r22 = c * g02 - s * g01, c * g12 - s * g11, c * g22 - s * g21
+            elif a == 1:
+                r01, r11, r21 = g01, g11, g21
+                r02, r12, r22 = c * g02 + s * g00, c * g12 + s * g10, c * g22 + s * g20
+                r00, r10, r20 = c * g00 - s * g02, c * g10 - s * g12, c * g20 - s * g22
+            else:
+                r02, r12, r22 = g02, g12, g22
+                r00, r10, r20 = c * g00 + s * g01, c * g10 + s * g11, c * g20 + s * g21
+                r01, r11, r21 = c * g01 - s * g00, c * g11 - s * g10, c * g21 - s * g20
+        else:
+            # R = G Rot(u, q + offset) (Rodrigues)
+            v = 1.0 - c
+            q00, q01, q02 = c + u0 * u0 * v, u0 * u1 * v - u2 * s, u0 * u2 * v + u1 * s
+            q10, q11, q12 = u1 * u0 * v + u2 * s, c + u1 * u1 * v, u1 * u2 * v - u0 * s
+            q20, q21, q22 = u2 * u0 * v - u1 * s, u2 * u1 * v + u0 * s, c + u2 * u2 * v
+            r00, r01, r02 = g00 * q00 + g01 * q10 + g02 * q20, g00 * q01 + g01 * q11 + g02 * q21, \
+                g00 * q02 + g01 * q12 + g02 * q22
+            r10, r11, r12 = g10 * q00 + g11 * q10 + g12 * q20, g10 * q01 + g11 * q11 + g12 * q21, \
+                g10 * q02 + g11 * q12 + g12 * q22
+            r20, r21, r22 = g20 * q00 + g21 * q10 + g22 * q20, g20 * q01 + g21 * q11 + g22 * q21, \
+                g20 * q02 + g21 * q12 + g22 * q22
+    p0, p1, p2 = _store_pose(T, k, r00, r10, r20, r01, r11, r21, r02, r12, r22, o0, o1, o2, tool)
+    if jacobian:
+        for j in range(dof):
+            c = 7 * j
+            a0, a1, a2 = p0 - lines[j, 18], p1 - lines[j, 19], p2 - lines[j, 20]
+            _length_column(J, k, c, lines[j, 0], lines[j, 1], lines[j, 2])
+            _length_column(J, k, c + 1, lines[j, 3], lines[j, 4], lines[j, 5])
+            _length_column(J, k, c + 2, lines[j, 6], lines[j, 7], lines[j, 8])
+            _angle_column(J, k, c + 3, lines[j, 9], lines[j, 10], lines[j, 11], a0, a1, a2)
+            _angle_column(J, k, c + 4, lines[j, 12], lines[j, 13], lines[j, 14], a0, a1, a2)
+            _angle_column(J, k, c + 5, lines[j, 6], lines[j, 7], lines[j, 8], a0, a1, a2)
+            if revolute[j]:
+                _angle_column(J, k, c + 6, lines[j, 15], lines[j, 16], lines[j, 17], a0, a1, a2)
+            else:
+                _length_column(J, k, c + 6, lines[j, 15], lines[j, 16], lines[j, 17])
+
+
+def warm_up() -> float:
+    """Compile, or load from the on-disk cache, every kernel signature the models call; returns seconds."""
+    t0 = time.perf_counter()
+    q = np.zeros((1, 1))
+    T = np.empty((1, 4, 4))
+    eye = np.eye(4)
+    revolute = np.ones(1, dtype=np.bool_)
+    dh_chain(q, np.zeros(4), NO_DX, revolute, True, eye, eye, T, np.empty((1, 6, 4)), True)
+    urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.array([[0.0, 0.0, 1.0]]), eye, T,
+               np.empty((1, 6, 7)), True)
+    return time.perf_counter() - t0
