@@ -1,5 +1,6 @@
 """The command line: tables, --json documents, plots and error messages."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -52,7 +53,7 @@ def test_verify_with_bounds_and_histogram(capsys, tmp_path):
                          "--samples", "2000", "--errors", "fixed", "--bounds", "--plot", str(tmp_path))
     assert code == 0 and "pass rate" in out and "worst-case" in out
     assert "verify:" in err  # progress on stderr
-    assert (tmp_path / "error_histogram.png").exists()
+    assert (tmp_path / "verify_error_histogram.png").exists()
     code, out, _ = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2",
                        "--samples", "2000", "--errors", "fixed", "--json", "--quiet", "--bounds")
     doc = json.loads(out)
@@ -103,7 +104,8 @@ def test_allocate_writes_a_budget_that_verify_reads(capsys, tmp_path):
                           "--plot", str(tmp_path), "--mc-poses", "2000")
     assert code == 0, err
     assert "tolerance delta_j" in text and "free (no effect)" in text and "WARNING" in text
-    assert (tmp_path / "convergence.png").exists() and (tmp_path / "error_histogram.png").exists()
+    assert f"budget saved: {out}" in text
+    assert (tmp_path / "allocate_convergence.png").exists() and (tmp_path / "allocate_error_histogram.png").exists()
     code, text, _ = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", str(out), "--errors", "fixed",
                         "--samples", "3000", "--json", "--quiet")
     doc = json.loads(text)
@@ -111,10 +113,10 @@ def test_allocate_writes_a_budget_that_verify_reads(capsys, tmp_path):
 
 
 def test_allocate_json_and_errors(capsys, tmp_path):
-    code, text, _ = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--solver", "ga",
-                        "--json", "--quiet", "--out", "-", "--mc-poses", "1000")
+    code, text, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--solver", "ga",
+                          "--json", "--quiet", "--mc-poses", "1000")
     doc = json.loads(text)
-    assert code == 0 and doc["solver"] == "ga" and len(doc["parameters"]) == 28
+    assert doc["solver"] == "ga" and len(doc["parameters"]) == 28
     assert {"paper", "worst-case", "rss"} == set(doc["verification"]["supremum"])
     code, _, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--criterion", "worst-case",
                        "--out", "-")
@@ -172,7 +174,8 @@ def test_the_3pups_robot_through_the_existing_subcommands(capsys, tmp_path):
     code, out, _ = run(capsys, "verify", "--robot", "rong2018_3pups", "--tolerances", "rong2018_table1", "--samples",
                        "500", "--errors", "normal", "--quiet", "--json", "--plot", str(tmp_path))
     doc = json.loads(out)
-    assert code == 0 and doc["position_m"]["limit"] == pytest.approx(4e-5) and (tmp_path / "error_histogram.png").exists()
+    assert doc["position_m"]["limit"] == pytest.approx(4e-5) and (tmp_path / "verify_error_histogram.png").exists()
+    assert code == (0 if doc["position_m"]["pass_rate"] == 1.0 else 3)
     code, out, _ = run(capsys, "jacobian", "--robot", "rong2018_3pups", "--random", "2", "--json")
     assert code == 0 and np.array(json.loads(out)["jacobian"]).shape == (2, 6, 27)
 
@@ -245,3 +248,116 @@ def test_urdf_chains_are_chosen_on_the_command_line(capsys, tmp_path):
     assert code == 0 and len(doc["joint_names"]) == 7 and np.array(doc["jacobian"]).shape == (1, 6, 49)
     code, _, err = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--tip-link", "tool0")
     assert code == 2 and "only for URDF robots" in err
+
+
+# ---------------------------------------------------------------- outputs that must say what is so
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """Every figure the plots module saves, as (file name, [(x label, y label, legend entries), ...])."""
+    from tolerance_ros.render import plots
+    saved, real = [], plots._save
+
+    def keep(fig, plt, path):
+        axes = [(ax.get_xlabel(), ax.get_ylabel(), [t.get_text() for t in (ax.get_legend().get_texts()
+                                                                             if ax.get_legend() else [])])
+                for ax in fig.axes]
+        saved.append((Path(path).name, axes))
+        return real(fig, plt, path)
+
+    monkeypatch.setattr(plots, "_save", keep)
+    return saved
+
+
+def test_report_names_the_bound_that_failed_and_plots_both(capsys, tmp_path, figures):
+    code, out, _ = run(capsys, "report", "--robot", "rong2018_3pups", "--measurements",
+                       "config/data/rong2018_pe_measurements.csv", "--budget", "rong2018_table1", "--campaign",
+                       "rong2018_pe", "--out", str(tmp_path))
+    assert code == 0 and "5 over it, 0 over the design limit; exceeded: orientation bound 5" in out
+    assert "exceeded: orientation bound 5" in (tmp_path / "report.md").read_text()
+    plot = dict(figures)["error_vs_bound.png"]
+    assert [a[:2] for a in plot] == [("predicted position bound [mm]", "measured position error [mm]"),
+                                     ("predicted orientation bound [mrad]", "measured orientation error [mrad]")]
+    assert "over the bound (5)" in plot[1][2] and "over the bound (0)" in plot[0][2]
+    rows = (tmp_path / "measurements.csv").read_text().splitlines()
+    assert sum(r.endswith(",orientation bound") or ",orientation bound," in r for r in rows[1:]) == 5
+
+
+def test_every_plot_axis_says_what_and_its_unit(capsys, tmp_path, figures):
+    run(capsys, "sensitivity", "--robot", "gao2023_7dof", "--samples", "200", "--quiet", "--plot", str(tmp_path))
+    run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--quiet", "--plot", str(tmp_path),
+        "--mc-poses", "500")
+    run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--samples", "500", "--quiet",
+        "--plot", str(tmp_path))
+    run(capsys, "paper", "rong2018", "--no-synthesis", "--quiet", "--plot", str(tmp_path))
+    names = [n for n, _ in figures]
+    assert {"salience.png", "allocate_convergence.png", "allocate_error_histogram.png", "verify_error_histogram.png",
+            "rong2018_fig3.png"} <= set(names)
+    for name, axes in figures:
+        for xlabel, ylabel, _ in axes:
+            assert xlabel or ax_shares_x(axes), name
+            assert ylabel and ylabel != "value" and ("[" in ylabel or "poses" in ylabel), (name, ylabel)
+    fig3 = dict(figures)["rong2018_fig3.png"]
+    assert [len(a[2]) for a in fig3] == [3, 3] and fig3[0][1] == "platform position error [um]"
+
+
+def ax_shares_x(axes):
+    return len(axes) > 1 and bool(axes[-1][0])
+
+
+def test_plots_of_two_commands_in_one_folder_do_not_replace_each_other(capsys, tmp_path):
+    run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--samples", "300", "--quiet",
+        "--plot", str(tmp_path))
+    first = (tmp_path / "verify_error_histogram.png").read_bytes()
+    run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--quiet", "--plot", str(tmp_path),
+        "--mc-poses", "300")
+    assert (tmp_path / "verify_error_histogram.png").read_bytes() == first
+    assert (tmp_path / "allocate_error_histogram.png").exists()
+
+
+def test_allocate_writes_a_budget_only_where_asked(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, _ = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--quiet", "--mc-poses", "300")
+    assert code == 0 and "budget not saved (give --out FILE.yaml to save it)" in out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_allocation_that_misses_its_limit_exits_3_and_says_so(capsys, tmp_path):
+    import yaml
+    out = tmp_path / "ga.yaml"
+    code, text, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--solver", "ga", "--json",
+                          "--quiet", "--mc-poses", "2000", "--out", str(out))
+    doc = json.loads(text)
+    assert code == 3 and doc["ok"] is False and doc["shortfalls"]
+    assert doc["failed"][0].startswith("allocation does not meet its limit: the position error reaches")
+    assert "FAILED: allocation does not meet its limit" in err.splitlines()[-1]
+    meta = yaml.safe_load(out.read_text())["meta"]
+    assert meta["success"] is False and any("Monte Carlo poses" in w for w in meta["warnings"])
+
+
+def test_verification_figures_over_the_limit_are_warnings():
+    from tolerance_ros.core.synthesis import _warnings
+    from types import SimpleNamespace
+    problem = SimpleNamespace(limit=1.4e-3, criterion="paper")
+    sup = {c: {"position": {"value": v, "limit": 1.4e-3, "pass": v <= 1.4e-3}}
+           for c, v in (("paper", 1.39e-3), ("worst-case", 2.0e-3), ("rss", 1.0e-3))}
+    mc = {"distribution": "fixed", "position_m": {"n": 100, "failures": 0, "pass_rate": 1.0, "limit": 1.4e-3, "max": 1e-3},
+          "orientation_rad": {"n": 100, "max": 1e-3}}
+    ctl = {"n": 100, "failures": 3, "pass_rate": 0.97, "max": 1.4169e-3, "limit": 1.4e-3}
+    warns = _warnings(problem, None, {"supremum": sup, "monte_carlo": mc, "sign_control": {"position_m": ctl}})
+    assert any("opposite effect" in w for w in warns)
+    assert any("sign control" in w and "1.4169 mm" in w and "3 of 100" in w for w in warns)
+
+
+def test_paper_table3_and_report_agree_when_they_use_the_same_registration(capsys):
+    code, out, _ = run(capsys, "paper", "rong2018", "--no-synthesis", "--quiet", "--json")
+    table3 = {r["pose"]: r["iso9283"]["AP_p"] for r in json.loads(out)["table3"]["rows"]}
+    assert json.loads(out)["table3"]["registration"].startswith("none: ")
+    code, out, _ = run(capsys, "report", "--robot", "rong2018_3pups", "--measurements",
+                       "config/data/rong2018_pe_measurements.csv", "--campaign", "rong2018_pe", "--registration",
+                       "none", "--json")
+    report = json.loads(out)
+    assert report["registration"]["method"] == "none"
+    for pose, ap in table3.items():
+        assert report["per_pose"][pose]["AP_p"] == pytest.approx(ap, rel=1e-9)

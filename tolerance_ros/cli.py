@@ -24,6 +24,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .core import analysis, errors  # noqa: E402
+from .core.accuracy.verdicts import describe  # noqa: E402
 from .core.budget import load_budget  # noqa: E402
 from .core.jsonio import dumps  # noqa: E402
 from .core.models import load_robot  # noqa: E402
@@ -216,9 +217,14 @@ def cmd_verify(args):
     plots = []
     if args.plot:
         from .render import plots as P
-        plots.append(str(P.error_histogram(ver.position, Path(args.plot) / "error_histogram.png", limit,
+        plots.append(str(P.error_histogram(ver.position, Path(args.plot) / "verify_error_histogram.png", limit,
                                            f"{model.name}: {args.errors} errors, {len(ver.position)} poses")))
     out["plots"] = plots
+    for what, key, scale, unit in (("position", "position", 1e3, "mm"), ("orientation", "orientation", 1e3, "mrad")):
+        summ = ver.summary[key]
+        if summ.get("failures"):
+            missed(args, f"{summ['failures']} of {summ['n']} poses exceed the {what} limit {summ['limit'] * scale:g} {unit} "
+                         f"(largest error {summ['max'] * scale:.4f} {unit}, '{args.errors}' errors)")
     if args.json:
         return out
     s = ver.summary["position"]
@@ -266,24 +272,20 @@ def cmd_allocate(args):
                              ga_options=ga if args.solver == "ga" else None)
     doc = res.to_dict()
     doc["robot"] = model.name
-    out_path = None
-    if args.out != "-":
-        out_path = args.out or f"{model.name}_{args.model}_{args.solver}_budget.yaml"
+    if args.out and args.out != "-":
         kinds = dict(zip(model.param_names, model.param_kinds))
-        units = {"length": "mm", "angle": "rad"} if str(out_path).endswith((".yaml", ".yml")) else None
-        res.budget().save(out_path, units=units, kinds=kinds)
-        doc["budget_file"] = str(out_path)
+        units = {"length": "mm", "angle": "rad"} if str(args.out).endswith((".yaml", ".yml")) else None
+        doc["budget_file"] = str(res.budget().save(args.out, units=units, kinds=kinds))
     plots = []
     if args.plot:
         from .render import plots as P
-        plots.append(str(_convergence_plot(P, res, Path(args.plot) / "convergence.png")))
-        mc = synthesis.analysis.monte_carlo(model, res.delta, n=args.mc_poses,
-                                            distribution=res.verification["monte_carlo"]["distribution"],
-                                            seed=args.seed + 2,
-                                            q=model.sample_joints(args.mc_poses, np.random.default_rng(args.seed + 1)))
-        plots.append(str(P.error_histogram(mc.position, Path(args.plot) / "error_histogram.png", limit,
-                                           f"{model.name}: {args.model} / {args.solver}")))
+        plots.append(str(_convergence_plot(P, res, Path(args.plot) / "allocate_convergence.png")))
+        plots.append(str(P.error_histogram(res.mc_position, Path(args.plot) / "allocate_error_histogram.png", limit,
+                                           f"{model.name}: {args.model} / {args.solver}, "
+                                           f"{res.verification['monte_carlo']['distribution']} errors")))
     doc["plots"] = plots
+    for what in res.shortfalls():
+        missed(args, f"allocation does not meet its limit: {what}")
     if args.json:
         return doc
     print_allocation(doc)
@@ -293,14 +295,19 @@ def _convergence_plot(P, res, path):
     h = res.history
     if res.solver == "active-set":
         x = [r["iteration"] for r in h]
-        series = {"objective (relative)": np.array([r["objective"] for r in h]) / max(abs(h[-1]["objective"]), 1e-300),
-                  "worst check-sample error / limit": [r["check_max_ratio"] for r in h]}
-        return P.line_plot(x, series, path, "iteration", "value", "active-set convergence")
+        final = max(abs(h[-1]["objective"]), 1e-300)
+        objective = "cost index" if res.model_type == "min-cost" else "weighted sum of tolerances"
+        return P.panels_plot(x, [(f"{objective} / its final value [-]",
+                                  {"objective": np.abs([r["objective"] for r in h]) / final}),
+                                 ("largest error in the check sample / limit [-]",
+                                  {"check sample": [r["check_max_ratio"] for r in h]}),
+                                 ("constraints (poses) [-]", {"constraints": [r["constraints"] for r in h]})],
+                             path, "iteration", "active-set convergence")
     if h and "generation" in h[0]:
         return P.line_plot([r["generation"] for r in h], {"best fitness": [r["best_fitness"] for r in h]}, path,
-                           "generation", "fitness (cost + penalty)", "GA P1 convergence", logy=True)
-    return P.line_plot([r["round"] for r in h], {"GA max error [mm]": [r["ga_max_error"] * 1e3 for r in h]}, path,
-                       "round k", "mm", "GA section 4.3 rounds")
+                           "generation", "fitness: cost index + penalty [-]", "GA P1 convergence", logy=True)
+    return P.line_plot([r["round"] for r in h], {"GA max error": [r["ga_max_error"] * 1e3 for r in h]}, path,
+                       "round k", "largest error found by the GA [mm]", "GA section 4.3 rounds")
 
 
 def print_allocation(doc):
@@ -322,7 +329,7 @@ def print_allocation(doc):
         rows.append([r["name"], u, f"{r['floor'] * sc:.4f}", f"{r['ceiling'] * sc:.4f}", f"{r['tolerance'] * sc:.5f}",
                      grade, flags])
     print(table(["param", "unit", "floor", "ceiling Delta_j", "tolerance delta_j", "ISO 286", "at"], rows))
-    print(f"\ncost index (eq. 17, mm and rad): {doc['cost_index']:.1f}    index I (eq. 21): {doc['index_I_mm']:.4f} mm")
+    print(f"\ncost index (eq. 17, mm and rad): {doc['cost_index']:.1f}    index I (eq. 21): {doc['index_I_m'] * 1e3:.4f} mm")
     ver = doc["verification"]
     print("\nsearched supremum over the joint space (position, mm):")
     print(table(["criterion", "supremum", "limit", "within"],
@@ -339,8 +346,8 @@ def print_allocation(doc):
           f"std {t['std'] * 1e3:.4f} mm")
     for w in doc["warnings"]:
         print(f"WARNING: {w}")
-    if doc.get("budget_file"):
-        print(f"budget saved: {doc['budget_file']}")
+    print(f"budget saved: {doc['budget_file']}" if doc.get("budget_file")
+          else "budget not saved (give --out FILE.yaml to save it)")
     for p in doc.get("plots", []):
         print(f"plot: {p}")
 
@@ -358,15 +365,17 @@ def cmd_report(args):
         if args.registration == "base+tool":
             raise CLIError("--stream: the tool offset needs all measurements at once; use --registration base")
         res = stream_file(model, args.measurements, budget, campaign, registration=args.registration)
+        _over_limit(args, res["summary"])
         if args.json:
             return res
         s = res["summary"]
-        print(f"robot {model.name}: {res['measurements']} measurements streamed from {res['source']}; verdicts "
-              f"{s['verdicts']}; position error mean {s['position_error_m']['mean'] * 1e3:.4f} mm, max "
-              f"{s['position_error_m']['max'] * 1e3:.4f} mm")
+        print(f"robot {model.name}: {res['measurements']} measurements streamed from {res['source']}; "
+              f"{describe(s['verdicts'], s['exceeded'])}; position error mean "
+              f"{s['position_error_m']['mean'] * 1e3:.4f} mm, max {s['position_error_m']['max'] * 1e3:.4f} mm")
         return None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     res = evaluate_file(model, meas, budget, campaign, registration=args.registration)
+    _over_limit(args, res["summary"])
     files = write_report(res, args.out, model, budget) if args.out else {}
     body = {k: v for k, v in res.items() if k != "rows"}
     body["files"] = files
@@ -376,12 +385,10 @@ def cmd_report(args):
     pe = s["position_error_m"]
     print(f"robot {model.name}: {res['measurements']} measurements from {res['source']}"
           + (f" ({len(meas.skipped)} malformed rows skipped)" if meas.skipped else ""))
-    print(f"registration residual RMS {res['registration']['residual_rms_m'] * 1e3:.4f} mm; position error mean "
-          f"{pe['mean'] * 1e3:.4f}, max {pe['max'] * 1e3:.4f} mm")
+    print(f"registration {res['registration']['method']}: residual RMS {res['registration']['residual_rms_m'] * 1e3:.4f}"
+          f" mm; position error mean {pe['mean'] * 1e3:.4f}, max {pe['max'] * 1e3:.4f} mm")
     if budget is not None:
-        v = s["verdicts"]
-        print(f"budget: {v['within']} within the predicted bound, {v['over bound']} over it, {v['over limit']} over "
-              f"the limit")
+        print(f"budget ({budget.criterion} bound): {describe(s['verdicts'], s['exceeded'])}")
     if res.get("per_pose"):
         rows = [[n, v["n"]] + ([f"{v[k] * 1e3:.4f}" for k in ("AP_p", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a")]
                                if "AP_p" in v else ["-"] * 6) for n, v in res["per_pose"].items()]
@@ -397,7 +404,11 @@ def cmd_report(args):
             print(f"wrote {f}")
 
 
-# ---------------------------------------------------------------- parser
+def _over_limit(args, summary):
+    n = summary["verdicts"].get("over limit", 0)
+    if n:
+        what = ", ".join(f"{k} {v}" for k, v in summary["exceeded"].items() if "limit" in k and v)
+        missed(args, f"{n} of {summary['measurements']} measurements over the design limit ({what})")
 
 
 def cmd_paper(args):
@@ -463,7 +474,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", choices=["linear", "nonlinear"], default="linear",
                    help="first-order |J dx| or the exact perturbed forward kinematics")
     p.add_argument("--bounds", action="store_true", help="also report paper/worst-case/per-axis/RSS bounds")
-    p.add_argument("--plot", metavar="DIR", help="write error_histogram.png into DIR")
+    p.add_argument("--plot", metavar="DIR", help="write verify_error_histogram.png into DIR")
     p.set_defaults(func=cmd_verify)
 
     p = common(sub.add_parser("allocate", help="allocate tolerances under a design limit (precision synthesis)"))
@@ -482,9 +493,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mc-poses", type=int, default=10000, help="Monte Carlo verification poses")
     p.add_argument("--ga-tol", type=int, default=1000, help="GA: Tol of section 4.3 (max solves per round)")
     p.add_argument("--ga-rounds", type=int, default=50, help="GA: max rounds of section 4.3")
-    p.add_argument("--out", help="budget file to write (.yaml or .json; default <robot>_<model>_<solver>_budget.yaml; "
-                                 "'-' for none)")
-    p.add_argument("--plot", metavar="DIR", help="write convergence.png and error_histogram.png into DIR")
+    p.add_argument("--out", help="budget file to write (.yaml in mm and rad, or .json in SI); none without it")
+    p.add_argument("--plot", metavar="DIR",
+                   help="write allocate_convergence.png and allocate_error_histogram.png into DIR")
     p.set_defaults(func=cmd_allocate)
 
     p = common(sub.add_parser("report", help="accuracy report of measured poses (ISO 9283, budget, identification)"))
@@ -507,6 +518,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ga-tol", type=int, default=1000, help="GA: Tol of section 4.3")
     p.set_defaults(func=cmd_paper)
     return parser
+
+
+# ---------------------------------------------------------------- entry point
 
 
 _NEGATIVE = re.compile(r"^-(\d|\.\d)")

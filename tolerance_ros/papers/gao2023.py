@@ -29,18 +29,22 @@ from ..render.text import Progress, table
 
 ROBOT = "gao2023_7dof"
 SETS = {"delta1": "gao2023_delta1", "delta2": "gao2023_delta2"}
-LIMIT_MM = 1.4
+LIMIT = 1.4e-3  # m, the paper's [Delta]
+MM = 1e-3
 # Fig. 2 ranking of the angle errors, most salient first (alpha_i and theta_i about equal).
 PUBLISHED_ANGLE_RANKING = [2, 1, 4, 3, 5, 6]
 PUBLISHED_CEILINGS_RAD = {1: 0.0014, 2: 0.0015, 3: 0.0025, 4: 0.0027, 5: 0.0088, 6: 0.0154}
 # Section 5.2: paper index (1-based in X = [a, d, alpha, theta]) -> rho.
 PUBLISHED_CORRELATIONS = {(2, 23): -0.73, (4, 25): 0.96, (5, 26): 0.95, (6, 27): -1.0, (9, 16): 0.72,
                           (11, 18): -0.96, (12, 19): -0.94, (13, 20): 1.0}
-PUBLISHED_TABLE4 = {"delta1": {"cost": 34459, "pass_rate": 0.9985, "max": 1.4845, "mean": 0.6457, "std": 0.2603},
-                    "delta2": {"cost": 44736, "pass_rate": 1.0, "max": 1.2267, "mean": 0.4859, "std": 0.2165}}
-PUBLISHED_TABLE5 = {"delta1": {"max": 1.2717, "mean": 0.5368, "std": 0.2253},
-                    "delta2": {"max": 1.0068, "mean": 0.3966, "std": 0.1890}}
-ROUNDING_MM_OR_RAD = 0.00005  # half a unit of the 4th decimal
+# Tables 4 and 5 as printed (mm), converted to SI (m).
+PUBLISHED_TABLE4 = {"delta1": {"cost": 34459, "pass_rate": 0.9985, "max": 1.4845 * MM, "mean": 0.6457 * MM,
+                               "std": 0.2603 * MM},
+                    "delta2": {"cost": 44736, "pass_rate": 1.0, "max": 1.2267 * MM, "mean": 0.4859 * MM,
+                               "std": 0.2165 * MM}}
+PUBLISHED_TABLE5 = {"delta1": {"max": 1.2717 * MM, "mean": 0.5368 * MM, "std": 0.2253 * MM},
+                    "delta2": {"max": 1.0068 * MM, "mean": 0.3966 * MM, "std": 0.1890 * MM}}
+ROUNDING = {"length": 0.00005 * MM, "angle": 0.00005}  # half a unit of Table 3's 4th decimal (mm, rad), in SI
 RANGES = {"full turn [-pi, pi]": np.pi, "half turn [-pi/2, pi/2]": np.pi / 2}
 SIGN_MODELS = {"all +delta (eq. 11)": "fixed", "random +-delta": "extreme", "uniform": "uniform",
                "normal 3-sigma": "normal"}
@@ -52,9 +56,8 @@ def cost_index(model, delta) -> float:
     return float(sum(DEFAULT_K[k] / (d * COST_UNIT[k]) for k, d in zip(model.param_kinds, delta) if d > 0))
 
 
-def _stats_mm(summary) -> dict:
-    return {"pass_rate": summary["pass_rate"], "max": summary["max"] * 1e3, "mean": summary["mean"] * 1e3,
-            "std": summary["std"] * 1e3}
+def _stats(summary) -> dict:
+    return {k: summary[k] for k in ("pass_rate", "max", "mean", "std")}
 
 
 def _deviation(repro: dict, published: dict) -> float:
@@ -63,11 +66,11 @@ def _deviation(repro: dict, published: dict) -> float:
 
 
 def reproduce(n_poses: int = 10000, m_salience: int = 1000, seed: int = 2023, progress=None) -> dict:
-    """Every figure of the analysis next to its published value (lengths in mm, angles in rad)."""
+    """Every figure of the analysis next to its published value (SI: m and rad; the paper prints mm)."""
     model = load_robot(ROBOT)
     deltas = {k: load_budget(v, model).vector_for(model) for k, v in SETS.items()}
-    limit = LIMIT_MM * 1e-3
-    out = {"robot": ROBOT, "units": "mm and rad (as in the paper)", "poses": n_poses, "seed": seed,
+    limit = LIMIT
+    out = {"robot": ROBOT, "units": "m and rad", "poses": n_poses, "seed": seed,
            "interpretation": {"joint_range": "uniform in [-pi, pi] for every joint",
                               "table4_errors": "every parameter at +delta_j (eq. 11, signs all positive)",
                               "table5_rule": "paper's assembly rule on the pairs with |rho| >= 0.7"}}
@@ -94,9 +97,9 @@ def reproduce(n_poses: int = 10000, m_salience: int = 1000, seed: int = 2023, pr
     out["ceilings"] = [{"parameter": f"{k}{i}", "published": PUBLISHED_CEILINGS_RAD[i],
                         "reproduced": float(ceil[model.param_index([f"{k}{i}"])[0]])}
                        for k in ("alpha", "theta") for i in range(1, 7)]
-    out["ceilings_lengths_mm"] = {"published": 1.4, "reproduced": sorted({round(float(c) * 1e3, 12)
-                                                                           for c, kd in zip(ceil, model.param_kinds)
-                                                                           if kd == "length"})}
+    out["ceilings_lengths_m"] = {"published": 1.4 * MM, "reproduced": sorted({round(float(c), 15)
+                                                                              for c, kd in zip(ceil, model.param_kinds)
+                                                                              if kd == "length"})}
     R = correlation(J)
     out["correlations"] = []
     for (i, j), rho in PUBLISHED_CORRELATIONS.items():
@@ -112,17 +115,17 @@ def reproduce(n_poses: int = 10000, m_salience: int = 1000, seed: int = 2023, pr
     for key, delta in deltas.items():
         ver = monte_carlo(model, delta, distribution="fixed", q=q_pose, limit_position=limit)
         band = {}
-        for side, shift in (("low", -ROUNDING_MM_OR_RAD), ("high", ROUNDING_MM_OR_RAD)):
-            d = np.where(delta > 0, delta + shift * np.array([1e-3 if k == "length" else 1.0
-                                                              for k in model.param_kinds]), 0.0)
-            band[side] = _stats_mm(monte_carlo(model, d, distribution="fixed", q=q_pose,
+        half_digit = np.array([ROUNDING[k] for k in model.param_kinds])
+        for side, sign in (("low", -1.0), ("high", 1.0)):
+            d = np.where(delta > 0, delta + sign * half_digit, 0.0)
+            band[side] = _stats(monte_carlo(model, d, distribution="fixed", q=q_pose,
                                                limit_position=limit).summary["position"])
-        repro = _stats_mm(ver.summary["position"])
+        repro = _stats(ver.summary["position"])
         repro["cost"] = cost_index(model, delta)
         out["table4"][key] = {"published": PUBLISHED_TABLE4[key], "reproduced": repro, "rounding_band": band}
         signs = sign_control(model.param_names, pairs)
         ctl = monte_carlo(model, delta, distribution="fixed", signs=signs, q=q_pose, limit_position=limit)
-        out["table5"][key] = {"published": PUBLISHED_TABLE5[key], "reproduced": _stats_mm(ctl.summary["position"]),
+        out["table5"][key] = {"published": PUBLISHED_TABLE5[key], "reproduced": _stats(ctl.summary["position"]),
                               "signs": {n: int(s) for n, s in zip(model.param_names, signs) if s < 0}}
     if progress:
         progress(3, 4)
@@ -145,15 +148,16 @@ def _not_reproduced(out) -> list:
         for k in ("pass_rate", "max", "mean", "std"):
             lo, hi = sorted((t["rounding_band"]["low"][k], t["rounding_band"]["high"][k]))
             if not lo - 1e-12 <= t["published"][k] <= hi + 1e-12:
-                notes.append(f"Table 4 {key} {k}: published {t['published'][k]:.4f} lies outside the band "
-                             f"{lo:.4f} .. {hi:.4f} that rounding of Table 3 allows; the paper's unrounded GA "
-                             f"tolerances or its pose sample must differ")
+                sc, unit = (100.0, " %") if k == "pass_rate" else (1e3, " mm")
+                notes.append(f"Table 4 {key} {k}: published {t['published'][k] * sc:.4f}{unit} lies outside the band "
+                             f"{lo * sc:.4f} .. {hi * sc:.4f}{unit} that rounding of Table 3 allows; the paper's "
+                             f"unrounded GA tolerances or its pose sample must differ")
     for key, t in out["table5"].items():
         for k in ("max", "mean", "std"):
             rel = t["reproduced"][k] / t["published"][k] - 1.0
             if abs(rel) > 0.05:
-                notes.append(f"Table 5 {key} {k}: published {t['published'][k]:.4f}, reproduced "
-                             f"{t['reproduced'][k]:.4f} ({rel * 100:+.1f} %), inherits the Table 4 offset")
+                notes.append(f"Table 5 {key} {k}: published {t['published'][k] * 1e3:.4f} mm, reproduced "
+                             f"{t['reproduced'][k] * 1e3:.4f} mm ({rel * 100:+.1f} %), inherits the Table 4 offset")
     return notes
 
 
@@ -164,7 +168,7 @@ def _poses_and_jacobian(model, n, seed):
 
 def interpretation_study(model, deltas, n_poses=10000, seed=2023) -> list:
     """Table 4 under each joint range and error-sign model; sorted by mean relative deviation."""
-    limit = LIMIT_MM * 1e-3
+    limit = LIMIT
     rows = []
     for range_name, half in RANGES.items():
         m = model.with_joint_limits(np.tile([-half, half], (model.dof, 1)))
@@ -173,7 +177,7 @@ def interpretation_study(model, deltas, n_poses=10000, seed=2023) -> list:
             row = {"joint_range": range_name, "errors": sign_name, "sets": {}}
             devs = []
             for key, delta in deltas.items():
-                s = _stats_mm(monte_carlo(m, delta, distribution=dist, seed=seed, q=q,
+                s = _stats(monte_carlo(m, delta, distribution=dist, seed=seed, q=q,
                                           limit_position=limit).summary["position"])
                 row["sets"][key] = s
                 devs.append(_deviation(s, PUBLISHED_TABLE4[key]))
@@ -191,15 +195,15 @@ def synthesis_study(seed: int = 2023, n_mc: int = 10000, ga_options=None, progre
     active-set solver, all verified the same way ([Delta] = 1.4 mm, the paper's floors, cost model
     and criterion)."""
     model = load_robot(ROBOT)
-    problem = build_problem(model, LIMIT_MM * 1e-3, criterion="paper", seed=seed)
-    out = {"limit_mm": LIMIT_MM, "criterion": "paper", "ceilings": dict(zip(model.param_names, problem.ceilings)),
+    problem = build_problem(model, LIMIT, criterion="paper", seed=seed)
+    out = {"limit_m": LIMIT, "criterion": "paper", "ceilings": dict(zip(model.param_names, problem.ceilings)),
            "sets": {}}
     total = len(SETS) + len(SYNTHESIS_RUNS)
     done = 0
     for key, spec in SETS.items():
         delta = load_budget(spec, model).vector_for(model)
         out["sets"][f"published {key}"] = {
-            "delta": delta, "cost": problem.cost(delta), "index_I_mm": problem.index_I(delta),
+            "delta": delta, "cost": problem.cost(delta), "index_I_m": problem.index_I(delta),
             "published_cost": PUBLISHED_TABLE4[key]["cost"], "time_s": None,
             "verification": verify_allocation(problem, delta, n_mc=n_mc, seed=seed)}
         done += 1
@@ -208,7 +212,7 @@ def synthesis_study(seed: int = 2023, n_mc: int = 10000, ga_options=None, progre
     for solver, kind in SYNTHESIS_RUNS:
         res = allocate(model, problem.limit, kind, solver, problem=problem, seed=seed, n_mc=n_mc,
                        ga_options=ga_options if solver == "ga" else None)
-        out["sets"][f"{solver} {kind}"] = {"delta": res.delta, "cost": res.cost, "index_I_mm": res.index_I,
+        out["sets"][f"{solver} {kind}"] = {"delta": res.delta, "cost": res.cost, "index_I_m": res.index_I,
                                            "time_s": res.time_s, "status": res.status, "success": res.success,
                                            "verification": res.verification, "warnings": res.warnings}
         done += 1
@@ -242,7 +246,7 @@ def write_plots(plot_dir, poses: int = 10000, seed: int = 2023) -> list:
         delta = load_budget(spec, model).vector_for(model)
         ver = monte_carlo(model, delta, distribution="fixed", q=q)
         files.append(plots.error_histogram(ver.position, Path(plot_dir) / f"gao2023_fig6_{key}.png",
-                                           LIMIT_MM * 1e-3, f"Gao 2023 {key}: |J delta|"))
+                                           LIMIT, f"Gao 2023 {key}: |J delta|"))
     return [str(f) for f in files]
 
 
@@ -260,8 +264,9 @@ def print_report(res):
     le = s["lengths_equal"]
     print(f"  length errors equal: {le['min'] * 100:.4f} % .. {le['max'] * 100:.4f} % -> "
           f"{'match' if le['match'] else 'DIFFERS'}\n")
-    print(f"Table 3, ceilings Delta_j (eq. 18, {res['poses']} poses; lengths: "
-          f"{res['ceilings_lengths_mm']['reproduced']} mm, published 1.4):")
+    lengths = ", ".join(f"{c * 1e3:.4f}" for c in res["ceilings_lengths_m"]["reproduced"])
+    print(f"Table 3, ceilings Delta_j (eq. 18, {res['poses']} poses; lengths: {lengths} mm, published 1.4; "
+          f"angles in rad):")
     print(table(["param", "published", "reproduced", "rounded", "match"],
                 [[c["parameter"], f"{c['published']:.4f}", f"{c['reproduced']:.6f}", f"{c['reproduced']:.4f}",
                   "yes" if round(c["reproduced"], 4) == c["published"] else "no"] for c in res["ceilings"]]))
@@ -275,7 +280,7 @@ def print_report(res):
         p, r, lo, hi = t["published"], t["reproduced"], t["rounding_band"]["low"], t["rounding_band"]["high"]
         rows.append([key, "cost index", f"{p['cost']}", f"{r['cost']:.0f}", "-"])
         for k, label in (("pass_rate", "pass rate %"), ("max", "max"), ("mean", "mean"), ("std", "std ('RMSE')")):
-            sc = 100.0 if k == "pass_rate" else 1.0
+            sc = 100.0 if k == "pass_rate" else 1e3
             band = f"{min(lo[k], hi[k]) * sc:.4f} .. {max(lo[k], hi[k]) * sc:.4f}"
             inside = min(lo[k], hi[k]) - 1e-12 <= p[k] <= max(lo[k], hi[k]) + 1e-12
             rows.append([key, label, f"{p[k] * sc:.4f}", f"{r[k] * sc:.4f}", band + ("" if inside else "  (outside)")])
@@ -285,14 +290,14 @@ def print_report(res):
     rows = []
     for key, t in res["table5"].items():
         for k in ("max", "mean", "std"):
-            rows.append([key, k, f"{t['published'][k]:.4f}", f"{t['reproduced'][k]:.4f}"])
+            rows.append([key, k, f"{t['published'][k] * 1e3:.4f}", f"{t['reproduced'][k] * 1e3:.4f}"])
     print(table(["set", "figure", "published", "reproduced"], rows))
     flips = ", ".join(sorted(next(iter(res["table5"].values()))["signs"]))
     print(f"  (parameters assembled at -delta: {flips})")
     print("\nInterpretations tried for Table 4 (mean relative deviation of mean, std and max from the paper):")
-    print(table(["joint range", "errors", "deviation", "delta1 mean", "delta2 mean"],
+    print(table(["joint range", "errors", "deviation", "delta1 mean mm", "delta2 mean mm"],
                 [[r["joint_range"], r["errors"], f"{r['mean_relative_deviation'] * 100:.1f} %",
-                  f"{r['sets']['delta1']['mean']:.4f}", f"{r['sets']['delta2']['mean']:.4f}"]
+                  f"{r['sets']['delta1']['mean'] * 1e3:.4f}", f"{r['sets']['delta2']['mean'] * 1e3:.4f}"]
                  for r in res["interpretation_study"]]))
     print("\nThe published tolerances are rounded to 4 decimals (most angles to one significant digit), so\n"
           "Tables 4 and 5 can only be matched within the band that rounding allows. Not reproduced:")
@@ -309,7 +314,7 @@ def print_synthesis(syn):
     keys = list(sets)
     short = {k: k.replace("published ", "pub ").replace("active-set", "AS").replace("optimal-precision", "opt-prec")
              for k in keys}
-    print(f"\n=== Precision synthesis, [Delta] = {syn['limit_mm']} mm, paper floors, cost model and criterion ===")
+    print(f"\n=== Precision synthesis, [Delta] = {syn['limit_m'] * 1e3:g} mm, paper floors, cost model and criterion ===")
     print("Table 3, tolerances (mm for a, d; rad for alpha, theta):")
     rows = []
     for j, (n, u) in enumerate(zip(syn["names"], syn["units"])):
@@ -327,7 +332,7 @@ def print_synthesis(syn):
         mc = v["monte_carlo"]["position_m"]
         sup = v["supremum"]
         pub = f" ({sets[k]['published_cost']})" if "published_cost" in sets[k] else ""
-        rows.append([short[k], f"{sets[k]['cost']:.0f}{pub}", f"{sets[k]['index_I_mm']:.3f}",
+        rows.append([short[k], f"{sets[k]['cost']:.0f}{pub}", f"{sets[k]['index_I_m'] * 1e3:.3f}",
                      f"{mc['pass_rate'] * 100:.2f}", f"{mc['max'] * 1e3:.4f}", f"{mc['mean'] * 1e3:.4f}",
                      f"{mc['std'] * 1e3:.4f}", f"{sup['paper']['position']['value'] * 1e3:.4f}",
                      f"{sup['worst-case']['position']['value'] * 1e3:.4f}", f"{sup['rss']['position']['value'] * 1e3:.4f}",

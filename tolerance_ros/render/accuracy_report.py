@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.accuracy.verdicts import describe
 from ..core.jsonio import dumps
 
 
@@ -19,7 +20,8 @@ def _plots(res, out, budget_delta, names):
         files.append(P.iso_per_pose(per, out / "error_per_pose.png"))
     rows = res.get("rows")
     if rows is not None and np.isfinite(rows["bound"]).any():
-        files.append(P.error_vs_bound(rows["bound"], rows["error"], out / "error_vs_bound.png"))
+        files.append(P.error_vs_bound(rows["bound"], rows["error"], out / "error_vs_bound.png",
+                                      rows.get("orientation_bound"), rows.get("orientation_error")))
     ident = res.get("identification")
     if ident and budget_delta is not None:
         errs = {p["name"]: p["error"] for p in ident["parameters"]}
@@ -44,13 +46,17 @@ def write_report(res, out_dir, model, budget=None) -> dict:
     if rows is not None:
         with (out / "measurements.csv").open("w", newline="") as fh:
             w = csv.writer(fh)
+            ori = "orientation_bound" in rows
             w.writerow(["stamp[s]", "pose", "dx[m]", "dy[m]", "dz[m]", "drx[rad]", "dry[rad]", "drz[rad]",
-                        "error[m]", "bound[m]", "margin[m]", "verdict"] + [f"joint:{n}" for n in model.joint_names])
+                        "error[m]", "bound[m]", "margin[m]"]
+                       + (["orientation_error[rad]", "orientation_bound[rad]"] if ori else [])
+                       + ["verdict", "exceeded"] + [f"joint:{n}" for n in model.joint_names])
             for i in range(len(rows["error"])):
                 w.writerow([f"{rows['stamp'][i]:.6f}", rows["label"][i]] + [f"{v:.9g}" for v in rows["dp"][i]]
                            + [f"{v:.9g}" for v in rows["dphi"][i]]
-                           + [f"{rows[k][i]:.9g}" for k in ("error", "bound", "margin")] + [rows["verdict"][i]]
-                           + [f"{v:.9g}" for v in rows["joints"][i]])
+                           + [f"{rows[k][i]:.9g}" for k in ("error", "bound", "margin")]
+                           + ([f"{rows[k][i]:.9g}" for k in ("orientation_error", "orientation_bound")] if ori else [])
+                           + [rows["verdict"][i], rows["exceeded"][i]] + [f"{v:.9g}" for v in rows["joints"][i]])
         files["measurements_csv"] = str(out / "measurements.csv")
     if res.get("per_pose"):
         keys = ["n", "AP_p", "AP_x", "AP_y", "AP_z", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a", "RP_b", "RP_c"]
@@ -74,24 +80,30 @@ def write_report(res, out_dir, model, budget=None) -> dict:
     return files
 
 
+def _registration_line(reg) -> str:
+    what = {"base": "the base -> tracker transform estimated from all measurements",
+            "base+tool": "the base -> tracker transform and the tool offset estimated from all measurements",
+            "none": "none: the measurements are taken as base-frame poses",
+            "given": "a given base -> tracker transform"}[reg["method"]]
+    return (f"Registration: {what}; position residual RMS {reg['residual_rms_m'] * 1e3:.4f} mm, "
+            f"max {reg['residual_max_m'] * 1e3:.4f} mm.")
+
+
 def markdown(res, model, budget, files) -> str:
     s = res["summary"]
     L = [f"# Accuracy report: {model.name}", "", f"Measurements: {res['measurements']} from `{res['source']}`"
          + (f"; {len(res['skipped_rows'])} malformed rows skipped (listed in report.json)" if res["skipped_rows"] else ""),
-         "", "## Registration", "",
-         f"Base -> tracker transform estimated from all measurements: residual RMS "
-         f"{res['registration']['residual_rms_m'] * 1e3:.4f} mm, max {res['registration']['residual_max_m'] * 1e3:.4f} mm.",
-         ""]
+         "", "## Registration", "", _registration_line(res["registration"]), ""]
     pe = s["position_error_m"]
     L += ["## Errors (base frame, after registration)", "",
           f"Position error: mean {pe['mean'] * 1e3:.4f} mm, std {pe['std'] * 1e3:.4f} mm, max {pe['max'] * 1e3:.4f} mm.",
           ""]
     if budget is not None:
-        v = s["verdicts"]
+        limits = [f"position {budget.limit_position * 1e3:g} mm" if budget.limit_position else None,
+                  f"orientation {budget.limit_orientation * 1e3:g} mrad" if budget.limit_orientation else None]
         L += ["## Budget check", "",
-              f"Budget criterion '{budget.criterion}', limit {budget.limit_position * 1e3:g} mm: "
-              f"{v['within']} within the predicted bound, {v['over bound']} over it, {v['over limit']} over the limit.",
-              ""]
+              f"Budget criterion '{budget.criterion}', limits {', '.join(x for x in limits if x) or 'none'}: "
+              f"{describe(s['verdicts'], s['exceeded'])}.", ""]
     if res.get("per_pose"):
         L += ["## ISO 9283 per test pose (mm, mrad)", "",
               "| pose | n | AP_p | AP_x | AP_y | AP_z | AP_a | AP_b | AP_c | RP_l | RP_a | RP_b | RP_c |",

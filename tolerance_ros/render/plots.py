@@ -20,6 +20,7 @@ def salience_bars(sens, path) -> Path:
     ax.bar(np.arange(len(sens.names)), sens.salience * 100.0, color="tab:blue")
     ax.set_xticks(np.arange(len(sens.names)))
     ax.set_xticklabels(sens.names, rotation=90, fontsize=7)
+    ax.set_xlabel("kinematic parameter j")
     ax.set_ylabel(f"salience D_j [%] (lengths in {sens.length_unit})")
     ax.set_title(f"Salience of parameter errors ({sens.rows}, {sens.samples} poses)")
     fig.tight_layout()
@@ -43,18 +44,29 @@ def error_histogram(values_m, path, limit_m=None, title="End-effector position e
     return _save(fig, plt, path)
 
 
+STYLES = ({"linestyle": "-"}, {"linestyle": "--", "marker": "o", "markerfacecolor": "none"},
+          {"linestyle": ":", "marker": "x", "markersize": 8}, {"linestyle": "-.", "marker": "s", "markerfacecolor": "none"})
+
+
 def line_plot(x, series: dict, path, xlabel: str, ylabel: str, title: str, logy=False) -> Path:
-    """Generic line plot of named series over x."""
+    """Named series over x on one axis; each series has its own line style and marker, so series that
+    lie on top of each other stay visible."""
+    return panels_plot(x, [(ylabel, series)], path, xlabel, title, logy)
+
+
+def panels_plot(x, panels: list, path, xlabel: str, title: str, logy=False) -> Path:
+    """Stacked panels sharing x: ``panels`` is [(y label with its unit, {series label: y})]."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.0, 3.6))
-    for label, y in series.items():
-        ax.plot(x, y, label=label)
-    if logy:
-        ax.set_yscale("log")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    ax.set_title(title)
-    ax.legend()
+    fig, axes = plt.subplots(len(panels), 1, figsize=(6.0, 2.2 + 2.0 * len(panels)), sharex=True, squeeze=False)
+    for ax, (ylabel, series) in zip(axes[:, 0], panels):
+        for k, (label, y) in enumerate(series.items()):
+            ax.plot(x, y, label=label, **STYLES[k % len(STYLES)])
+        if logy:
+            ax.set_yscale("log")
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=8)
+    axes[-1, 0].set_xlabel(xlabel)
+    axes[0, 0].set_title(title)
     fig.tight_layout()
     return _save(fig, plt, path)
 
@@ -75,17 +87,24 @@ def iso_per_pose(per: dict, path) -> Path:
     return _save(fig, plt, path)
 
 
-def error_vs_bound(bound_m, error_m, path) -> Path:
-    """Scatter of measured errors against the budget's predicted bounds (mm)."""
+def error_vs_bound(bound_m, error_m, path, bound_rad=None, error_rad=None) -> Path:
+    """Measured errors against the budget's predicted bounds: position (mm) and, when given, orientation
+    (mrad) side by side; points above the diagonal exceed their bound and are drawn in red."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(5, 4.5))
-    ax.scatter(np.asarray(bound_m) * 1e3, np.asarray(error_m) * 1e3, s=6)
-    lim = max(float(np.nanmax(bound_m)), float(np.max(error_m))) * 1e3 * 1.05
-    ax.plot([0, lim], [0, lim], "r--", label="error = bound")
-    ax.set_xlabel("predicted bound [mm]")
-    ax.set_ylabel("measured error [mm]")
-    ax.set_title("Measured error vs the budget's bound")
-    ax.legend()
+    panels = [("position", np.asarray(bound_m) * 1e3, np.asarray(error_m) * 1e3, "mm")]
+    if bound_rad is not None and error_rad is not None and np.isfinite(bound_rad).any():
+        panels.append(("orientation", np.asarray(bound_rad) * 1e3, np.asarray(error_rad) * 1e3, "mrad"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4.5), squeeze=False)
+    for ax, (what, b, e, unit) in zip(axes[0], panels):
+        over = e > b
+        ax.scatter(b[~over], e[~over], s=6, color="tab:blue", label=f"within ({int((~over).sum())})")
+        ax.scatter(b[over], e[over], s=10, color="tab:red", label=f"over the bound ({int(over.sum())})")
+        lim = max(float(np.nanmax(b)), float(np.nanmax(e))) * 1.05
+        ax.plot([0, lim], [0, lim], "k--", label="error = bound")
+        ax.set_xlabel(f"predicted {what} bound [{unit}]")
+        ax.set_ylabel(f"measured {what} error [{unit}]")
+        ax.set_title(f"{what.capitalize()} error vs the budget's bound")
+        ax.legend()
     fig.tight_layout()
     return _save(fig, plt, path)
 

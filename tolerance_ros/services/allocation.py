@@ -99,7 +99,7 @@ def run_allocation(job: AllocationJob, progress=None) -> dict:
     budget = res.budget(source=f"allocate_tolerances request {job.id}")
     ver = res.verification
     return {"id": job.id, "ok": True, "status": "done", "success": res.success, "robot": job.robot,
-            "message": res.message, "time_s": res.time_s, "cost_index": res.cost, "index_I_mm": res.index_I,
+            "message": res.message, "time_s": res.time_s, "cost_index": res.cost, "index_I_m": res.index_I,
             "budget": budget.to_dict(), "warnings": res.warnings,
             "supremum_m": {c: v["position"]["value"] for c, v in ver["supremum"].items()},
             "monte_carlo": {"distribution": ver["monte_carlo"]["distribution"],

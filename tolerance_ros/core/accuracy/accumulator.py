@@ -13,7 +13,7 @@ import numpy as np
 from .identification import base_jacobian, identify_from_normal_equations
 from .iso9283 import pose_characteristics
 from .registration import to_base_frame
-from .verdicts import VERDICTS, budget_check, pose_errors, predicted_bounds
+from .verdicts import EXCEEDED, VERDICTS, budget_check, pose_errors, predicted_bounds
 
 
 class _Running:
@@ -72,6 +72,7 @@ class AccuracyAccumulator:
         self.orientation = _Running()
         self.margin = _Running()
         self.counts = dict.fromkeys(VERDICTS, 0)
+        self.exceeded = dict.fromkeys(EXCEEDED, 0)
         self.worst = None
         self.n = 0
         p = model.n_params + 6
@@ -126,6 +127,8 @@ class AccuracyAccumulator:
             self.margin.update(check["margin"])
         for v in check["verdict"]:
             self.counts[v] += 1
+        for what, count in zip(EXCEEDED, check["over"].sum(axis=0)):
+            self.exceeded[what] += int(count)
         k = int(np.argmax(e_pos))
         if self.worst is None or e_pos[k] > self.worst["error"]:
             self.worst = {"error": float(e_pos[k]), "joints": q[k].tolist(), "label": str(labels[k])}
@@ -156,7 +159,7 @@ class AccuracyAccumulator:
         return dict(zip(self.campaign_names, T))
 
     def summary(self, sigma_position=1e-5) -> dict:
-        out = {"measurements": self.n, "verdicts": dict(self.counts),
+        out = {"measurements": self.n, "verdicts": dict(self.counts), "exceeded": dict(self.exceeded),
                "position_error_m": self.position.to_dict(), "orientation_error_rad": self.orientation.to_dict(),
                "margin_m": self.margin.to_dict() if self.delta is not None else None, "worst": self.worst}
         cmd = self.commanded()

@@ -45,8 +45,9 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
         r = acc.add(meas.T[a:b], q[a:b], None if labels is None else labels[a:b])
         if keep_rows:
             rows.append(r)
+    method = registration if isinstance(registration, str) else "given"
     out = {"source": meas.source, "robot": model.name, "measurements": len(q), "skipped_rows": meas.skipped,
-           "registration": reg.to_dict(), "summary": acc.summary(sigma_position)}
+           "registration": {"method": method, **reg.to_dict()}, "summary": acc.summary(sigma_position)}
     T_base = reg.to_base(meas.T)
     if campaign is not None:
         lab = labels if labels is not None else acc.label(q)

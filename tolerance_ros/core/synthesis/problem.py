@@ -73,11 +73,11 @@ class SynthesisProblem:
         return float(np.sum(self.K[self.active] * (d * unit) ** (-self.alpha[self.active])))
 
     def index_I(self, delta) -> float:
-        """Eq. 21 relative-cost index ``sum w_j |delta_j - Delta_j|`` in mm (lengths mm, angles rad)."""
+        """Eq. 21 relative-cost index ``sum w_j |delta_j - Delta_j|``, m (the paper's mm divided by 1000)."""
         d = np.asarray(delta, dtype=float)
         unit = np.array([COST_UNIT[k] for k in self.model.param_kinds])
         a = self.active
-        return float(np.sum(self.weights[a] * np.abs(d[a] - self.ceilings[a]) * unit[a]))
+        return float(np.sum(self.weights[a] * np.abs(d[a] - self.ceilings[a]) * unit[a])) * 1e-3
 
     def values(self, J, delta, criterion=None) -> np.ndarray:
         """(n,) criterion values for Jacobian rows J (n, 3, p) and tolerances delta (p,)."""
