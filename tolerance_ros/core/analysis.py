@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import interrupt
 from .errors import error_norms
 from .geometry import rotation_error
 from .models.base import Mechanism
@@ -214,6 +215,7 @@ def monte_carlo(model: Mechanism, delta, n: int = 10000, distribution: str = "ex
     pos = np.empty(n)
     ori = np.empty(n)
     for a in range(0, n, chunk):
+        interrupt.check()
         b = min(n, a + chunk)
         qc, dx = q[a:b], dx_all[a:b]
         if method == "linear":

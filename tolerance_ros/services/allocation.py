@@ -2,33 +2,47 @@
 
 Request fields: ``limit`` (m, required), ``orientation_limit`` (rad), ``robot``, ``model`` ('min-cost'
 | 'optimal-precision'), ``solver`` ('active-set' | 'ga'), ``criterion``, ``confidence``, ``floors``,
-``seed``, ``mc_poses``, ``ga_tol``, ``ga_rounds``; or ``{"command": "status"}``. See
-``schemas/allocate_tolerances.*.json``.
+``seed``, ``mc_poses``, ``ga_tol``, ``ga_rounds``, ``time_limit`` (s); or ``{"command": "status"}``, or
+``{"command": "cancel", "target": <id>}``. See ``schemas/allocate_tolerances.*.json``.
+
+``AllocatorService`` runs the jobs one at a time in a worker thread, with the numerical libraries
+capped to one thread: requests are acknowledged at once (``status: accepted``) and queued, ``status``
+and ``cancel`` are answered at once, a cancelled or timed-out solve stops within a loop step, and
+everything it says goes out through ``emit(kind, doc)`` (kind 'response', 'progress' or 'budget').
 """
 from __future__ import annotations
 
 import math
+import queue
+import threading
+import time
 from dataclasses import dataclass
 
+from ..core import interrupt, threads
 from ..core.errors import LIMIT_CRITERIA, k_for_confidence
 from ..core.models.base import Mechanism
-from ..core.synthesis import MODELS, SOLVERS, allocate
-from .contracts import ContractError, Limits, parse_request, select_robot
+from ..core.synthesis import MODELS, PHYSICAL, SOLVERS, allocate
+from .contracts import ContractError, Limits, error_response, number, parse_request, request_id_of, valid_id
 
-COMMANDS = ("allocate", "status")
+COMMANDS = ("allocate", "status", "cancel")
 ALLOCATE_FIELDS = {"command": ((str,), False), "robot": ((str,), False), "limit": ((int, float), False),
                    "orientation_limit": ((int, float, type(None)), False), "model": ((str,), False),
                    "solver": ((str,), False), "criterion": ((str,), False), "confidence": ((int, float, type(None)), False),
                    "floors": ((dict,), False), "seed": ((int,), False), "mc_poses": ((int,), False),
-                   "ga_tol": ((int,), False), "ga_rounds": ((int,), False)}
+                   "ga_tol": ((int,), False), "ga_rounds": ((int,), False), "time_limit": ((int, float), False),
+                   "target": ((str, int), False)}
+MAX_LIMIT = {"length": 10.0, "angle": math.pi}   # the largest design limits accepted, m and rad
+MAX_GA_TOL, MAX_GA_ROUNDS = 10_000, 200
+DEFAULT_TIME_LIMIT_S, MAX_TIME_LIMIT_S = 300.0, 3600.0
 
 
 @dataclass(frozen=True)
 class Command:
-    """A request that is not an allocation: ``command`` is 'status'."""
+    """A request that is not an allocation: ``command`` is 'status' or 'cancel' (of job ``target``)."""
 
     id: object
     command: str
+    target: object = None
 
 
 @dataclass(frozen=True)
@@ -49,41 +63,59 @@ class AllocationJob:
     mc_poses: int = 10000
     ga_tol: int = 1000
     ga_rounds: int = 50
+    time_limit_s: float = DEFAULT_TIME_LIMIT_S
 
 
-def parse_allocate_request(text, models: dict, default_robot: str, limits: Limits):
-    """An AllocationJob or a Command; raises ContractError naming the field."""
+def parse_allocate_request(text, robots, limits: Limits, max_time_limit_s: float = MAX_TIME_LIMIT_S):
+    """An AllocationJob or a Command; raises ContractError naming the field. ``robots`` is a RobotSet."""
     req = parse_request(text, ALLOCATE_FIELDS, limits)
     command = req.get("command", "allocate")
     if command not in COMMANDS:
-        raise ContractError("invalid_request", f"command: expected one of {list(COMMANDS)}, got {command!r}")
+        raise ContractError("invalid_request", f"command: expected one of {list(COMMANDS)}, got {command[:40]!r}")
+    if command == "cancel":
+        if "target" not in req or not valid_id(req["target"]):
+            raise ContractError("invalid_request", "target: required with command 'cancel': the id of the job")
+        return Command(req["id"], command, req["target"])
     if command != "allocate":
         return Command(req["id"], command)
-    name, mechanism = select_robot(req, models, default_robot)
+    name, mechanism = robots.select(req.get("robot"))
     if "limit" not in req:
         raise ContractError("invalid_request", "limit: required (position limit in m)")
-    job = AllocationJob(req["id"], name, mechanism, float(req["limit"]), req.get("orientation_limit"),
-                        req.get("model", "min-cost"), req.get("solver", "active-set"), req.get("criterion", "paper"),
-                        req.get("confidence"), req.get("floors"), req.get("seed", 0), req.get("mc_poses", 10000),
-                        req.get("ga_tol", 1000), req.get("ga_rounds", 50))
+    job = AllocationJob(req["id"], name, mechanism,
+                        number(req["limit"], "limit", 0.0, MAX_LIMIT["length"]),
+                        req.get("orientation_limit"), req.get("model", "min-cost"), req.get("solver", "active-set"),
+                        req.get("criterion", "paper"), req.get("confidence"), req.get("floors"),
+                        number(req.get("seed", 0), "seed", 0, 2 ** 32 - 1, integer=True),
+                        number(req.get("mc_poses", 10000), "mc_poses", 1, None, integer=True),
+                        number(req.get("ga_tol", 1000), "ga_tol", 1, MAX_GA_TOL, integer=True),
+                        number(req.get("ga_rounds", 50), "ga_rounds", 1, MAX_GA_ROUNDS, integer=True),
+                        number(req.get("time_limit", DEFAULT_TIME_LIMIT_S), "time_limit", 0.0, max_time_limit_s))
     for field, value, allowed in (("model", job.cost_model, MODELS), ("solver", job.solver, SOLVERS),
                                   ("criterion", job.criterion, LIMIT_CRITERIA)):
         if value not in allowed:
-            raise ContractError("invalid_request", f"{field}: expected one of {list(allowed)}, got {value!r}")
-    for field in ("limit", "orientation_limit", "confidence"):
-        v = getattr(job, field)
-        if v is not None and not (math.isfinite(v) and v > 0):
-            raise ContractError("invalid_request", f"{field}: must be a positive finite number (SI)")
-    if job.confidence is not None and not 0.785 <= job.confidence < 1:
-        raise ContractError("invalid_request", "confidence: expected a value in [0.785, 1)")
-    for field in ("mc_poses", "ga_tol", "ga_rounds"):
-        if getattr(job, field) < 1:
-            raise ContractError("invalid_request", f"{field}: must be >= 1")
+            raise ContractError("invalid_request", f"{field}: expected one of {list(allowed)}, got {value[:40]!r}")
+    if job.limit <= 0 or job.time_limit_s <= 0:
+        raise ContractError("invalid_request", f"{'limit' if job.limit <= 0 else 'time_limit'}: must be > 0")
+    if job.orientation_limit is not None:
+        number(job.orientation_limit, "orientation_limit", 0.0, MAX_LIMIT["angle"])
+        if job.orientation_limit <= 0:
+            raise ContractError("invalid_request", "orientation_limit: must be > 0 (rad)")
+        if job.solver == "ga":
+            raise ContractError("invalid_request", "orientation_limit: the paper's GA handles a position limit "
+                                                   "only; use the active-set solver")
+    if job.confidence is not None:
+        number(job.confidence, "confidence", 0.785, 1.0)
+        if job.confidence >= 1:
+            raise ContractError("invalid_request", "confidence: expected a value in [0.785, 1)")
     if job.mc_poses > limits.max_poses * 10:
         raise ContractError("too_large", f"mc_poses: {job.mc_poses} exceeds the cap of {limits.max_poses * 10}")
+    kinds = dict(zip(mechanism.param_names, mechanism.param_kinds))
     for k, v in (job.floors or {}).items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-            raise ContractError("invalid_request", f"floors.{k}: expected a positive number (m or rad)")
+        kind = k if k in PHYSICAL else kinds.get(k)
+        if kind is None:
+            raise ContractError("invalid_request", f"floors.{k[:60]}: not 'length', 'angle' or a parameter of "
+                                                   f"robot {name!r}")
+        number(v, f"floors.{k}", *PHYSICAL[kind])
     return job
 
 
@@ -98,10 +130,143 @@ def run_allocation(job: AllocationJob, progress=None) -> dict:
                    ga_options={"tol_runs": job.ga_tol, "max_rounds": job.ga_rounds} if job.solver == "ga" else None)
     budget = res.budget(source=f"allocate_tolerances request {job.id}")
     ver = res.verification
-    return {"id": job.id, "ok": True, "status": "done", "success": res.success, "robot": job.robot,
-            "message": res.message, "time_s": res.time_s, "cost_index": res.cost, "index_I_m": res.index_I,
-            "budget": budget.to_dict(), "warnings": res.warnings,
+    return {"id": job.id, "ok": True, "status": "done", "success": res.success, "shortfalls": res.shortfalls(),
+            "robot": job.robot, "message": res.message, "time_s": res.time_s, "cost_index": res.cost,
+            "index_I_m": res.index_I, "budget": budget.to_dict(), "warnings": res.warnings,
             "supremum_m": {c: v["position"]["value"] for c, v in ver["supremum"].items()},
             "monte_carlo": {"distribution": ver["monte_carlo"]["distribution"],
                             "pass_rate": ver["monte_carlo"]["position_m"]["pass_rate"],
                             "max_m": ver["monte_carlo"]["position_m"]["max"]}}
+
+
+class AllocatorService:
+    """Queue, worker and answers of the allocator (see the module docstring); ROS-free.
+
+    robots : RobotSet.  emit(kind, doc) : called from the caller's and the worker's thread.
+    save(job, response) -> path or None : stores a finished budget (its path goes into the response).
+    """
+
+    def __init__(self, robots, emit, limits: Limits | None = None, max_queue: int = 4, save=None,
+                 max_time_limit_s: float = MAX_TIME_LIMIT_S):
+        self.robots, self.emit, self.save = robots, emit, save
+        self.limits = limits or Limits(max_bytes=100_000)
+        self.max_time_limit_s = max_time_limit_s
+        self.jobs = queue.Queue(maxsize=max_queue)
+        self.lock = threading.Lock()
+        self.running = None       # (job, StopToken) of the solve under way
+        self.cancelled = {}       # id of a queued job -> id of the cancel request
+        self.done = []
+        self.worker = threading.Thread(target=self._work, name="allocator", daemon=True)
+        self.worker.start()
+
+    def handle(self, text):
+        """Answer one request text (never raises)."""
+        try:
+            job = parse_allocate_request(text, self.robots, self.limits, self.max_time_limit_s)
+        except Exception as exc:  # every failure becomes a response
+            self.emit("response", error_response(request_id_of(text), exc))
+            return
+        if isinstance(job, Command):
+            self._command(job)
+            return
+        try:
+            self.jobs.put_nowait(job)
+        except queue.Full:
+            self.emit("response", error_response(job.id, ContractError(
+                "busy", f"allocator queue is full ({self.jobs.maxsize} waiting); retry later")))
+            return
+        self.emit("response", {"id": job.id, "ok": True, "status": "accepted", "queued": self.jobs.qsize(),
+                               "running": self.running[0].id if self.running else None})
+
+    def _command(self, cmd: Command):
+        with self.lock:
+            running = self.running
+            queued = [j.id for j in list(self.jobs.queue)]
+            if cmd.command == "status":
+                self.emit("response", {"id": cmd.id, "ok": True, "status": "status",
+                                       "running": running[0].id if running else None, "queued": len(queued),
+                                       "finished": self.done[-10:]})
+                return
+            if running is not None and running[0].id == cmd.target:
+                self.cancelled[cmd.target] = cmd.id
+                running[1].cancel()
+                return  # the worker answers both ids once the solve has stopped
+            if cmd.target in queued and cmd.target not in self.cancelled:
+                self.cancelled[cmd.target] = cmd.id
+                self._answer_cancelled(cmd.target)
+                return
+        self.emit("response", error_response(cmd.id, ContractError(
+            "invalid_request", f"target: no queued or running allocation has id {cmd.target!r}")))
+
+    def _answer_cancelled(self, job_id):
+        """Both answers of a cancel: the job's and the cancel request's."""
+        cancel_id = self.cancelled.get(job_id)
+        self.emit("response", {**error_response(job_id, ContractError("cancelled", f"cancelled by request "
+                                                                                   f"{cancel_id!r}")),
+                               "status": "cancelled"})
+        self.emit("response", {"id": cancel_id, "ok": True, "status": "cancelled", "target": job_id})
+
+    def _work(self):
+        while True:
+            job = self.jobs.get()
+            if job is None:
+                return
+            with self.lock:
+                if self.cancelled.pop(job.id, None) is not None:  # cancelled while it waited: answered then
+                    continue
+                token = interrupt.StopToken(job.time_limit_s)
+                self.running = (job, token)
+            resp = self._solve(job, token)
+            with self.lock:
+                self.running = None
+                if resp is None:  # cancelled while it ran
+                    self._answer_cancelled(job.id)
+                    self.cancelled.pop(job.id)
+                    self.done.append({"id": job.id, "ok": False, "status": "cancelled"})
+                    continue
+                late = self.cancelled.pop(job.id, None)
+                self.done.append({"id": job.id, "ok": resp["ok"], "status": resp.get("status", "error")})
+            self.emit("response", resp)
+            if late is not None:
+                self.emit("response", error_response(late, ContractError(
+                    "invalid_request", f"target: allocation {job.id!r} had finished before the cancel arrived")))
+
+    def _solve(self, job, token):
+        """The response to a job, or None when it was cancelled."""
+        start = time.perf_counter()
+
+        def progress(done, total):
+            self.emit("progress", {"id": job.id, "fraction": min(1.0, done / max(total, 1)),
+                                   "elapsed_s": time.perf_counter() - start})
+
+        try:
+            with threads.limited(1), interrupt.watching(token):
+                resp = run_allocation(job, progress)
+            if self.save is not None:
+                try:
+                    resp["budget_file"] = str(self.save(job, resp))
+                except OSError as exc:
+                    resp["warnings"].append(f"the budget could not be saved: {exc}")
+            if resp["success"]:  # a budget that misses its limit is saved (and says so), not put in force
+                self.emit("budget", {"id": job.id, "robot": job.robot, "file": resp.get("budget_file"),
+                                     "budget": resp["budget"]})
+            return resp
+        except interrupt.Interrupted as exc:
+            if exc.reason == "cancelled":
+                return None
+            return {**error_response(job.id, ContractError("timeout", f"{exc} (time_limit)")), "status": "timeout",
+                    "best": token.best}
+        except Exception as exc:  # every failure becomes a response; the worker keeps serving
+            return error_response(job.id, exc)
+
+    def close(self):
+        """Stop the worker: cancel what runs, drop what waits."""
+        with self.lock:
+            if self.running:
+                self.running[1].cancel()
+        while True:
+            try:
+                self.jobs.get_nowait()
+            except queue.Empty:
+                break
+        self.jobs.put(None)

@@ -24,6 +24,7 @@ from .problem import MODELS, InfeasibleError, SynthesisError, SynthesisProblem, 
 from .search import maximize, select_poses
 
 SOLVERS = ("active-set", "ga")
+PHYSICAL = {"length": (1e-9, 1.0), "angle": (1e-9, np.pi)}  # tolerances that make physical sense, m and rad
 MC_DISTRIBUTION = {"paper": "fixed", "worst-case": "extreme", "rss": "normal"}
 
 __all__ = ["Allocation", "InfeasibleError", "MODELS", "SOLVERS", "SynthesisError", "SynthesisProblem", "TABLE2",
@@ -90,6 +91,12 @@ class Allocation:
     def shortfalls(self) -> list:
         """Why the allocation does not meet its target, in words ([] when it does)."""
         out = [] if self.status in ("converged", "done") else [f"the solver stopped: {self.message}"]
+        p = self.problem
+        for j in np.flatnonzero(p.active):
+            lo, hi = PHYSICAL[p.model.param_kinds[j]]
+            if not lo <= self.delta[j] <= hi:
+                out.append(f"the tolerance of {p.model.param_names[j]}, {self.delta[j]:.3g} {p.model.param_units[j]}, "
+                           f"is outside the physical range [{lo:g}, {hi:g}] {p.model.param_units[j]}")
         for rows, s in self.verification.get("supremum", {}).get(self.problem.criterion, {}).items():
             if not s["pass"]:
                 unit = "mm" if rows == "position" else "mrad"
@@ -207,8 +214,8 @@ def allocate(model, limit, model_type="min-cost", solver="active-set", criterion
     solve_time = time.perf_counter() - t0
     ver, mc = _verify(problem, delta, n_mc, seed) if verify else ({}, None)
     warns = _warnings(problem, delta, ver) if verify else []
-    own = ver["supremum"][problem.criterion] if verify else {}
-    ok = raw["status"] in ("converged", "done") and all(s["pass"] for s in own.values())
-    return Allocation(delta, problem, model_type, solver, ok, raw["status"], raw["message"], solve_time,
-                      problem.cost(delta), problem.index_I(delta), ver, raw.get("history", []), warns, seed,
-                      None if mc is None else mc.position)
+    res = Allocation(delta, problem, model_type, solver, False, raw["status"], raw["message"], solve_time,
+                     problem.cost(delta), problem.index_I(delta), ver, raw.get("history", []), warns, seed,
+                     None if mc is None else mc.position)
+    res.success = not res.shortfalls()
+    return res

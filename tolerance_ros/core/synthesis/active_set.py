@@ -17,6 +17,8 @@ import time
 import numpy as np
 from scipy.optimize import minimize
 
+from .. import interrupt
+from ..budget import Budget
 from ..errors import paper_bound, per_axis_bound, rss_bound, worst_case_bound
 from .problem import COST_UNIT, MODELS, InfeasibleError, SynthesisError, SynthesisProblem
 from .search import maximize
@@ -78,7 +80,9 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
                 f"{res.value:.6g} (limit {lim:.6g}) at q = {np.round(res.q, 4).tolist()}; the floors of "
                 f"{contrib} contribute most there: lower them or raise the limit")
     status, message = "max_iter", f"stopped after {max_iter} iterations"
+    _record_best(problem, tau, "the joint-space search of the feasibility check (every tolerance at its floor)")
     for it in range(max_iter):
+        interrupt.check()
         delta_a = x * tau
         added = 0
         worst_ratio = 0.0
@@ -117,6 +121,8 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
             progress(it + 1, max_iter)
         if not added:
             status, message = "converged", "no pose of the joint-space search exceeds the limit"
+            _record_best(problem, np.clip(x * tau, tau, ceil), "the joint-space search of the active-set solver "
+                                                                "(not the final verification)")
             break
         x = _solve_program(x, cons, objective, K, alpha, tau, unit, w, scale0, ceil)
     if progress:
@@ -126,6 +132,16 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
     return {"delta": delta, "status": status, "message": message, "history": history,
             "iterations": len(history), "constraints": sum(len(c) for c in cons.values()),
             "time_s": time.perf_counter() - t0}
+
+
+def _record_best(problem, delta_active, verified_by):
+    """Keep a verified tolerance set (active parameters) as the best result so far, for a timeout."""
+    delta = np.zeros(problem.model.n_params)
+    delta[problem.active] = delta_active
+    budget = Budget.from_vector(problem.model, delta, free=~problem.active, limit_position=problem.limit,
+                                limit_orientation=problem.orientation_limit, criterion=problem.criterion,
+                                source="best verified result before the allocation stopped")
+    interrupt.record_best({"budget": budget.to_dict(), "cost_index": problem.cost(delta), "verified_by": verified_by})
 
 
 def _worst(problem, J, delta_a, q, n):
@@ -176,6 +192,7 @@ def _solve_program(x0, cons, objective, K, alpha, tau, unit, w, scale, ceil):
         scale = abs(_objective(hi, objective, K, alpha, tau, unit, w, 1.0)[0]) or 1.0
 
     def fun(x):
+        interrupt.check()
         return _objective(x, objective, K, alpha, tau, unit, w, scale)
 
     def cfun(x):

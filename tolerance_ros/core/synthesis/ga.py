@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import interrupt
 from ..errors import worst_case_bound
 from .problem import SynthesisProblem
 from .search import pose_index
@@ -59,6 +60,7 @@ def ga_minimize(fitness, lo, hi, settings: GASettings, rng, runs: int = 1):
     r = np.arange(runs)[:, None]
     history = [F.min(axis=1)]
     for _ in range(settings.generations):
+        interrupt.check()
         e = np.argmin(F, axis=1)
         elite_x, elite_f = X[np.arange(runs), e], F[np.arange(runs), e]
         i1 = rng.integers(pop, size=(runs, pop))

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
+from .. import interrupt
+
 
 @dataclass
 class SearchResult:
@@ -26,7 +28,11 @@ class SearchResult:
 
 
 def _chunked(f, q, chunk=5000):
-    return np.concatenate([f(q[a:a + chunk]) for a in range(0, len(q), chunk)]) if len(q) else np.zeros(0)
+    out = []
+    for a in range(0, len(q), chunk):
+        interrupt.check()
+        out.append(f(q[a:a + chunk]))
+    return np.concatenate(out) if out else np.zeros(0)
 
 
 def top_samples(f, q, k, upper=None):
@@ -47,6 +53,7 @@ def top_samples(f, q, k, upper=None):
     done, evaluated = 0, 0
     step = max(4 * k, 256)
     while done < n:
+        interrupt.check()
         block = order[done:done + step]
         vals[block] = f(q[block])
         evaluated += len(block)
@@ -86,6 +93,7 @@ def maximize(model, f, n_samples=20000, n_starts=12, seed=0, q_extra=None, upper
         return out
 
     def fun(x):
+        interrupt.check()
         pts = np.vstack([x, x + eye, x - eye])
         pts = np.clip(pts, lo, hi)
         v = g(pts)

@@ -1,0 +1,159 @@
+"""allocate_tolerances: the typed job, its validation, the solve, and the allocator's queue, cancel and timeout."""
+import json
+import threading
+import time
+
+import jsonschema
+import pytest
+
+from schemas_helpers import schema
+from tolerance_ros.core.synthesis import InfeasibleError
+from tolerance_ros.services.allocation import (AllocationJob, AllocatorService, Command, parse_allocate_request,
+                                               run_allocation)
+from tolerance_ros.services.contracts import ContractError, Limits, error_response
+from tolerance_ros.services.robots import RobotSet
+
+
+@pytest.fixture(scope="module")
+def robots(gao):
+    return RobotSet([gao], gao)
+
+
+def parse(text, robots):
+    return parse_allocate_request(text, robots, Limits())
+
+
+def test_allocate_request_parsing(robots, gao):
+    job = parse('{"id": "x", "limit": 0.0014}', robots)
+    assert isinstance(job, AllocationJob) and job.mechanism is gao and job.robot == "gao2023_7dof"
+    assert job.cost_model == "min-cost" and job.solver == "active-set" and job.limit == 0.0014
+    assert job.time_limit_s == 300.0
+    jsonschema.validate({"id": "x", "limit": 0.0014}, schema("allocate_tolerances.request"))
+    assert parse('{"id": 3, "command": "status"}', robots) == Command(3, "status")
+    assert parse('{"id": 4, "command": "cancel", "target": "x"}', robots) == Command(4, "cancel", "x")
+
+
+@pytest.mark.parametrize("text, code, needle", [
+    ('{"id": 1}', "invalid_request", "limit: required"),
+    ('{"id": 1, "limit": 0}', "invalid_request", "limit"),
+    ('{"id": 1, "limit": 1e308}', "invalid_request", "limit: 1e+308 is outside [0, 10]"),
+    ('{"id": 1, "limit": 0.001, "solver": "magic"}', "invalid_request", "solver"),
+    ('{"id": 1, "limit": 0.001, "floors": {"angle": -1}}', "invalid_request", "floors.angle"),
+    ('{"id": 1, "limit": 0.001, "floors": {"length": 1e-300, "angle": 1e-300}}', "invalid_request", "floors.length"),
+    ('{"id": 1, "limit": 0.001, "floors": {"length": 5e-324}}', "invalid_request", "floors.length"),
+    ('{"id": 1, "limit": 0.001, "floors": {"wheel": 1e-5}}', "invalid_request", "floors.wheel"),
+    ('{"id": 1, "limit": 0.001, "robot": "x"}', "unknown_robot", "'x'"),
+    ('{"id": 1, "limit": 0.001, "mc_poses": 10000000}', "too_large", "mc_poses"),
+    ('{"id": 1, "limit": 0.001, "confidence": 0.5}', "invalid_request", "confidence"),
+    ('{"id": 1, "limit": 0.001, "command": "cancel"}', "invalid_request", "target: required"),
+    ('{"id": 1, "limit": 0.001, "command": "pause"}', "invalid_request", "command"),
+    ('{"id": 1, "limit": 0.001, "seed": -1}', "invalid_request", "seed: -1 is outside"),
+    ('{"id": 1, "limit": 0.001, "ga_rounds": 1000000000}', "invalid_request", "ga_rounds"),
+    ('{"id": 1, "limit": 0.001, "ga_tol": 1000000000}', "invalid_request", "ga_tol"),
+    ('{"id": 1, "limit": 0.001, "time_limit": 1e9}', "invalid_request", "time_limit"),
+    ('{"id": 1, "limit": 0.001, "solver": "ga", "orientation_limit": 0.001}', "invalid_request", "GA handles"),
+])
+def test_bad_requests_are_refused_before_any_work(robots, text, code, needle):
+    with pytest.raises(ContractError) as exc:
+        parse(text, robots)
+    assert exc.value.code == code and needle in exc.value.message
+
+
+def test_run_allocation_and_infeasible(robots):
+    resp = run_allocation(parse('{"id": "a", "limit": 0.0014, "mc_poses": 500}', robots))
+    jsonschema.validate(json.loads(json.dumps(resp)), schema("allocate_tolerances.response"))
+    assert resp["status"] == "done" and resp["success"] and resp["budget"]["limit"]["position"] == pytest.approx(0.0014)
+    assert resp["supremum_m"]["paper"] <= 0.0014 and resp["shortfalls"] == []
+    with pytest.raises(InfeasibleError) as exc:
+        run_allocation(parse('{"id": "b", "limit": 0.0014, "criterion": "worst-case"}', robots))
+    assert error_response("b", exc.value)["error"]["code"] == "infeasible"
+
+
+class Outbox:
+    """What an AllocatorService emits, with a way to wait for an answer."""
+
+    def __init__(self):
+        self.items, self.cond = [], threading.Condition()
+
+    def __call__(self, kind, doc):
+        with self.cond:
+            self.items.append((kind, doc))
+            self.cond.notify_all()
+
+    def wait(self, predicate, timeout=30.0):
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while True:
+                found = [doc for kind, doc in self.items if kind == "response" and predicate(doc)]
+                if found:
+                    return found[0]
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise AssertionError(f"no such answer; got {[d for _, d in self.items]}")
+                self.cond.wait(left)
+
+
+def test_allocator_queues_answers_status_and_cancels_within_a_second(robots):
+    out = Outbox()
+    service = AllocatorService(robots, out, max_queue=1)
+    try:
+        service.handle('{"id": "slow", "limit": 0.0014, "mc_poses": 100000}')
+        assert wait_running(service, "slow")
+        service.handle('{"id": "waiting", "limit": 0.0014}')
+        service.handle('{"id": "extra", "limit": 0.0014}')
+        assert out.wait(lambda d: d["id"] == "extra")["error"]["code"] == "busy"
+        assert out.wait(lambda d: d["id"] == "slow")["status"] == "accepted"
+        service.handle('{"id": "s", "command": "status"}')
+        status = out.wait(lambda d: d["id"] == "s")
+        assert status["running"] == "slow" and status["queued"] == 1
+        service.handle('{"id": "c1", "command": "cancel", "target": "waiting"}')
+        assert out.wait(lambda d: d["id"] == "waiting" and not d["ok"])["status"] == "cancelled"
+        assert out.wait(lambda d: d["id"] == "c1")["target"] == "waiting"
+        t0 = time.monotonic()
+        service.handle('{"id": "c2", "command": "cancel", "target": "slow"}')
+        job = out.wait(lambda d: d["id"] == "slow" and not d["ok"], 5)
+        assert time.monotonic() - t0 < 1.0
+        assert job["error"]["code"] == "cancelled" and out.wait(lambda d: d["id"] == "c2")["status"] == "cancelled"
+        service.handle('{"id": "c3", "command": "cancel", "target": "nothing"}')
+        assert out.wait(lambda d: d["id"] == "c3")["error"]["code"] == "invalid_request"
+        assert not any(kind == "budget" for kind, _ in out.items)
+    finally:
+        service.close()
+
+
+def wait_running(service, job_id, timeout=20.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if service.running is not None and service.running[0].id == job_id:
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def test_a_timeout_answers_with_the_best_verified_result_so_far(robots):
+    out = Outbox()
+    service = AllocatorService(robots, out)
+    try:
+        service.handle('{"id": "t", "limit": 0.0014, "time_limit": 3}')
+        answer = out.wait(lambda d: d["id"] == "t" and d.get("status") != "accepted", 20)
+        assert answer["ok"] is False and answer["status"] == "timeout" and answer["error"]["code"] == "timeout"
+        best = answer["best"]
+        assert best["verified_by"].startswith("the joint-space search") and best["budget"]["robot"] == "gao2023_7dof"
+        assert best["cost_index"] > 0
+    finally:
+        service.close()
+
+
+def test_a_request_that_cannot_be_parsed_never_escapes(robots):
+    out = Outbox()
+    service = AllocatorService(robots, out)
+    try:
+        for text in ('{"id": "\\ud800", "limit": 1}', '{"a":' * 52500 + '0' + '}' * 52500, b"\xff\xfe",
+                     '{"id": 18446744073709551616, x}', '{"id": ' + '9' * 4301 + ', x}', "x" * 200_000):
+            service.handle(text)
+        answers = [d for k, d in out.items if k == "response"]
+        assert len(answers) == 6 and all(not d["ok"] and d["error"]["code"] in ("invalid_json", "too_large",
+                                                                                 "invalid_request") for d in answers)
+        assert [d["id"] for d in answers] == [None] * 6
+    finally:
+        service.close()
