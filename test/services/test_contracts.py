@@ -1,140 +1,74 @@
-"""The JSON contracts: every error path of both services, and the responses against the shipped schemas."""
+"""The JSON envelope: safe parsing (size, UTF-8, depth), ids, error codes, and budget messages."""
 import json
-from pathlib import Path
 
-import jsonschema
-import numpy as np
 import pytest
 
-from tolerance_ros.core.synthesis import InfeasibleError
-from tolerance_ros.services.allocation import AllocationJob, Command, parse_allocate_request, run_allocation
-from tolerance_ros.services.contracts import ContractError, Limits, error_response
-from tolerance_ros.services.error_model import ErrorModelService
+from tolerance_ros.core.budget import load_budget
+from tolerance_ros.services.contracts import (MAX_DEPTH, ContractError, Limits, budget_from_message, error_code,
+                                              error_response, nesting_depth, parse_request, request_id_of)
 
-SCHEMAS = Path(__file__).resolve().parents[2] / "schemas"
-
-
-def schema(name):
-    return json.loads((SCHEMAS / f"{name}.json").read_text())
+FIELDS = {"x": ((int,), False)}
 
 
-@pytest.fixture(scope="module")
-def service(gao):
-    return ErrorModelService({"gao2023_7dof": gao}, "gao2023_7dof", Limits(max_bytes=200_000, max_poses=50))
-
-
-Q = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
-
-
-def ask(service, req):
-    text = req if isinstance(req, str) else json.dumps(req)
-    out = json.loads(service.handle_text(text))
-    jsonschema.validate(out, schema("compute_error_jacobian.response"))
-    return out
-
-
-def test_single_and_many_configurations(service, gao):
-    r = ask(service, {"id": "a", "joints": Q})
-    assert r["ok"] and r["id"] == "a" and r["n"] == 1 and r["rows"] == ["dx", "dy", "dz", "drx", "dry", "drz"]
-    T, EJ = gao.fk_and_jacobian(np.array([Q]))
-    assert np.allclose(r["poses"], T) and np.allclose(r["jacobian"], EJ.J)
-    assert np.allclose(r["sensitivity"], np.linalg.norm(EJ.position, axis=1))
-    r = ask(service, {"id": 7, "joints": [Q, Q, Q], "outputs": "position", "include_jacobian": True})
-    assert r["id"] == 7 and np.array(r["jacobian"]).shape == (3, 3, 28)
-
-
-def test_bounds_with_tolerances(service, gao):
-    tol = {n: 1e-4 if k == "length" else 3e-4 for n, k in zip(gao.param_names, gao.param_kinds)}
-    r = ask(service, {"id": "b", "joints": Q, "tolerances": tol, "criteria": ["paper", "worst-case", "rss"]})
-    b = r["bounds"]["position"]
-    assert b["rss"][0] <= b["worst-case"][0] and b["paper"][0] <= b["worst-case"][0]
-    assert set(r["bounds"]) == {"position", "orientation", "budget_criterion"}
-
-
-@pytest.mark.parametrize("request_text, code, needle", [
-    ("{not json", "invalid_json", "not valid JSON"),
-    ('{"id": 1, "joints": [0, 0, 0, 0, 0, 0, NaN]}', "invalid_json", "not valid JSON"),
-    ('[1, 2]', "invalid_request", "JSON object"),
-    ('{"joints": [0,0,0,0,0,0,0]}', "invalid_request", "id: required"),
-    ('{"id": true, "joints": [0,0,0,0,0,0,0]}', "invalid_request", "id: required"),
-    ('{"id": 1}', "invalid_request", "joints: required"),
-    ('{"id": 1, "joints": [0, 0]}', "invalid_request", "joints[0]: expected 7 values"),
-    ('{"id": 1, "joints": [[0,0,0,0,0,0,0], [0,0]]}', "invalid_request", "joints[1]: expected 7 values"),
-    ('{"id": 1, "joints": [0,0,0,"x",0,0,0]}', "invalid_request", "joints[0][3]: expected a number"),
-    ('{"id": 1, "joints": [0,0,0,true,0,0,0]}', "invalid_request", "joints[0][3]: expected a number"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,1e999]}', "invalid_json", "infinity"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,4]}', "out_of_limits", "joints[0][6] (joint7) = 4"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "robot": "ur5"}', "unknown_robot", "'ur5' is not configured"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "colour": "red"}', "invalid_request", "unknown field(s) ['colour']"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "outputs": "all"}', "invalid_request", "outputs"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"a1": -1, "default": 0}}', "invalid_request", "a1"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"bogus": 1e-4, "default": 0}}', "invalid_request", "bogus"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"a1": 1e-4}}', "invalid_request", "no tolerance for"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": "current"}', "invalid_request", "no budget"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"a1": 1e-4, "default": 0}, "criteria": ["max"]}',
-     "invalid_request", "criteria"),
-    ('{"id": 1, "joints": ' + json.dumps([[0] * 7] * 51) + '}', "too_large", "cap of 50"),
-    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "pad": "' + "x" * 200_001 + '"}', "too_large", "bytes"),
+@pytest.mark.parametrize("text, code, needle", [
+    ('{"a":' * 52500 + '0' + '}' * 52500, "invalid_json", f"nested deeper than {MAX_DEPTH}"),
+    ('[' * 17 + ']' * 17, "invalid_json", "nested deeper"),
+    (b'{"id": 1, "x": 1}\xff', "invalid_json", "not UTF-8 text: byte 17"),
+    ('{"id": "\ud800", "x": 1}', "invalid_json", "lone surrogate"),
+    ('{"id": "\\ud800", "x": 1}', "invalid_", ""),
+    ('{"id": 1, "x": 1}\ud800', "invalid_json", "lone surrogate"),
+    ('{"id": 18446744073709551616}', "invalid_", ""),
+    ('{"id": 1, "x": 1.5}', "invalid_request", "x: expected an integer, got a number"),
+    ('{"id": "' + "i" * 300 + '"}', "invalid_request", "id: a string of at most 256"),
+    ('{"id": 1, "x": ' + "[" * 10 + "]" * 10 + "}", "invalid_request", "x: expected an integer, got a list"),
+    ("x" * 2_000, "too_large", "more than 1000 bytes"),
 ])
-def test_error_paths(service, request_text, code, needle):
-    r = ask(service, request_text)
-    assert r["ok"] is False and r["error"]["code"] == code and needle in r["error"]["message"]
+def test_hostile_envelopes_get_their_own_code(text, code, needle):
+    with pytest.raises(ContractError) as exc:
+        parse_request(text, FIELDS, Limits(max_bytes=1000 if code == "too_large" else 1_000_000))
+    assert exc.value.code.startswith(code) and needle in exc.value.message
 
 
-def test_id_is_echoed_even_when_the_json_is_broken(service):
-    r = ask(service, '{"id": "abc", "joints": [NaN]}')
-    assert r["id"] == "abc" and r["error"]["code"] == "invalid_json"
+def test_depth_is_found_without_parsing_and_brackets_in_strings_do_not_count():
+    assert nesting_depth('{"a": [1, {"b": [2]}]}') == 4
+    assert nesting_depth('{"a": "' + "[" * 100 + '"}') == 1
+    assert nesting_depth("[" * 100_000) == 100_000
 
 
-def test_out_of_limits_can_be_allowed_and_is_reported(service):
-    r = ask(service, {"id": 2, "joints": [Q, [0, 0, 0, 0, 0, 0, 4]], "allow_out_of_limits": True})
-    assert r["ok"] and r["out_of_limits"] == [1]
+@pytest.mark.parametrize("text, rid", [
+    ('{"id": "abc", "joints": [NaN]}', "abc"), ('{"id": 42, x', 42), ('{"id": "a\\"b", x', 'a"b'),
+    ('{"id": 18446744073709551616, x}', None), ('{"id": ' + "9" * 4301 + ", x}", None), ("no id", None),
+    ('{"id": "\ud800", x', None), ("x" * 100_000 + '{"id": 1}', None), (b'{"id": 7, \xff', 7),
+])
+def test_the_id_of_a_broken_request_is_recovered_safely(text, rid):
+    assert request_id_of(text) == rid
 
 
-def test_allocate_request_parsing(gao):
-    models = {"gao2023_7dof": gao}
-    job = parse_allocate_request('{"id": "x", "limit": 0.0014}', models, "gao2023_7dof", Limits())
-    assert isinstance(job, AllocationJob) and job.mechanism is gao and job.robot == "gao2023_7dof"
-    assert job.cost_model == "min-cost" and job.solver == "active-set" and job.limit == 0.0014
-    jsonschema.validate({"id": "x", "limit": 0.0014}, schema("allocate_tolerances.request"))
-    assert parse_allocate_request('{"id": 3, "command": "status"}', models, "gao2023_7dof", Limits()) == \
-        Command(3, "status")
-    for text, code, needle in [('{"id": 1}', "invalid_request", "limit: required"),
-                               ('{"id": 1, "limit": 0}', "invalid_request", "limit"),
-                               ('{"id": 1, "limit": 0.001, "solver": "magic"}', "invalid_request", "solver"),
-                               ('{"id": 1, "limit": 0.001, "floors": {"angle": -1}}', "invalid_request", "floors.angle"),
-                               ('{"id": 1, "limit": 0.001, "robot": "x"}', "unknown_robot", "'x'"),
-                               ('{"id": 1, "limit": 0.001, "mc_poses": 10000000}', "too_large", "mc_poses"),
-                               ('{"id": 1, "limit": 0.001, "confidence": 0.5}', "invalid_request", "confidence"),
-                               ('{"id": 1, "limit": 0.001, "command": "cancel"}', "invalid_request", "command")]:
+def test_error_codes_come_from_the_exception_type():
+    from tolerance_ros.core.budget import BudgetError
+    from tolerance_ros.core.synthesis import InfeasibleError, SynthesisError
+    assert error_code(InfeasibleError("x")) == "infeasible"
+    assert error_code(SynthesisError("infeasible, says the text")) == "invalid_request"
+    assert error_code(BudgetError("x")) == "invalid_request" and error_code(KeyError("x")) == "internal"
+    r = error_response(3, RuntimeError("y" * 2000))
+    assert r["error"]["message"].startswith("RuntimeError: yyy") and len(r["error"]["message"]) < 600
+
+
+def test_budget_messages(gao):
+    budget = load_budget("gao2023_delta2", gao)
+    text = json.dumps({"robot": "gao2023_7dof", "budget": budget.to_dict()})
+    robot, got = budget_from_message(text, {"gao2023_7dof": gao})
+    assert robot == "gao2023_7dof" and got.tolerances == pytest.approx(budget.tolerances)
+    for bad, code in ([1], "invalid_request"), (5, "invalid_request"), ("x", "invalid_json"), (None, "invalid_request"):
         with pytest.raises(ContractError) as exc:
-            parse_allocate_request(text, models, "gao2023_7dof", Limits())
-        assert exc.value.code == code and needle in exc.value.message
-
-
-def test_run_allocation_and_infeasible(gao):
-    models = {"gao2023_7dof": gao}
-    job = parse_allocate_request('{"id": "a", "limit": 0.0014, "mc_poses": 500}', models, "gao2023_7dof", Limits())
-    resp = run_allocation(job)
-    jsonschema.validate(json.loads(json.dumps(resp)), schema("allocate_tolerances.response"))
-    assert resp["status"] == "done" and resp["budget"]["limit"]["position"] == pytest.approx(0.0014)
-    assert resp["supremum_m"]["paper"] <= 0.0014
-    job = parse_allocate_request('{"id": "b", "limit": 0.0014, "criterion": "worst-case"}', models, "gao2023_7dof",
-                                 Limits())
-    with pytest.raises(InfeasibleError) as exc:
-        run_allocation(job)
-    assert error_response("b", exc.value)["error"]["code"] == "infeasible"
-
-
-def test_bound_at_a_joint_state_uses_the_current_budget(gao):
-    from tolerance_ros.core.budget import load_budget
-    from tolerance_ros.core.errors import paper_bound
-    svc = ErrorModelService({"gao2023_7dof": gao}, "gao2023_7dof")
-    names = list(reversed(gao.joint_names))
-    assert svc.bound_at(names, list(reversed(Q))) is None            # no budget yet
-    svc.current_budget = load_budget("gao2023_delta2", gao)
-    b = svc.bound_at(names, list(reversed(Q)), stamp=12.5)
-    J = gao.error_jacobian(np.array([Q])).position
-    assert (b["robot"], b["criterion"], b["stamp"]) == ("gao2023_7dof", "paper", 12.5)
-    assert b["position_bound_m"] == pytest.approx(paper_bound(J, svc.current_budget.vector_for(gao))[0])
-    assert svc.bound_at(["joint1"], [0.0]) is None                   # joints missing
+            budget_from_message(json.dumps(bad) if bad != "x" else "x", {"gao2023_7dof": gao})
+        assert exc.value.code == code
+    only_a1 = json.dumps({"robot": "gao2023_7dof", "budget": {"tolerances": {"a1": 1e-4}}})
+    with pytest.raises(ContractError, match="no tolerance for"):
+        budget_from_message(only_a1, {"gao2023_7dof": gao})
+    with pytest.raises(ContractError) as exc:
+        budget_from_message('{"robot": "ur5", "budget": {}}', {"gao2023_7dof": gao})
+    assert exc.value.code == "unknown_robot"
+    with pytest.raises(ContractError) as exc:
+        budget_from_message('{"a":' * 1000 + '0' + '}' * 1000, {"gao2023_7dof": gao})
+    assert exc.value.code == "invalid_json"

@@ -1,7 +1,13 @@
 """JSON encoding shared by the command line and the nodes: numpy values become plain JSON, and
-non-finite floats become ``null`` (standard JSON has no NaN or Infinity)."""
+non-finite floats become ``null`` (standard JSON has no NaN or Infinity).
+
+Compact arrays (opt-in for large answers): ``encode_arrays`` replaces every numpy array by
+``{"dtype": "<f8", "shape": [...], "data": "<base64 of the little-endian bytes, C order>"}`` and
+``decode_arrays`` turns such objects back into numpy arrays.
+"""
 from __future__ import annotations
 
+import base64
 import json
 import math
 
@@ -65,3 +71,29 @@ def loads_strict(text):
     if orjson is not None:
         return orjson.loads(text)
     return json.loads(text, parse_constant=_reject_constant)
+
+
+_ARRAY_KEYS = {"dtype", "shape", "data"}
+
+
+def encode_arrays(obj):
+    """``obj`` with every numpy array replaced by its compact base64 object (float64 or int64)."""
+    if isinstance(obj, dict):
+        return {k: encode_arrays(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [encode_arrays(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        arr = np.ascontiguousarray(obj, dtype="<i8" if obj.dtype.kind in "iub" else "<f8")
+        return {"dtype": arr.dtype.str, "shape": list(arr.shape), "data": base64.b64encode(arr.tobytes()).decode()}
+    return obj
+
+
+def decode_arrays(obj):
+    """``obj`` with every compact array object turned back into a numpy array (see ``encode_arrays``)."""
+    if isinstance(obj, dict):
+        if obj.keys() == _ARRAY_KEYS and obj["dtype"] in ("<f8", "<i8"):
+            return np.frombuffer(base64.b64decode(obj["data"]), dtype=obj["dtype"]).reshape(obj["shape"])
+        return {k: decode_arrays(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [decode_arrays(v) for v in obj]
+    return obj

@@ -1,24 +1,35 @@
-"""The JSON envelope shared by the services: request parsing, error codes, size caps, budget messages.
+"""The JSON envelope shared by the services: safe parsing, error codes, size caps, budget messages.
 
-Every request is a JSON object with an ``id`` (string or integer) that the response echoes; every
-response has ``ok``. Failures carry ``error: {code, message}`` with a stable ``code``:
+Every request is a JSON object with an ``id`` (a string of at most 256 characters, or a 64-bit integer)
+that the response echoes; every response has ``ok``. Failures carry ``error: {code, message}`` with a
+stable ``code`` (``CODES``):
 
-- ``invalid_json``     the text is not JSON (NaN and Infinity are not JSON either);
-- ``invalid_request``  a field is missing, unknown, of the wrong type or length, or not finite;
-- ``unknown_robot``    the robot is not one of the configured models;
+- ``invalid_json``     the text is not JSON (NaN and Infinity are not JSON either), not UTF-8, or nested
+                       deeper than ``MAX_DEPTH``;
+- ``invalid_request``  a field is missing, unknown, of the wrong type or length, not finite or out of range;
+- ``unknown_robot``    the robot is not one of the node's models (or robot_description has not arrived);
 - ``out_of_limits``    a joint is outside its limits (set ``allow_out_of_limits`` to accept);
-- ``too_large``        the request exceeds the configured size cap (bytes or poses);
+- ``too_large``        the request exceeds a size cap (bytes, poses, or the work of a criterion);
 - ``infeasible``       an allocation problem that has no solution (the message says which constraint);
 - ``busy``             the allocator queue is full;
+- ``cancelled``        the allocation was cancelled on request;
+- ``timeout``          the allocation reached its wall-clock limit (the best verified result comes with it);
 - ``internal``         anything else (a bug; the message says what happened).
 The message names the offending field, e.g. ``joints[3]: expected 7 values (joint1..joint7), got 6``.
 Units are SI (m, rad) in both directions.
+
+Nothing here trusts the text: its size is checked before it is decoded, its nesting depth before it
+is parsed (no recursive parser sees a deep document), and the id of a request that cannot be parsed
+is recovered from its first 64 KB without parsing it.
 """
 from __future__ import annotations
 
 import json
+import math
 import re
 from dataclasses import dataclass
+
+import numpy as np
 
 from ..core.budget import BudgetError, budget_from_dict
 from ..core.ingest import IngestError
@@ -28,7 +39,11 @@ from ..core.synthesis.problem import InfeasibleError, SynthesisError
 from ..core.units import UnitError
 
 CODES = ("invalid_json", "invalid_request", "unknown_robot", "out_of_limits", "too_large", "infeasible", "busy",
-         "internal")
+         "cancelled", "timeout", "internal")
+MAX_DEPTH = 16          # nesting of arrays and objects in a request
+MAX_ID_CHARS = 256
+MAX_MESSAGE_CHARS = 500
+_INT64 = 2 ** 63
 
 
 class ContractError(Exception):
@@ -42,10 +57,12 @@ class ContractError(Exception):
 
 @dataclass
 class Limits:
-    """Size caps of a service (configurable per node)."""
+    """Size caps of a service (configurable per node): request bytes, configurations per request, and
+    configurations per request with the 'worst-case' criterion (O(p^3) per pose)."""
 
     max_bytes: int = 1_000_000
     max_poses: int = 10_000
+    max_worst_case_poses: int = 1_000
 
 
 def error_code(exc) -> str:
@@ -62,12 +79,81 @@ def error_code(exc) -> str:
 
 
 def error_response(request_id, exc) -> dict:
-    """Response dict for an exception, with the code of ``error_code``."""
+    """Response dict for an exception, with the code of ``error_code`` and a bounded message."""
     code = error_code(exc)
     message = exc.message if isinstance(exc, ContractError) else str(exc)
     if code == "internal":
         message = f"{type(exc).__name__}: {exc}"
-    return {"id": request_id, "ok": False, "error": {"code": code, "message": message}}
+    if len(message) > MAX_MESSAGE_CHARS:
+        message = message[:MAX_MESSAGE_CHARS] + "..."
+    return {"id": request_id if valid_id(request_id) else None, "ok": False, "error": {"code": code, "message": message}}
+
+
+def valid_id(rid) -> bool:
+    """True for a request id the response can echo: a short UTF-8 string or a 64-bit integer."""
+    if isinstance(rid, bool):
+        return False
+    if isinstance(rid, int):
+        return -_INT64 <= rid < _INT64
+    if isinstance(rid, str) and len(rid) <= MAX_ID_CHARS:
+        try:
+            rid.encode("utf-8")
+        except UnicodeEncodeError:
+            return False
+        return True
+    return False
+
+
+def _text(text) -> str:
+    """The request as str: bytes must be UTF-8, and a str must be encodable as UTF-8 (no lone surrogates)."""
+    if isinstance(text, (bytes, bytearray, memoryview)):
+        try:
+            return bytes(text).decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ContractError("invalid_json", f"not UTF-8 text: byte {exc.start} is invalid") from None
+    if not isinstance(text, str):
+        raise ContractError("invalid_json", f"expected text, got {type(text).__name__}")
+    return text
+
+
+def _utf8_size(text: str) -> int:
+    try:
+        return len(text.encode("utf-8"))
+    except UnicodeEncodeError as exc:
+        raise ContractError("invalid_json", f"not UTF-8 text: character {exc.start} is a lone surrogate") from None
+
+
+_STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.S)
+_NOT_BRACKET = re.compile(r"[^\[\]{}]+")
+
+
+def nesting_depth(text: str) -> int:
+    """Deepest nesting of arrays and objects in JSON text (brackets inside strings do not count), found
+    without parsing, in C-speed passes (regular expressions, then a cumulative sum)."""
+    opening = text.count("[") + text.count("{")
+    if opening <= MAX_DEPTH:
+        return opening
+    brackets = _NOT_BRACKET.sub("", "".join(_STRING.split(text)))
+    if not brackets:
+        return 0
+    codes = np.frombuffer(brackets.encode("ascii"), dtype=np.uint8)
+    return int(np.cumsum(np.where((codes == 91) | (codes == 123), 1, -1)).max())
+
+
+def loads(text, limits: "Limits") -> object:
+    """Parse a request text safely: size, UTF-8, nesting depth, then strict JSON (ContractError on any)."""
+    size = len(text)
+    if size > limits.max_bytes or (isinstance(text, str) and size * 4 > limits.max_bytes
+                                   and _utf8_size(text) > limits.max_bytes):
+        raise ContractError("too_large", f"request of more than {limits.max_bytes} bytes exceeds the cap")
+    text = _text(text)
+    _utf8_size(text)
+    if nesting_depth(text) > MAX_DEPTH:
+        raise ContractError("invalid_json", f"nested deeper than {MAX_DEPTH} levels")
+    try:
+        return loads_strict(text)
+    except (ValueError, TypeError, RecursionError) as exc:
+        raise ContractError("invalid_json", f"not valid JSON: {str(exc)[:200]}") from None
 
 
 def parse_request(text, fields: dict, limits: Limits) -> dict:
@@ -75,21 +161,19 @@ def parse_request(text, fields: dict, limits: Limits) -> dict:
 
     fields : name -> (types tuple, required bool).
     """
-    size = len(text.encode() if isinstance(text, str) else text)
-    if size > limits.max_bytes:
-        raise ContractError("too_large", f"request of {size} bytes exceeds the cap of {limits.max_bytes} bytes")
-    try:
-        req = loads_strict(text)
-    except (ValueError, TypeError) as exc:
-        raise ContractError("invalid_json", f"not valid JSON: {exc}") from None
+    req = loads(text, limits)
     if not isinstance(req, dict):
-        raise ContractError("invalid_request", f"expected a JSON object, got {type(req).__name__}")
+        raise ContractError("invalid_request", f"expected a JSON object, got {_kind(req)}")
     rid = req.get("id")
     if rid is None or isinstance(rid, bool) or not isinstance(rid, (str, int)):
         raise ContractError("invalid_request", "id: required, a string or an integer")
+    if not valid_id(rid):
+        raise ContractError("invalid_request", f"id: a string of at most {MAX_ID_CHARS} characters (UTF-8) or a "
+                                               f"64-bit integer")
     unknown = sorted(set(req) - set(fields) - {"id"})
     if unknown:
-        raise ContractError("invalid_request", f"unknown field(s) {unknown}; allowed: {sorted(fields)}")
+        raise ContractError("invalid_request", f"unknown field(s) {[u[:40] for u in unknown[:10]]}; "
+                                               f"allowed: {sorted(fields)}")
     for name, (types, required) in fields.items():
         if name not in req:
             if required:
@@ -99,7 +183,9 @@ def parse_request(text, fields: dict, limits: Limits) -> dict:
         if isinstance(v, bool) and bool not in types:
             raise ContractError("invalid_request", f"{name}: expected {_names(types)}, got a boolean")
         if not isinstance(v, types):
-            raise ContractError("invalid_request", f"{name}: expected {_names(types)}, got {type(v).__name__}")
+            raise ContractError("invalid_request", f"{name}: expected {_names(types)}, got {_kind(v)}")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ContractError("invalid_request", f"{name}: not a finite number")
     return req
 
 
@@ -109,46 +195,60 @@ def _names(types):
     return " or ".join(m.get(t, t.__name__) for t in types)
 
 
-_ID = re.compile(r'"id"\s*:\s*(?:"((?:[^"\\]|\\.)*)"|(-?\d+)\b)')
+def _kind(v) -> str:
+    """A short description of a JSON value for messages (never its whole repr)."""
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean", int: "an integer",
+            float: "a number", type(None): "null"}.get(type(v), type(v).__name__)
+
+
+def number(value, field: str, lo: float | None = None, hi: float | None = None, integer: bool = False):
+    """A JSON number within [lo, hi] (ContractError 'invalid_request' naming the field otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (integer and not isinstance(value, int)):
+        raise ContractError("invalid_request", f"{field}: expected {'an integer' if integer else 'a number'}, "
+                                               f"got {_kind(value)}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ContractError("invalid_request", f"{field}: not a finite number")
+    if (lo is not None and value < lo) or (hi is not None and value > hi):
+        raise ContractError("invalid_request", f"{field}: {value:.6g} is outside [{lo:g}, {hi:g}]")
+    return value
+
+
+_ID = re.compile(r'"id"\s*:\s*(?:"((?:[^"\\]|\\.){0,256})"|(-?\d{1,19})(?![\d.eE]))')
 
 
 def request_id_of(text):
-    """Best-effort id of a request that failed to parse (for the error response), else None."""
+    """Best-effort id of a request that could not be parsed, from its first 64 KB (never parsed), else None."""
     try:
-        req = loads_strict(text)
-        rid = req.get("id") if isinstance(req, dict) else None
-        return rid if isinstance(rid, (str, int)) and not isinstance(rid, bool) else None
-    except Exception:
-        m = _ID.search(text if isinstance(text, str) else text.decode(errors="replace"))
+        head = text[:65536]
+        if not isinstance(head, str):
+            head = bytes(head).decode("utf-8", errors="replace")
+        m = _ID.search(head)
         if not m:
             return None
-        return m.group(1) if m.group(1) is not None else int(m.group(2))
-
-
-def select_robot(req, models: dict, default: str):
-    name = req.get("robot", default)
-    if name not in models:
-        raise ContractError("unknown_robot", f"robot: {name!r} is not configured; available: {sorted(models)}")
-    return name, models[name]
+        rid = json.loads(f'"{m.group(1)}"') if m.group(1) is not None else int(m.group(2))
+    except (ValueError, TypeError):
+        return None
+    return rid if valid_id(rid) else None
 
 
 def budget_from_message(text, models: dict):
-    """(robot name, Budget) from a ``tolerance_budget`` message (JSON ``{"robot", "budget", ...}``, SI).
+    """(robot name, Budget) from a ``tolerance_budget`` message (JSON ``{"robot", "budget", ...}``, SI),
+    checked against its robot's parameters.
 
     ``models`` maps robot names to models; a budget for another robot raises ContractError
-    'unknown_robot', a malformed one 'invalid_json' or 'invalid_request'.
+    'unknown_robot', a malformed or incomplete one 'invalid_json' or 'invalid_request'.
     """
-    try:
-        doc = json.loads(text)
-    except ValueError as exc:
-        raise ContractError("invalid_json", f"budget message is not JSON: {exc}") from None
+    doc = loads(text, Limits())
     if not isinstance(doc, dict) or not isinstance(doc.get("budget"), dict):
         raise ContractError("invalid_request", "budget message: expected an object with 'robot' and 'budget'")
     robot = doc.get("robot")
     if not isinstance(robot, str) or robot not in models:
-        raise ContractError("unknown_robot", f"budget message for robot {robot!r}, not one of {sorted(models)}")
+        shown = robot[:80] if isinstance(robot, str) else _kind(robot)
+        raise ContractError("unknown_robot", f"budget message for robot {shown!r}, not one of {sorted(models)}")
     model = models[robot]
     try:
-        return robot, budget_from_dict(doc["budget"], dict(zip(model.param_names, model.param_kinds)), "budget.")
+        budget = budget_from_dict(doc["budget"], dict(zip(model.param_names, model.param_kinds)), "budget.")
+        budget.vector_for(model)
     except BudgetError as exc:
-        raise ContractError("invalid_request", str(exc)) from None
+        raise ContractError("invalid_request", str(exc)[:MAX_MESSAGE_CHARS]) from None
+    return robot, budget

@@ -2,20 +2,30 @@
 
 Request fields (SI): ``joints`` (one configuration or a list), ``robot``, ``outputs`` ('position' |
 'pose'), ``tolerances`` (parameter -> +-tolerance, or 'current' for the latest budget), ``criteria``,
-``allow_out_of_limits``, ``include_jacobian``; see ``schemas/compute_error_jacobian.*.json``.
+``allow_out_of_limits``, ``include_jacobian``, ``arrays`` ('json' | 'base64'); see
+``schemas/compute_error_jacobian.*.json``. The work of an accepted request is bounded: at most
+``Limits.max_poses`` configurations (``max_worst_case_poses`` with the 'worst-case' criterion),
+duplicate criteria counted once, tolerances within physical ranges.
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
 from ..core.budget import BudgetError, budget_from_dict
 from ..core.errors import CRITERIA, criterion_bound
 from ..core.ingest import IngestError, JointOrder, stamp_seconds
-from ..core.jsonio import dumps_fast
+from ..core.jsonio import dumps_fast, encode_arrays
 from ..core.models.base import ModelError
-from .contracts import ContractError, Limits, error_response, parse_request, request_id_of, select_robot
+from .contracts import ContractError, Limits, error_response, number, parse_request, request_id_of
+from .robots import RobotSet
+
+MAX_TOLERANCE = {"length": 1.0, "angle": np.pi}  # the largest tolerance that makes physical sense, m and rad
+ROWS = ("dx", "dy", "dz", "drx", "dry", "drz")
+JACOBIAN_FIELDS = {"robot": ((str,), False), "joints": ((list,), True), "outputs": ((str,), False),
+                   "tolerances": ((dict, str), False), "criteria": ((list,), False),
+                   "allow_out_of_limits": ((bool,), False), "include_jacobian": ((bool,), False),
+                   "arrays": ((str,), False)}
+ARRAYS = ("json", "base64")
 
 
 def parse_joints(value, model, limits: Limits, allow_out_of_limits: bool) -> np.ndarray:
@@ -31,10 +41,14 @@ def parse_joints(value, model, limits: Limits, allow_out_of_limits: bool) -> np.
             got = len(r) if isinstance(r, list) else type(r).__name__
             raise ContractError("invalid_request", f"joints[{i}]: expected {dof} values ({', '.join(model.joint_names)}), "
                                                    f"got {got}")
-        for j, v in enumerate(r):
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ContractError("invalid_request", f"joints[{i}][{j}]: expected a number, got {v!r}")
-    q = np.array(rows, dtype=float)
+    kinds = {type(v) for r in rows for v in r}
+    if not kinds <= {int, float}:
+        i, j = next((i, j) for i, r in enumerate(rows) for j, v in enumerate(r) if type(v) not in (int, float))
+        raise ContractError("invalid_request", f"joints[{i}][{j}]: expected a number, got {type(rows[i][j]).__name__}")
+    try:
+        q = np.array(rows, dtype=float)
+    except OverflowError:
+        raise ContractError("invalid_request", "joints: a value is too large for a float") from None
     bad = np.argwhere(~np.isfinite(q))
     if bad.size:
         i, j = bad[0]
@@ -56,43 +70,75 @@ def parse_tolerances(value, model, current_budget=None) -> tuple:
         if current_budget is None:
             raise ContractError("invalid_request", "tolerances: 'current' requested, but no budget has been received "
                                                    "on tolerance_budget yet")
+        if current_budget.robot not in (None, model.name):
+            raise ContractError("invalid_request", f"tolerances: the current budget is for robot "
+                                                   f"{current_budget.robot!r}, not {model.name!r}")
         budget = current_budget
     elif isinstance(value, dict):
-        special = ("tolerances", "free", "default")
-        data = {"tolerances": value.get("tolerances", {k: v for k, v in value.items() if k not in special}),
-                **{k: value[k] for k in ("free", "default") if k in value}}
-        bad = [k for k, v in data.get("tolerances", {}).items()
-               if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)]
-        if bad:
-            raise ContractError("invalid_request", f"tolerances.{bad[0]}: expected a finite number (m or rad)")
+        nested = "tolerances" in value
+        tol = value["tolerances"] if nested else {k: v for k, v in value.items() if k not in ("free", "default")}
+        if not isinstance(tol, dict):
+            raise ContractError("invalid_request", "tolerances.tolerances: expected an object of parameter -> "
+                                                   "tolerance (m or rad)")
+        if nested and set(value) - {"tolerances", "free", "default"}:
+            raise ContractError("invalid_request", "tolerances: with 'tolerances' inside, only 'free' and 'default' "
+                                                   "may stand beside it")
+        kinds = dict(zip(model.param_names, model.param_kinds))
+        for name, v in tol.items():
+            kind = kinds.get(name)
+            number(v, f"tolerances.{name[:60]}", 0.0, MAX_TOLERANCE[kind] if kind else None)
+        free = value.get("free", [])
+        if not isinstance(free, list) or not all(isinstance(n, str) for n in free):
+            raise ContractError("invalid_request", "tolerances.free: expected a list of parameter names")
+        data = {"tolerances": tol, "free": free}
+        if "default" in value:
+            data["default"] = number(value["default"], "tolerances.default")
         try:
-            budget = budget_from_dict(data, dict(zip(model.param_names, model.param_kinds)), "tolerances.")
+            budget = budget_from_dict(data, kinds, "tolerances.")
         except BudgetError as exc:
-            raise ContractError("invalid_request", str(exc)) from None
+            raise ContractError("invalid_request", str(exc)[:300]) from None
     else:
         raise ContractError("invalid_request", "tolerances: expected an object of parameter -> tolerance (SI) or 'current'")
     try:
         return budget.vector_for(model), budget.criterion
     except BudgetError as exc:
-        raise ContractError("invalid_request", str(exc)) from None
+        raise ContractError("invalid_request", str(exc)[:300]) from None
 
 
-JACOBIAN_FIELDS = {"robot": ((str,), False), "joints": ((list,), True), "outputs": ((str,), False),
-                   "tolerances": ((dict, str), False), "criteria": ((list,), False),
-                   "allow_out_of_limits": ((bool,), False), "include_jacobian": ((bool,), False)}
+def parse_criteria(value, n_poses: int, limits: Limits) -> list:
+    """The named criteria once each, in their order; 'worst-case' only for up to ``max_worst_case_poses``."""
+    if not all(isinstance(c, str) for c in value):
+        raise ContractError("invalid_request", f"criteria: expected names from {list(CRITERIA)}")
+    criteria = list(dict.fromkeys(value))
+    bad = [c[:40] for c in criteria if c not in CRITERIA][:5]
+    if bad:
+        raise ContractError("invalid_request", f"criteria: unknown {bad}; allowed: {list(CRITERIA)}")
+    if "worst-case" in criteria and n_poses > limits.max_worst_case_poses:
+        raise ContractError("too_large", f"criteria: 'worst-case' for {n_poses} configurations exceeds the cap of "
+                                         f"{limits.max_worst_case_poses} for that criterion")
+    return criteria
 
 
 class ErrorModelService:
-    """Logic of ``compute_error_jacobian``: text request in, response dict out; never raises."""
+    """Logic of ``compute_error_jacobian``: text request in, response dict out; never raises.
 
-    def __init__(self, models: dict, default_robot: str, limits: Limits | None = None):
-        if default_robot not in models:
-            raise ValueError(f"default robot {default_robot!r} is not among the models {sorted(models)}")
-        self.models = models
-        self.default_robot = default_robot
+    robots : a RobotSet (or a {name: model} dict with ``default_robot``).
+    """
+
+    def __init__(self, robots, default_robot: str | None = None, limits: Limits | None = None):
+        if not isinstance(robots, RobotSet):
+            if default_robot not in robots:
+                raise ValueError(f"default robot {default_robot!r} is not among the models {sorted(robots)}")
+            specs = list(robots.values())
+            robots = RobotSet(specs, robots[default_robot])
+        self.robots = robots
         self.limits = limits or Limits()
         self.current_budget = None
         self.joint_orders = {}
+
+    @property
+    def models(self) -> dict:
+        return self.robots.models
 
     def handle(self, text) -> dict:
         rid = None
@@ -104,6 +150,7 @@ class ErrorModelService:
             return error_response(rid if rid is not None else request_id_of(text), exc)
 
     def handle_text(self, text) -> str:
+        """The response to a request, as JSON text (arrays as base64 objects when the request asked)."""
         return dumps_fast(self.handle(text))
 
     def bound_at(self, names, positions, criterion=None, stamp=0.0):
@@ -114,7 +161,9 @@ class ErrorModelService:
         if budget is None or budget.robot not in self.models:
             return None
         model = self.models[budget.robot]
-        order = self.joint_orders.setdefault(budget.robot, JointOrder(model.joint_names))
+        order = self.joint_orders.get(budget.robot)
+        if order is None or order.joint_names != model.joint_names:
+            order = self.joint_orders[budget.robot] = JointOrder(model.joint_names)
         try:
             q = order(names, positions)[None]
             t = stamp_seconds(stamp)
@@ -132,32 +181,39 @@ class ErrorModelService:
         return self.bound_at(msg.name, msg.position, criterion, msg.header.stamp)
 
     def _serve(self, req) -> dict:
-        name, model = select_robot(req, self.models, self.default_robot)
+        name, model = self.robots.select(req.get("robot"))
         outputs = req.get("outputs", "pose")
         if outputs not in ("position", "pose"):
-            raise ContractError("invalid_request", f"outputs: expected 'position' or 'pose', got {outputs!r}")
+            raise ContractError("invalid_request", f"outputs: expected 'position' or 'pose', got {outputs[:40]!r}")
+        arrays = req.get("arrays", "json")
+        if arrays not in ARRAYS:
+            raise ContractError("invalid_request", f"arrays: expected one of {list(ARRAYS)}, got {arrays[:40]!r}")
         q = parse_joints(req["joints"], model, self.limits, req.get("allow_out_of_limits", False))
+        criteria = None
+        if "tolerances" in req:
+            delta, default_criterion = parse_tolerances(req["tolerances"], model, self.current_budget)
+            criteria = parse_criteria(req.get("criteria", ["paper", "rss", "per-axis"]), len(q), self.limits)
         try:
             T, EJ = model.fk_and_jacobian(q)
         except ModelError as exc:
-            raise ContractError("invalid_request", f"joints: {exc}") from None
+            raise ContractError("invalid_request", f"joints: {str(exc)[:300]}") from None
         rows = 3 if outputs == "position" else 6
         J = EJ.J[:, :rows]
+        sens = np.sqrt(np.einsum("nkp,nkp->np", J[:, :3], J[:, :3]))
+        if not (np.isfinite(T).all() and np.isfinite(J).all()):
+            raise ContractError("invalid_request", "joints: the configurations give non-finite poses (values too "
+                                                   "large for this robot)")
         resp = {"id": req["id"], "ok": True, "robot": name, "n": int(len(q)), "joint_names": list(model.joint_names),
-                "parameters": list(EJ.names), "units": list(EJ.units),
-                "rows": ["dx", "dy", "dz", "drx", "dry", "drz"][:rows], "poses": T,
-                "sensitivity": np.sqrt(np.einsum("nkp,nkp->np", J[:, :3], J[:, :3])),
-                "out_of_limits": np.flatnonzero(model.out_of_limits(q).any(axis=1)).tolist()}
+                "parameters": list(EJ.names), "units": list(EJ.units), "rows": list(ROWS[:rows]), "poses": T,
+                "sensitivity": sens, "out_of_limits": np.flatnonzero(model.out_of_limits(q).any(axis=1)).tolist()}
         if req.get("include_jacobian", True):
             resp["jacobian"] = np.ascontiguousarray(J)
-        if "tolerances" in req:
-            delta, default_criterion = parse_tolerances(req["tolerances"], model, self.current_budget)
-            criteria = req.get("criteria", ["paper", "rss", "per-axis"])
-            bad = [c for c in criteria if c not in CRITERIA]
-            if bad:
-                raise ContractError("invalid_request", f"criteria: unknown {bad}; allowed: {list(CRITERIA)}")
+        if criteria is not None:
             resp["bounds"] = {"position": {c: criterion_bound(EJ.position, delta, c) for c in criteria}}
             if outputs == "pose":
                 resp["bounds"]["orientation"] = {c: criterion_bound(EJ.orientation, delta, c) for c in criteria}
             resp["bounds"]["budget_criterion"] = default_criterion
+        if arrays == "base64":
+            resp = encode_arrays(resp)
+        resp["arrays"] = arrays
         return resp
