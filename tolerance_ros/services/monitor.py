@@ -18,6 +18,7 @@ import numpy as np
 
 from ..core.ingest import IngestError, JointOrder, StateBuffer, pose_from_values, stamp_seconds
 from ..core.jsonio import dumps
+from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
 
 OK, WARN, ERROR = 0, 1, 2
@@ -27,8 +28,13 @@ class MonitorLogic:
     """See the module docstring. ``budget`` is a Budget or None; ``campaign`` a Campaign or None."""
 
     def __init__(self, model, budget=None, campaign=None, slop=0.02, max_wait=1.0, T_tracker_base=None,
-                 tool_offset=None, log_path=None, pose_tolerance=1e-3, state_buffer=2000, clock=time.monotonic):
+                 tool_offset=None, log_path=None, pose_tolerance=1e-3, state_buffer=2000, clock=time.monotonic,
+                 name="tolerance_ros: accuracy monitor", recent=20):
         self.model = model
+        self.name = name
+        self.recent = deque(maxlen=recent)  # the latest paired results, for the markers
+        self.generation = 0                 # increases with each new budget
+        self._drawn_generation = None
         self.campaign = campaign
         self.slop, self.max_wait = float(slop), float(max_wait)
         self.T_tracker_base, self.tool_offset = T_tracker_base, tool_offset
@@ -56,6 +62,9 @@ class MonitorLogic:
         self.acc = AccuracyAccumulator.from_budget(self.model, budget, self.campaign, self.T_tracker_base,
                                                    self.tool_offset, self.pose_tolerance, identify=False)
         self.budget = budget
+        self.delta = budget.vector_for(self.model) if budget is not None else None
+        self.generation += 1
+        self.recent.clear()
         if self.log:
             self._write({"event": "budget", "robot": budget.robot if budget else None,
                          "source": budget.source if budget else None})
@@ -143,6 +152,7 @@ class MonitorLogic:
                "position_error": float(r["position_error"][0]), "orientation_error": float(r["orientation_error"][0]),
                "bound": float(r["bound"][0]), "margin": float(r["margin"][0]), "dp": r["dp"][0]}
         self.last = res
+        self.recent.append(res)
         self._write({"event": "paired", "seq": seq, "joint_stamp": joint_stamp, "joint_names": list(self.model.joint_names),
                      "joints": [float(v) for v in q], "pose": res["label"] or None, "verdict": res["verdict"],
                      "position_error": res["position_error"],
@@ -171,8 +181,20 @@ class MonitorLogic:
                   "last_position_error_m": self.last["position_error"] if self.last else None,
                   "last_bound_m": self.last["bound"] if self.last else None,
                   "budget": (self.budget.source or self.budget.robot) if self.budget else "none"}
-        return {"level": level, "name": "tolerance_ros: accuracy monitor", "message": msg,
+        return {"level": level, "name": self.name, "message": msg,
                 "hardware_id": self.model.name, "values": {k: _fmt(val) for k, val in values.items()}}
+
+    def markers(self, scale: float = 100.0, slots: int = 20) -> list:
+        """RViz markers (``services.markers`` dicts): DELETE_ALL after a budget change, the predicted bound
+        at the latest joint state (with a budget), and the recent measurements."""
+        out = []
+        if self._drawn_generation != self.generation:
+            out.append(markers.delete_all())
+            self._drawn_generation = self.generation
+        if self.delta is not None and len(self.states):
+            out += markers.bound_markers(self.model, self.states.q[len(self.states) - 1], self.delta, scale)
+        out += markers.measurement_markers(self.model, list(self.recent), scale, slots)
+        return out
 
     def report(self) -> dict:
         """JSON-ready report: counts, the accumulator summary (per test pose ISO 9283), the last result."""

@@ -1,0 +1,48 @@
+"""The robots a node serves: files at start, and the URDF that arrives (and changes) on robot_description."""
+import pytest
+
+from helpers import example_urdf
+from tolerance_ros.core.models import ModelError
+from tolerance_ros.services.contracts import ContractError
+from tolerance_ros.services.robots import RobotSet
+
+
+def test_shipped_robots_and_the_default():
+    robots = RobotSet(["gao2023_7dof", "rong2018_3pups"], "gao2023_7dof")
+    assert robots.select()[0] == "gao2023_7dof" and robots.select("rong2018_3pups")[1].dof == 9
+    assert not robots.waiting and not robots.from_description
+    with pytest.raises(ContractError) as exc:
+        robots.select("ur5")
+    assert exc.value.code == "unknown_robot" and "available: ['gao2023_7dof', 'rong2018_3pups']" in exc.value.message
+    with pytest.raises(ContractError):
+        robots.on_description(example_urdf("ur5_robot.urdf").read_text())
+
+
+def test_the_robot_on_robot_description_arrives_is_replaced_and_survives_a_bad_one():
+    robots = RobotSet(["robot_description", "gao2023_7dof"], "robot_description", tip_link="tool0")
+    assert robots.waiting and robots.single() is None and robots.default_name is None
+    with pytest.raises(ContractError) as exc:
+        robots.select()
+    assert exc.value.code == "unknown_robot" and "waiting for a URDF on robot_description" in exc.value.message
+    with pytest.raises(ContractError, match="still waiting for robot_description"):
+        robots.select("ur5")
+    said = robots.on_description(example_urdf("ur5_robot.urdf").read_text())
+    assert said.startswith("robot_description: loaded robot 'ur5': 6 joints") and "tip 'tool0'" in said
+    assert robots.select()[0] == "ur5" and robots.select("robot_description")[0] == "ur5" and robots.version == 1
+    for bad in ("<robot name='x'><link name='a'/>", "not xml at all"):
+        with pytest.raises(ModelError):
+            robots.on_description(bad)
+    assert robots.select()[0] == "ur5" and robots.version == 1                      # the previous robot stays
+    with pytest.raises(ContractError, match="empty"):
+        robots.on_description("   ")
+    robots.tip_link = "panda_hand"
+    said = robots.on_description(example_urdf("panda.urdf").read_text())
+    assert "replaced the robot 'panda'" in said and sorted(robots.models) == ["gao2023_7dof", "panda"]
+    assert robots.single().dof == 7 and robots.version == 2
+
+
+def test_a_branching_description_without_tip_link_names_the_leaves():
+    robots = RobotSet(["robot_description"], "robot_description")
+    with pytest.raises(ModelError, match=r"chains end in the links \['ee_link', 'tool0'\]"):
+        robots.on_description(example_urdf("ur5_robot.urdf").read_text())
+    assert robots.waiting

@@ -1,0 +1,79 @@
+"""The robots a node serves, by name: shipped names or robot files loaded at start, and the robot whose
+URDF arrives on the ``robot_description`` topic (as ``robot_state_publisher`` publishes it), which may
+come late and may be replaced.
+
+A node configured with ``robot_description`` (as its robot, or among its robots) serves that robot
+under the URDF's ``<robot name>`` once the text has arrived; the chain runs from ``base_link`` to
+``tip_link`` (default: the one leaf link the joints move; a branching URDF needs ``tip_link``). A new
+description replaces the model; a malformed one raises ModelError and the previous model stays.
+"""
+from __future__ import annotations
+
+from ..core.models import URDFChain, load_robot
+from .contracts import ContractError
+
+DESCRIPTION = "robot_description"
+
+
+class RobotSet:
+    """Models by robot name; ``specs`` are shipped names, robot files or ``robot_description``."""
+
+    def __init__(self, specs, default, tip_link=None, base_link=None):
+        self.models = {}
+        self.tip_link, self.base_link = tip_link or None, base_link or None
+        self.from_description = DESCRIPTION in list(specs) or default == DESCRIPTION
+        self.description_name = None
+        self.version = 0  # increases whenever a model is added or replaced
+        names = {}
+        for spec in dict.fromkeys([s for s in list(specs) + [default] if s != DESCRIPTION]):
+            model = load_robot(spec)
+            self.models[model.name] = model
+            names[spec] = model.name
+        self._default = DESCRIPTION if default == DESCRIPTION else names[default]
+
+    @property
+    def waiting(self) -> bool:
+        """True while robot_description is expected and has not arrived."""
+        return self.from_description and self.description_name is None
+
+    @property
+    def default_name(self):
+        """Name of the default robot (None while it waits for robot_description)."""
+        return self.description_name if self._default == DESCRIPTION else self._default
+
+    def on_description(self, text) -> str:
+        """Build (or replace) the robot of a ``robot_description`` message; returns what to log.
+
+        Raises ModelError for a malformed or unusable URDF; the previous model is then kept.
+        """
+        if not self.from_description:
+            raise ContractError("invalid_request", "this node does not take its robot from robot_description")
+        if not isinstance(text, str) or not text.strip():
+            raise ContractError("invalid_request", "robot_description: empty message")
+        model = URDFChain(text, tip_link=self.tip_link, base_link=self.base_link)
+        previous = self.description_name
+        if previous is not None and previous != model.name:
+            del self.models[previous]
+        self.models[model.name] = model
+        self.description_name = model.name
+        self.version += 1
+        tip = f"tip {model.tip_link!r}" + (" (the only moving leaf)" if model.tip_chosen else "")
+        return (f"robot_description: {'replaced the' if previous else 'loaded'} robot {model.name!r}: "
+                f"{model.dof} joints from {model.base_link!r}, {tip}")
+
+    def select(self, name=None):
+        """(name, model) of the named robot, or of the default; ContractError 'unknown_robot' otherwise."""
+        if name is None or name == DESCRIPTION:
+            name = self.description_name if name == DESCRIPTION else self.default_name
+            if name is None:
+                raise ContractError("unknown_robot", "no robot yet: waiting for a URDF on robot_description")
+        if name not in self.models:
+            wait = " (and still waiting for robot_description)" if self.waiting else ""
+            shown = name[:80] if isinstance(name, str) else type(name).__name__
+            raise ContractError("unknown_robot", f"robot: {shown!r} is not served here; available: "
+                                                 f"{sorted(self.models)}{wait}")
+        return name, self.models[name]
+
+    def single(self):
+        """The default model, or None while it waits for robot_description (nodes that serve one robot)."""
+        return self.models.get(self.default_name) if self.default_name is not None else None
