@@ -1,7 +1,9 @@
-"""Starts the accuracy suite: joint-state source, error-model server, tolerance allocator, accuracy
-monitor and (optionally) the simulated tracker, with config/accuracy_suite.yaml.
+"""Starts the accuracy suite of one robot: joint-state source, error-model server, tolerance allocator,
+accuracy monitor and (optionally) the simulated tracker, with config/accuracy_suite.yaml. Every topic
+is relative, so ``namespace:=arm_left`` puts the whole suite under /arm_left.
 
-    ros2 launch tolerance_ros accuracy_suite.launch.py [sim_tracker:=false] [params_file:=my.yaml]
+    ros2 launch tolerance_ros accuracy_suite.launch.py [namespace:=arm_left] [sim_tracker:=false]
+        [joint_source:=false] [params_file:=my.yaml]
 """
 import os
 
@@ -12,18 +14,23 @@ from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
+NODES = (("joint_state_source", "tolerance_joint_state_source", "joint_source"),
+         ("error_model_server", "tolerance_error_model", None),
+         ("tolerance_allocator", "tolerance_allocator", None),
+         ("accuracy_monitor", "tolerance_accuracy_monitor", None),
+         ("simulated_tracker", "tolerance_simulated_tracker", "sim_tracker"))
+
 
 def generate_launch_description():
     default_params = os.path.join(get_package_share_directory("tolerance_ros"), "config", "accuracy_suite.yaml")
-    params = LaunchConfiguration("params_file")
-    nodes = [Node(package="tolerance_ros", executable=exe, name=name, parameters=[params], output="screen")
-             for exe, name in (("joint_state_source", "tolerance_joint_state_source"),
-                               ("error_model_server", "tolerance_error_model"),
-                               ("tolerance_allocator", "tolerance_allocator"),
-                               ("accuracy_monitor", "tolerance_accuracy_monitor"))]
-    tracker = Node(package="tolerance_ros", executable="simulated_tracker", name="tolerance_simulated_tracker",
-                   parameters=[params], output="screen", condition=IfCondition(LaunchConfiguration("sim_tracker")))
+    params, namespace = LaunchConfiguration("params_file"), LaunchConfiguration("namespace")
+    nodes = [Node(package="tolerance_ros", executable=exe, name=name, namespace=namespace, parameters=[params],
+                  output="screen", condition=IfCondition(LaunchConfiguration(switch)) if switch else None)
+             for exe, name, switch in NODES]
     return LaunchDescription([
+        DeclareLaunchArgument("namespace", default_value="", description="namespace of the whole suite (one robot)"),
         DeclareLaunchArgument("params_file", default_value=default_params, description="node parameters (YAML)"),
         DeclareLaunchArgument("sim_tracker", default_value="true", description="start the simulated tracker"),
-        *nodes, tracker])
+        DeclareLaunchArgument("joint_source", default_value="true",
+                              description="start the joint-state source (false when the robot publishes joint_states)"),
+        *nodes])

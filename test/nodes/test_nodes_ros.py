@@ -1,79 +1,123 @@
-"""The nodes for real, in one process, over a ROS 2 Jazzy middleware (skipped without rclpy)."""
+"""The nodes for real, in one process, over a ROS 2 Jazzy middleware (skipped without rclpy).
+
+Each test has its own rclpy context, executor and namespace, and shuts all of them down, so the tests
+do not depend on each other or on their order.
+"""
 import json
 import os
+import subprocess
+import sys
 import threading
 import time
+import uuid
 
+import numpy as np
 import pytest
 
 rclpy = pytest.importorskip("rclpy", reason="ROS 2 Jazzy is not sourced (rclpy not importable)")
 
 from rclpy.executors import MultiThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
 
+from helpers import example_urdf  # noqa: E402
+from tolerance_ros.core.budget import load_budget  # noqa: E402
+from tolerance_ros.core.jsonio import dumps_fast  # noqa: E402
+from tolerance_ros.core.models import load_robot  # noqa: E402
 from tolerance_ros.nodes.client import ServiceError, ToleranceClient  # noqa: E402
+from tolerance_ros.nodes.common import LATCHED_QOS, MEASUREMENT_QOS  # noqa: E402
 
 Q = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
 
 
-@pytest.fixture
-def ros(tmp_path):
-    """rclpy on a private domain, an executor spinning in a thread, and a node factory."""
-    rclpy.init(domain_id=100 + os.getpid() % 100)
-    executor = MultiThreadedExecutor(num_threads=4)
-    nodes = []
+class Graph:
+    """A private rclpy context with an executor spinning in a thread; nodes are started in it."""
 
-    def start(cls, **params):
-        node = cls(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
-        executor.add_node(node)
-        nodes.append(node)
+    def __init__(self):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=100 + os.getpid() % 100)
+        self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
+        self.nodes = []
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def start(self, cls, namespace=None, **params):
+        node = cls(context=self.context, namespace=namespace,
+                   parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+        self.executor.add_node(node)
+        self.nodes.append(node)
         return node
 
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
-    yield start
-    executor.shutdown(timeout_sec=2.0)
-    for n in nodes:
-        if hasattr(n, "close"):
-            n.close()
-        n.destroy_node()
-    rclpy.shutdown()
-    thread.join(timeout=2.0)
+    def node(self, name, namespace=None):
+        node = rclpy.create_node(name, context=self.context, namespace=namespace)
+        self.executor.add_node(node)
+        self.nodes.append(node)
+        return node
+
+    def client(self, namespace=None):
+        return ToleranceClient(node=self.node(f"client_{uuid.uuid4().hex[:8]}"), namespace=namespace)
+
+    def close(self):
+        self.executor.shutdown(timeout_sec=5.0)
+        self.thread.join(timeout=5.0)
+        for n in self.nodes:
+            if hasattr(n, "close"):
+                n.close()
+            n.destroy_node()
+        rclpy.shutdown(context=self.context)
 
 
 @pytest.fixture
-def client(ros):
-    node = rclpy.create_node("test_client")
-    c = ToleranceClient(node=node)
-    ex = MultiThreadedExecutor()
-    ex.add_node(node)
-    t = threading.Thread(target=ex.spin, daemon=True)
-    t.start()
-    yield c
-    ex.shutdown(timeout_sec=2.0)
-    node.destroy_node()
+def graph():
+    g = Graph()
+    yield g
+    g.close()
 
 
-def test_error_model_round_trip_and_bad_requests(ros, client):
+@pytest.fixture
+def ns():
+    """A namespace of this test's own: nothing it starts can meet another test's nodes."""
+    return f"/t{uuid.uuid4().hex[:8]}"
+
+
+def wait_for(predicate, timeout=20.0, step=0.05):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(step)
+    return False
+
+
+def collect(graph, node, msg_type, topic, qos=10):
+    got = []
+    node.create_subscription(msg_type, topic, got.append, qos)
+    return got
+
+
+def test_error_model_round_trip_and_bad_requests(graph, ns):
     from tolerance_ros.nodes.error_model_server import ErrorModelServer
-    ros(ErrorModelServer, max_poses=100)
+    graph.start(ErrorModelServer, ns, max_poses=100)
+    client = graph.client(ns)
     assert client.wait_for_server("compute_error_jacobian", 20)
     r = client.compute_error_jacobian(Q)
     assert r["ok"] and r["n"] == 1 and len(r["parameters"]) == 28
     for bad, code in (('{"id": "m1", "joints": [1, 2', "invalid_json"),
                       ('{"id": "m2", "joints": [0, 0]}', "invalid_request"),
-                      ('{"id": "m3", "joints": ' + json.dumps([Q] * 101) + '}', "too_large")):
+                      ('{"id": "m3", "joints": ' + json.dumps([Q] * 101) + '}', "too_large"),
+                      ('{"id": "m4", "a":' * 200 + '0' + '}' * 200, "invalid_json")):
         with pytest.raises(ServiceError) as exc:
             _raw(client, "compute_error_jacobian", bad)
         assert exc.value.code == code
-    r = client.compute_error_jacobian([Q, Q], outputs="position")
-    assert r["ok"] and r["n"] == 2  # still serving
+    b64 = client.compute_error_jacobian([Q, Q], outputs="position", arrays="base64")
+    plain = client.compute_error_jacobian([Q, Q], outputs="position")
+    assert isinstance(b64["jacobian"], np.ndarray) and b64["jacobian"].shape == (2, 3, 28)
+    np.testing.assert_array_equal(b64["jacobian"], np.array(plain["jacobian"]))  # still serving, and lossless
 
 
 def _raw(client, service, text):
     """Publish raw text with a known id and wait for the response (ServiceError when not ok)."""
-    from std_msgs.msg import String
-    rid = json.loads(text[: text.index(",")] + "}")["id"]
+    rid = text.split('"id": ', 1)[1].split(",", 1)[0].strip('"')
     ev = threading.Event()
     with client._lock:
         client._events[rid] = ev
@@ -87,87 +131,176 @@ def _raw(client, service, text):
     return doc
 
 
-def test_allocator_answers_while_solving_and_latches_the_budget(ros, client, tmp_path):
-    from std_msgs.msg import String
-    from tolerance_ros.nodes.common import LATCHED_QOS
+def test_allocator_answers_while_solving_cancels_and_latches_the_budget(graph, ns, tmp_path):
     from tolerance_ros.nodes.tolerance_allocator import ToleranceAllocator
-    ros(ToleranceAllocator, budget_dir=str(tmp_path))
+    graph.start(ToleranceAllocator, ns, budget_dir=str(tmp_path))
+    client = graph.client(ns)
     assert client.wait_for_server("allocate_tolerances", 20)
-    result, progress = {}, []
-    worker = threading.Thread(target=lambda: result.update(
-        client.allocate_tolerances(0.0014, mc_poses=1000, progress=lambda d: progress.append(d["fraction"]))))
-    worker.start()
-    time.sleep(1.0)
-    status = client.request("allocate_tolerances", {"command": "status"}, 5)
-    assert status["ok"] and status["running"] is not None
+    # A long solve, cancelled while it runs: both ids are answered within a second.
+    started = client.request("allocate_tolerances", {"id": "long", "limit": 0.0014, "mc_poses": 50000}, 10,
+                             final=lambda d: d.get("status") == "accepted")
+    assert started["status"] == "accepted"
+    assert wait_for(lambda: client.request("allocate_tolerances", {"command": "status"}, 5)["running"] == "long")
+    answers = {}
+    waiter = threading.Thread(target=lambda: answers.update(long=_expect_error(client, "long")))
+    waiter.start()
+    t0 = time.monotonic()
+    cancel = client.request("allocate_tolerances", {"command": "cancel", "target": "long"}, 10)
+    waiter.join(10)
+    assert time.monotonic() - t0 < 1.5 and cancel["status"] == "cancelled" and cancel["target"] == "long"
+    assert answers["long"]["error"]["code"] == "cancelled" and answers["long"]["status"] == "cancelled"
+    # A normal solve: progress, a budget file, and the budget latched on tolerance_budget.
+    progress = []
     with pytest.raises(ServiceError) as exc:
         client.allocate_tolerances(-1.0, timeout=5)
     assert exc.value.code == "invalid_request"
-    worker.join(120)
-    assert result["status"] == "done" and result["supremum_m"]["paper"] <= 0.0014 and progress
+    result = client.allocate_tolerances(0.0014, mc_poses=1000, timeout=120, progress=lambda d: progress.append(d))
+    assert result["status"] == "done" and result["success"] and result["supremum_m"]["paper"] <= 0.0014 and progress
     assert os.path.exists(result["budget_file"])
-    # A subscriber that arrives after the fact still gets the budget (transient local).
-    late = rclpy.create_node("late_subscriber")
-    got = []
-    late.create_subscription(String, "tolerance_budget", lambda m: got.append(json.loads(m.data)), LATCHED_QOS)
-    deadline = time.monotonic() + 10
-    while not got and time.monotonic() < deadline:
-        rclpy.spin_once(late, timeout_sec=0.1)
-    late.destroy_node()
-    assert got and got[0]["budget"]["robot"] == "gao2023_7dof"
+    late = graph.node("late_subscriber", ns)
+    got = collect(graph, late, String, "tolerance_budget", LATCHED_QOS)
+    assert wait_for(lambda: got, 10)
+    assert json.loads(got[0].data)["budget"]["robot"] == "gao2023_7dof"
 
 
-def test_publisher_tracker_and_monitor_loop(ros, tmp_path):
+def _expect_error(client, rid):
+    ev = threading.Event()
+    with client._lock:
+        client._events[rid] = ev
+    ev.wait(30)
+    with client._lock:
+        docs = client._responses.pop(rid, [])
+    return next(d for d in docs if not d["ok"])
+
+
+def test_publisher_tracker_monitor_loop_and_markers(graph, ns, tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray
-    from std_msgs.msg import String
+    from visualization_msgs.msg import Marker, MarkerArray
     from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
     from tolerance_ros.nodes.joint_state_source import JointStateSource
     from tolerance_ros.nodes.simulated_tracker import SimulatedTrackerNode
     base = [1.5, 0.2, 0.0, 0.0, 0.0, 0.5]
-    ros(AccuracyMonitor, budget="gao2023_delta2", campaign="gao2023_iso_cube", tracker_to_base=base,
-        log_dir=str(tmp_path), report_period=0.5)
-    ros(SimulatedTrackerNode, tracker_to_base=base, measure_every=5)
-    ros(JointStateSource, mode="campaign", campaign="gao2023_iso_cube", dwell=0.2, loop=True)
-    listener = rclpy.create_node("listener")
-    reports, diags = [], []
-    listener.create_subscription(String, "/tolerance/accuracy_report", lambda m: reports.append(json.loads(m.data)), 10)
-    listener.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and not (reports and reports[-1]["counts"]["paired"] >= 20 and diags):
-        rclpy.spin_once(listener, timeout_sec=0.1)
-    listener.destroy_node()
-    rep = reports[-1]
+    graph.start(AccuracyMonitor, ns, budget="gao2023_delta2", campaign="gao2023_iso_cube", tracker_to_base=base,
+                log_dir=str(tmp_path), report_period=0.5, marker_period=0.2)
+    graph.start(SimulatedTrackerNode, ns, tracker_to_base=base, measure_every=5)
+    graph.start(JointStateSource, ns, mode="campaign", campaign="gao2023_iso_cube", dwell=0.2, loop=True)
+    listener = graph.node("listener", ns)
+    reports = collect(graph, listener, String, "tolerance/accuracy_report")
+    markers = collect(graph, listener, MarkerArray, "tolerance/markers")
+    diags = collect(graph, listener, DiagnosticArray, "/diagnostics")
+    assert wait_for(lambda: reports and json.loads(reports[-1].data)["counts"]["paired"] >= 20 and diags
+                    and len(markers) > 3, 30)
+    rep = json.loads(reports[-1].data)
     assert rep["counts"]["paired"] >= 20 and rep["counts"]["unpaired"] == 0
     assert rep["summary"]["verdicts"]["within"] == rep["counts"]["paired"]
-    st = diags[-1].status[0]
-    assert st.name == "tolerance_ros: accuracy monitor" and st.level == b"\x00"
-    assert any(kv.key == "paired" for kv in st.values)
+    st = [s for d in diags for s in d.status if s.name == f"{ns}/tolerance_ros: accuracy monitor"][-1]
+    assert st.level == b"\x00" and any(kv.key == "paired" for kv in st.values)
+    assert markers[0].markers[0].action == Marker.DELETEALL
+    last = {(m.ns, m.id): m for m in markers[-1].markers}
+    assert {("bound", 0), ("bound", 1), ("bound", 2)} <= set(last) and any(k[0] == "measurements" for k in last)
+    arrow = next(m for k, m in last.items() if k[0] == "measurements")
+    assert arrow.type == Marker.ARROW and len(arrow.points) == 2 and arrow.header.frame_id == "base_link"
+    assert (arrow.color.g, arrow.color.r) == pytest.approx((0.8, 0.1))  # within the bound: green
+    assert "x100" in last[("bound", 2)].text
     logs = list(tmp_path.glob("*.jsonl"))
-    assert logs and '"event": "measurement"' in logs[0].read_text()
+    assert logs and '"event":"measurement"' in logs[0].read_text().replace(" ", "")
 
 
-def test_predicted_bound_at_the_current_joint_state(ros):
+def test_predicted_bound_at_the_current_joint_state(graph, ns):
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import String
-    from tolerance_ros.core.budget import load_budget
-    from tolerance_ros.core.jsonio import dumps_fast
-    from tolerance_ros.core.models import load_robot
-    from tolerance_ros.nodes.common import LATCHED_QOS, REQUEST_QOS
     from tolerance_ros.nodes.error_model_server import ErrorModelServer
-    ros(ErrorModelServer)
+    graph.start(ErrorModelServer, ns)
     model = load_robot("gao2023_7dof")
     budget = load_budget("gao2023_delta2", model)
-    node = rclpy.create_node("bound_test")
-    got = []
-    node.create_subscription(String, "/tolerance/predicted_bound", lambda m: got.append(json.loads(m.data)), 10)
-    pub_budget = node.create_publisher(String, "tolerance_budget", LATCHED_QOS)
-    pub_js = node.create_publisher(JointState, "joint_states", REQUEST_QOS)
-    pub_budget.publish(String(data=dumps_fast({"robot": model.name, "budget": budget.to_dict()})))
-    deadline = time.monotonic() + 20
-    while not got and time.monotonic() < deadline:
+    node = graph.node("bound_test", ns)
+    got = collect(graph, node, String, "tolerance/predicted_bound")
+    node.create_publisher(String, "tolerance_budget", LATCHED_QOS).publish(
+        String(data=dumps_fast({"robot": model.name, "budget": budget.to_dict()})))
+    pub_js = node.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+
+    def send():
         msg = JointState(name=list(model.joint_names), position=Q)
         msg.header.stamp = node.get_clock().now().to_msg()
         pub_js.publish(msg)
-        rclpy.spin_once(node, timeout_sec=0.2)
-    node.destroy_node()
-    assert got and got[0]["criterion"] == "paper" and 0 < got[0]["position_bound_m"] < 1.4e-3
+        return bool(got)
+
+    assert wait_for(send, 20, 0.2)
+    b = json.loads(got[0].data)
+    assert b["criterion"] == "paper" and 0 < b["position_bound_m"] < 1.4e-3
+
+
+@pytest.mark.parametrize("urdf, tip", [("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand")])
+def test_the_robot_from_robot_description(graph, ns, urdf, tip):
+    """A URDF published as robot_state_publisher does (latched, before the node starts): the served
+    Jacobian equals the command line's for the same file; a malformed description keeps the robot."""
+    from tolerance_ros.nodes.error_model_server import ErrorModelServer
+    text = example_urdf(urdf).read_text()
+    name = load_robot(str(example_urdf(urdf)), tip_link=tip).name
+    graph.start(ErrorModelServer, ns, robots=["robot_description"], default_robot="robot_description", tip_link=tip)
+    client = graph.client(ns)
+    assert client.wait_for_server("compute_error_jacobian", 20)
+    with pytest.raises(ServiceError) as exc:
+        client.compute_error_jacobian([0.0] * 6)
+    assert exc.value.code == "unknown_robot" and "waiting for a URDF on robot_description" in str(exc.value)
+    publisher = graph.node("robot_state_publisher", ns).create_publisher(String, "robot_description", LATCHED_QOS)
+    publisher.publish(String(data=text))
+    model = load_robot(str(example_urdf(urdf)), tip_link=tip)
+    q = model.sample_joints(3, 1)
+
+    def served():
+        try:
+            return client.compute_error_jacobian(q.tolist(), timeout=2)
+        except ServiceError:
+            return None
+
+    assert wait_for(lambda: served() is not None, 20, 0.3)
+    r = served()
+    cli = subprocess.run([sys.executable, "-m", "tolerance_ros.cli", "jacobian", "--robot", str(example_urdf(urdf)),
+                          "--tip-link", tip, "--json", "--quiet"] + [a for row in q for a in ("--joints",
+                          ",".join(repr(float(v)) for v in row))], capture_output=True, text=True, timeout=120)
+    doc = json.loads(cli.stdout)
+    assert r["robot"] == name == doc["robot"]
+    np.testing.assert_allclose(np.array(r["jacobian"]), np.array(doc["jacobian"]), atol=1e-15)
+    np.testing.assert_allclose(np.array(r["poses"]), np.array(doc["poses"]), atol=1e-15)
+    publisher.publish(String(data="<robot name='broken'><link name='a'/>"))
+    time.sleep(1.0)
+    assert client.compute_error_jacobian(q.tolist())["robot"] == name     # the previous robot stays
+
+
+def test_two_namespaced_suites_do_not_cross(graph, ns):
+    """Two arms in one graph: each request is answered by its own server, each with its own budget."""
+    from tolerance_ros.nodes.error_model_server import ErrorModelServer
+    model = load_robot("gao2023_7dof")
+    left, right = f"{ns}/arm_left", f"{ns}/arm_right"
+    for arm in (left, right):
+        graph.start(ErrorModelServer, arm)
+    feeder = graph.node("budget_feeder", ns)
+    for arm, spec in ((left, "gao2023_delta1"), (right, "gao2023_delta2")):
+        budget = load_budget(spec, model)
+        feeder.create_publisher(String, f"{arm}/tolerance_budget", LATCHED_QOS).publish(
+            String(data=dumps_fast({"robot": model.name, "budget": budget.to_dict()})))
+    clients = {arm: graph.client(arm) for arm in (left, right)}
+    for c in clients.values():
+        assert c.wait_for_server("compute_error_jacobian", 20)
+    heard = {arm: collect(graph, feeder, String, f"{arm}/tolerance/compute_error_jacobian/response")
+             for arm in (left, right)}
+
+    def bound(arm):
+        try:
+            return clients[arm].compute_error_jacobian(Q, tolerances="current", criteria=["paper"],
+                                                       id=f"{arm}-q")["bounds"]["position"]["paper"][0]
+        except ServiceError:
+            return None
+
+    assert wait_for(lambda: bound(left) is not None and bound(right) is not None, 20, 0.3)
+    delta = {arm: load_budget(spec, model).vector_for(model) for arm, spec in ((left, "gao2023_delta1"),
+                                                                                 (right, "gao2023_delta2"))}
+    from tolerance_ros.core.errors import paper_bound
+    J = model.error_jacobian(np.array([Q])).position
+    for arm in (left, right):
+        assert bound(arm) == pytest.approx(paper_bound(J, delta[arm])[0])
+    assert bound(left) != pytest.approx(bound(right))
+    time.sleep(0.5)
+    ids = {arm: {json.loads(m.data)["id"] for m in heard[arm]} for arm in heard}
+    assert ids[left] and ids[right] and all(i.startswith(left + "-") for i in ids[left])
+    assert all(i.startswith(right + "-") for i in ids[right])

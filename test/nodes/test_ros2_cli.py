@@ -3,6 +3,7 @@
 import os
 import shutil
 import signal
+import site
 import subprocess
 import time
 from pathlib import Path
@@ -28,6 +29,10 @@ def workspace(tmp_path_factory):
                     ignore=shutil.ignore_patterns(".git", ".venv", "build", "install", "log", "__pycache__",
                                                   ".pytest_cache", ".hypothesis", "*.egg-info"))
     env = dict(os.environ, ROS_DOMAIN_ID=str(150 + os.getpid() % 50), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    # The nodes run on the system python3 that colcon builds for; they find the Python dependencies where
+    # this test run has them (the environment pip installed them into, as rosdep would for a ROS user).
+    env["PYTHONPATH"] = os.pathsep.join([p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
+                                        + site.getsitepackages())
     sh(f"cd {ws} && colcon build --packages-select tolerance_ros", env, timeout=300)
     env["WS"] = str(ws)
     return env
@@ -71,7 +76,7 @@ def test_launch_pub_echo_and_params(workspace, tmp_path):
         time.sleep(3)
         diag = sh("source $WS/install/setup.bash && timeout 10 ros2 topic echo --once /diagnostics "
                   "diagnostic_msgs/msg/DiagnosticArray", workspace).stdout
-        assert "tolerance_ros: accuracy monitor" in diag and "key: paired" in diag
+        assert "/tolerance_ros: accuracy monitor" in diag and "key: paired" in diag
         desc = sh("source $WS/install/setup.bash && ros2 param describe /tolerance_accuracy_monitor slop",
                   workspace).stdout
         assert "joint state" in desc
@@ -84,3 +89,48 @@ def test_launch_pub_echo_and_params(workspace, tmp_path):
             out, _ = launch.communicate()
         sh("source $WS/install/setup.bash && ros2 daemon stop", workspace, check=False)
     assert "Traceback" not in out, out
+
+
+def test_two_arms_in_one_graph(workspace):
+    """The two-arm launch example: each namespace has its own suite and parameters, and answers alone."""
+    launch = subprocess.Popen(["bash", "-c", "source $WS/install/setup.bash && exec ros2 launch tolerance_ros "
+                               "two_arms.launch.py"], env=workspace, stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 40
+        nodes = ""
+        while time.monotonic() < deadline:
+            nodes = sh("source $WS/install/setup.bash && ros2 node list", workspace, check=False).stdout
+            if nodes.count("tolerance_") >= 10:
+                break
+            time.sleep(1)
+        for arm in ("arm_left", "arm_right"):
+            for name in ("tolerance_error_model", "tolerance_allocator", "tolerance_accuracy_monitor"):
+                assert f"/{arm}/{name}" in nodes, nodes
+        budgets = {arm: sh(f"source $WS/install/setup.bash && ros2 param get /{arm}/tolerance_accuracy_monitor budget",
+                           workspace).stdout.strip() for arm in ("arm_left", "arm_right")}
+        assert budgets == {"arm_left": "String value is: gao2023_delta1", "arm_right": "String value is: gao2023_delta2"}
+        for arm in ("arm_left", "arm_right"):
+            echo = subprocess.Popen(["bash", "-c", f"source $WS/install/setup.bash && exec ros2 topic echo --once "
+                                     f"/{arm}/tolerance/compute_error_jacobian/response std_msgs/msg/String"],
+                                    env=workspace, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                    start_new_session=True)
+            time.sleep(3)
+            req = (f'{{data: \'{{"id": "{arm}", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6], '
+                   f'"include_jacobian": false}}\'}}')
+            pub = subprocess.run(["bash", "-c", f'source $WS/install/setup.bash && exec ros2 topic pub --once -w 1 '
+                                  f'/{arm}/tolerance/compute_error_jacobian/request std_msgs/msg/String "$0"', req],
+                                 env=workspace, capture_output=True, text=True, timeout=60)
+            assert pub.returncode == 0, pub.stderr
+            out, _ = echo.communicate(timeout=30)
+            assert f'"id":"{arm}","ok":true' in out
+    finally:
+        os.killpg(launch.pid, signal.SIGINT)
+        try:
+            out, _ = launch.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            os.killpg(launch.pid, signal.SIGKILL)
+            out, _ = launch.communicate()
+        sh("source $WS/install/setup.bash && ros2 daemon stop", workspace, check=False)
+    assert "Traceback" not in out, out
+

@@ -1,7 +1,8 @@
 """Accuracy monitor (node ``tolerance_accuracy_monitor``): pairs ``measured_pose`` (PoseStamped) with
 ``joint_states``, compares with nominal FK and the current budget (``tolerance_budget`` or a budget
-file), publishes /diagnostics (DiagnosticArray) and a JSON report on ``/tolerance/accuracy_report``,
-and appends every measurement to a campaign log as it arrives."""
+file), publishes /diagnostics (DiagnosticArray, the namespace in the status name), a JSON report on
+``tolerance/accuracy_report`` and RViz markers on ``tolerance/markers`` (MarkerArray), and appends every
+measurement to a campaign log as it arrives. The robot may come from ``robot_description``."""
 from __future__ import annotations
 
 import time
@@ -9,78 +10,151 @@ from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import Point, PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
+from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.budget import load_budget
 from ..core.campaign import load_campaign
 from ..core.geometry import transform
 from ..core.jsonio import dumps_fast
-from ..core.models import load_robot
 from ..services.contracts import ContractError, budget_from_message
-from ..services.monitor import MonitorLogic
-from .common import BUDGET_QOS, MEASUREMENT_QOS, STATUS_QOS, SERVICE_NAMESPACE, declare, run
+from ..services.monitor import WARN, MonitorLogic
+from .common import (BUDGET_QOS, MEASUREMENT_QOS, PREFIX, STATUS_QOS, declare, follow_robot_description, guarded,
+                     robot_set, run, status_name)
+
+MARKER_TYPES = {"sphere": Marker.SPHERE, "arrow": Marker.ARROW, "text": Marker.TEXT_VIEW_FACING}
 
 
 class AccuracyMonitor(Node):
     def __init__(self, **node_options):
         super().__init__("tolerance_accuracy_monitor", **node_options)
-        robot = declare(self, "robot", "gao2023_7dof", "robot config: shipped name or YAML/URDF path")
-        budget = declare(self, "budget", "", "budget file or shipped name; empty waits for tolerance_budget")
-        campaign = declare(self, "campaign", "", "campaign config for per-test-pose ISO 9283 statistics")
-        slop = declare(self, "slop", 0.02, "largest |stamp difference| between a measurement and its joint state, s")
-        max_wait = declare(self, "max_wait", 1.0, "seconds a measurement waits for a later joint state")
+        robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
+        self.budget_spec = declare(self, "budget", "", "budget file or shipped name; empty waits for tolerance_budget")
+        self.campaign_spec = declare(self, "campaign", "", "campaign config for per-test-pose ISO 9283 statistics")
+        self.slop = declare(self, "slop", 0.02, "largest |stamp difference| between a measurement and its joint "
+                                                "state, s")
+        self.max_wait = declare(self, "max_wait", 1.0, "seconds a measurement waits for a later joint state")
         base = declare(self, "tracker_to_base", [0.0] * 6,
                        "registration: pose of the robot base in the tracker frame, [x y z roll pitch yaw] (m, rad)")
         tool = declare(self, "tool_offset", [0.0] * 3, "tool point offset in the tool frame, m")
-        log_dir = declare(self, "log_dir", str(Path.home() / ".ros" / "tolerance_ros" / "campaigns"),
-                          "directory of the campaign log (one JSON Lines file per run)")
+        self.log_dir = Path(declare(self, "log_dir", str(Path.home() / ".ros" / "tolerance_ros" / "campaigns"),
+                                    "directory of the campaign log (one JSON Lines file per run)")).expanduser()
         period = declare(self, "report_period", 1.0, "seconds between diagnostics and reports")
-        tol = declare(self, "pose_tolerance", 1e-3, "joint distance (rad or m) to label a test pose")
-        self.model = load_robot(robot)
-        camp = load_campaign(campaign, self.model) if campaign else None
-        bud = load_budget(budget, self.model) if budget else None
-        log_path = Path(log_dir).expanduser() / f"{self.model.name}_{time.strftime('%Y%m%d_%H%M%S')}.jsonl"
-        self.logic = MonitorLogic(self.model, bud, camp, slop, max_wait, transform(base[:3], base[3:]),
-                                  np.asarray(tool, float) if np.any(tool) else None, log_path, tol)
+        self.pose_tolerance = declare(self, "pose_tolerance", 1e-3, "joint distance (rad or m) to label a test pose")
+        marker_period = declare(self, "marker_period", 0.2, "seconds between RViz marker updates")
+        self.marker_scale = declare(self, "marker_scale", 100.0, "RViz: error lengths drawn this many times enlarged")
+        self.marker_frame = declare(self, "marker_frame", "", "RViz: frame of the markers (empty: the URDF's base "
+                                                              "link, or base_link)")
+        self.T_tracker_base = transform(base[:3], base[3:])
+        self.tool_offset = np.asarray(tool, float) if np.any(tool) else None
+        self.robots = robot_set(self, [robot], robot)
+        self.logic = None
+        self.budget_text = None   # the latest tolerance_budget message, applied once the robot is known
+        self.waiting = {"measurements": 0, "joint_states": 0}  # what arrived before the robot did
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.report_pub = self.create_publisher(String, f"{SERVICE_NAMESPACE}/accuracy_report", STATUS_QOS)
-        self.create_subscription(PoseStamped, "measured_pose", self.on_pose, MEASUREMENT_QOS)
-        self.create_subscription(JointState, "joint_states", self.on_joint_state, MEASUREMENT_QOS)
-        self.create_subscription(String, "tolerance_budget", self.on_budget, BUDGET_QOS)
-        self.create_timer(period, self.publish_status)
-        self.get_logger().info(f"monitoring {self.model.name}; campaign log {log_path}")
+        self.report_pub = self.create_publisher(String, f"{PREFIX}/accuracy_report", STATUS_QOS)
+        self.marker_pub = self.create_publisher(MarkerArray, f"{PREFIX}/markers", STATUS_QOS)
+        self.create_subscription(PoseStamped, "measured_pose", guarded(self, self.on_pose), MEASUREMENT_QOS)
+        self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_state), MEASUREMENT_QOS)
+        self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
+        self.create_timer(period, guarded(self, self.publish_status))
+        self.create_timer(marker_period, guarded(self, self.publish_markers))
+        follow_robot_description(self, self.robots, self.start)
+        self.start()
+
+    def start(self):
+        """(Re)build the monitor for the current robot: budget, campaign and a new campaign log."""
+        model = self.robots.single()
+        if model is None:
+            return
+        if self.logic is not None:
+            self.logic.close()
+        camp = load_campaign(self.campaign_spec, model) if self.campaign_spec else None
+        budget = load_budget(self.budget_spec, model) if self.budget_spec else None
+        log_path = self.log_dir / f"{model.name}_{time.strftime('%Y%m%d_%H%M%S')}.jsonl"
+        self.logic = MonitorLogic(model, budget, camp, self.slop, self.max_wait, self.T_tracker_base,
+                                  self.tool_offset, log_path, self.pose_tolerance,
+                                  name=status_name(self, "accuracy monitor"))
+        if self.budget_text is not None:
+            self.on_budget(String(data=self.budget_text))
+        self.frame = self.marker_frame or getattr(model, "base_link", None) or "base_link"
+        self.get_logger().info(f"monitoring {model.name}; campaign log {log_path}")
 
     def on_pose(self, msg):
+        if self.logic is None:
+            self.waiting["measurements"] += 1
+            return
         self.logic.on_pose_msg(msg)
 
     def on_joint_state(self, msg):
+        if self.logic is None:
+            self.waiting["joint_states"] += 1
+            return
         self.logic.on_joint_state_msg(msg)
 
     def on_budget(self, msg):
+        self.budget_text = msg.data
+        if self.logic is None:
+            return
+        model = self.logic.model
         try:
-            _, budget = budget_from_message(msg.data, {self.model.name: self.model})
+            _, budget = budget_from_message(msg.data, {model.name: model})
         except ContractError as exc:
             self.get_logger().error(f"budget message ignored: {exc.message}")
             return
         self.logic.set_budget(budget)
         self.get_logger().info(f"new budget: {budget.source or 'tolerance_budget'}")
 
+    def diagnostic(self) -> dict:
+        if self.logic is not None:
+            self.logic.resolve()
+            return self.logic.diagnostic()
+        return {"level": WARN, "name": status_name(self, "accuracy monitor"), "hardware_id": "",
+                "message": f"waiting for robot_description ({self.waiting['measurements']} measurements and "
+                           f"{self.waiting['joint_states']} joint states could not be used yet)",
+                "values": {k: str(v) for k, v in self.waiting.items()}}
+
     def publish_status(self):
-        self.logic.resolve()
-        d = self.logic.diagnostic()
+        d = self.diagnostic()
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [DiagnosticStatus(level=bytes([d["level"]]), name=d["name"], message=d["message"],
                                        hardware_id=d["hardware_id"],
                                        values=[KeyValue(key=k, value=v) for k, v in d["values"].items()])]
         self.diag_pub.publish(arr)
-        self.report_pub.publish(String(data=dumps_fast(self.logic.report())))
+        if self.logic is not None:
+            self.report_pub.publish(String(data=dumps_fast(self.logic.report())))
+
+    def publish_markers(self):
+        if self.logic is None:
+            return
+        stamp = self.get_clock().now().to_msg()
+        out = MarkerArray()
+        for m in self.logic.markers(self.marker_scale):
+            marker = Marker()
+            marker.header.frame_id, marker.header.stamp = self.frame, stamp
+            marker.ns, marker.id = m["ns"], m["id"]
+            if m["type"] == "delete_all":
+                marker.action = Marker.DELETEALL
+            else:
+                marker.type, marker.action = MARKER_TYPES[m["type"]], Marker.ADD
+                p, o = marker.pose.position, marker.pose.orientation
+                p.x, p.y, p.z = m["position"]
+                o.x, o.y, o.z, o.w = m["orientation"]
+                marker.scale.x, marker.scale.y, marker.scale.z = m["scale"]
+                marker.color.r, marker.color.g, marker.color.b, marker.color.a = m["color"]
+                for point in m.get("points", []):
+                    marker.points.append(Point(x=point[0], y=point[1], z=point[2]))
+                marker.text = m.get("text", "")
+            out.markers.append(marker)
+        self.marker_pub.publish(out)
 
     def close(self):
-        self.logic.close()
+        if self.logic is not None:
+            self.logic.close()
 
 
 def main(args=None):

@@ -2,10 +2,12 @@
 id, time out. Hides rclpy like nav2's BasicNavigator does::
 
     from tolerance_ros.nodes.client import ToleranceClient
-    with ToleranceClient() as client:
+    with ToleranceClient(namespace="/arm_left") as client:      # the suite of one arm
         client.wait_for_server("compute_error_jacobian", timeout=10.0)
-        resp = client.compute_error_jacobian([0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6])
+        resp = client.compute_error_jacobian([0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6], arrays="base64")
         print(resp["poses"][0], resp["parameters"][:3])
+
+Answers with ``"arrays": "base64"`` come back with numpy arrays in place of the compact array objects.
 """
 from __future__ import annotations
 
@@ -19,7 +21,8 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import String
 
-from .common import SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, SERVICE_NAMESPACE
+from ..core.jsonio import decode_arrays, loads_strict
+from .common import PREFIX, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS
 
 SERVICES = ("compute_error_jacobian", "allocate_tolerances")
 
@@ -35,9 +38,12 @@ class ServiceError(RuntimeError):
 
 
 class ToleranceClient:
-    """Client of the JSON services. Creates (and spins in a thread) its own node unless given one."""
+    """Client of the JSON services. Creates (and spins in a thread) its own node unless given one.
 
-    def __init__(self, node=None, namespace=SERVICE_NAMESPACE):
+    namespace : the suite's namespace (e.g. '/arm_left'); None uses the client node's own namespace.
+    """
+
+    def __init__(self, node=None, namespace=None):
         self._own = node is None
         self._initialised = False
         if self._own:
@@ -56,18 +62,22 @@ class ToleranceClient:
         self._progress = {}
         self._ids = itertools.count(1)
         self._pubs, self._topics = {}, {}
+        prefix = PREFIX if namespace is None else f"/{namespace.strip('/')}/{PREFIX}".replace("//", "/")
         for s in SERVICES:
-            base = f"{namespace}/{s}"
+            base = f"{prefix}/{s}"
             self._topics[s] = base
             self._pubs[s] = node.create_publisher(String, f"{base}/request", SERVICE_REQUEST_QOS)
             node.create_subscription(String, f"{base}/response", self._on_response, SERVICE_RESPONSE_QOS)
-        node.create_subscription(String, f"{namespace}/allocate_tolerances/progress", self._on_progress, SERVICE_RESPONSE_QOS)
+        node.create_subscription(String, f"{prefix}/allocate_tolerances/progress", self._on_progress,
+                                 SERVICE_RESPONSE_QOS)
 
     def _on_response(self, msg):
         try:
-            doc = json.loads(msg.data)
+            doc = loads_strict(msg.data)
         except ValueError:
             return
+        if doc.get("arrays") == "base64":
+            doc = decode_arrays(doc)
         rid = doc.get("id")
         with self._lock:
             if rid in self._events:
@@ -76,7 +86,7 @@ class ToleranceClient:
 
     def _on_progress(self, msg):
         try:
-            doc = json.loads(msg.data)
+            doc = loads_strict(msg.data)
         except ValueError:
             return
         cb = self._progress.get(doc.get("id"))
@@ -87,8 +97,8 @@ class ToleranceClient:
         """True once the service's request topic has a subscriber and its response topic a publisher."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            if (self._pubs[service].get_subscription_count() > 0
-                    and self.node.count_publishers(f"{self._topics[service]}/response") > 0):
+            response = self.node.resolve_topic_name(f"{self._topics[service]}/response")
+            if self._pubs[service].get_subscription_count() > 0 and self.node.count_publishers(response) > 0:
                 return True
             time.sleep(0.05)
         return False

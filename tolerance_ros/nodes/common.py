@@ -1,10 +1,13 @@
-"""Shared pieces of the nodes: parameters with descriptors, QoS profiles, the main loop.
+"""Shared pieces of the nodes: topic names, QoS profiles, parameters with descriptors, the robots a node
+serves (including ``robot_description``), a last-resort handler for every callback, the main loop.
 
-QoS profiles, named for what they carry, all reliable with keep-last history: service requests
-(depth 10), service responses and progress (100, so that bursts are not dropped), measurements
-(joint states and measured poses, 100), status (predicted bound, accuracy report, 10), and the
-budget (depth 1, transient local, so a late subscriber gets the latest one); /diagnostics uses the
-default profile (reliable, depth 10), as the diagnostic aggregator expects.
+Every topic is relative (``tolerance/...``, ``joint_states``, ``robot_description``), so a namespace
+moves the whole suite; ``/diagnostics`` is the one global topic. QoS profiles, named for what they
+carry, all reliable with keep-last history: service requests (depth 10), service responses and
+progress (100, so that bursts are not dropped), measurements (joint states and measured poses, 100),
+status (predicted bound, accuracy report, markers, 10), and the latched topics (budget and
+robot_description: depth 1, transient local, so a late subscriber gets the latest one, as
+robot_state_publisher publishes it); /diagnostics uses the default profile, as the aggregator expects.
 """
 from __future__ import annotations
 
@@ -14,17 +17,23 @@ import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
 
-from ..core.models import load_robot
+from ..core.models import ModelError
+from ..services.contracts import ContractError
+from ..services.robots import RobotSet
 
 SERVICE_REQUEST_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 SERVICE_RESPONSE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 MEASUREMENT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-BUDGET_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+BUDGET_QOS = ROBOT_DESCRIPTION_QOS = LATCHED_QOS
 
-SERVICE_NAMESPACE = "/tolerance"
+PREFIX = "tolerance"  # relative: under the node's namespace
+JACOBIAN_TOPIC = f"{PREFIX}/compute_error_jacobian"
+ALLOCATE_TOPIC = f"{PREFIX}/allocate_tolerances"
 
 
 def declare(node, name, default, description):
@@ -33,22 +42,67 @@ def declare(node, name, default, description):
     return node.get_parameter(name).value
 
 
-def load_models(specs, default):
-    """({robot name: model}, the default robot's name) for robot names or paths, each parsed once (the
-    default is loaded too when it is not among ``specs``); a bad entry raises with its name."""
-    loaded = {}
-    for spec in list(specs) + [default]:
-        if spec not in loaded:
-            loaded[spec] = load_robot(spec)
-    return {m.name: m for m in loaded.values()}, loaded[default].name
+def guarded(node, callback):
+    """``callback`` with a last-resort handler: any exception is logged (type and message, at most once a
+    second) and counted in ``node.callback_errors``; the node keeps serving."""
+    def run(*args):
+        try:
+            return callback(*args)
+        except Exception as exc:  # the last resort: nothing a message does may stop the node
+            node.callback_errors = getattr(node, "callback_errors", 0) + 1
+            node.get_logger().error(f"{callback.__name__}: {type(exc).__name__}: {str(exc)[:300]}",
+                                    throttle_duration_sec=1.0)
+    run.__name__ = callback.__name__
+    return run
+
+
+def robot_set(node, specs, default) -> RobotSet:
+    """The robots a node serves, with the ``tip_link`` / ``base_link`` parameters for ``robot_description``;
+    compiled kernels are warmed up here, so the first request does not wait for them."""
+    tip = declare(node, "tip_link", "", "robot_description: link the chain ends in (empty: the only moving leaf)")
+    base = declare(node, "base_link", "", "robot_description: link the chain starts from (empty: the URDF root)")
+    robots = RobotSet(specs, default, tip or None, base or None)
+    for model in robots.models.values():
+        model.warm_up()
+    return robots
+
+
+def follow_robot_description(node, robots: RobotSet, on_change=None):
+    """Subscribe to ``robot_description`` (URDF text, latched) when the node takes its robot from it.
+    A new description replaces the model (logged); a malformed one is logged and the previous kept."""
+    if not robots.from_description:
+        return
+
+    def on_robot_description(msg):
+        try:
+            said = robots.on_description(msg.data)
+        except (ModelError, ContractError) as exc:
+            node.get_logger().error(f"robot_description ignored, the previous robot stays: {exc}")
+            return
+        robots.models[robots.description_name].warm_up()
+        node.get_logger().info(said)
+        if on_change is not None:
+            on_change()
+
+    node.create_subscription(String, "robot_description", guarded(node, on_robot_description), ROBOT_DESCRIPTION_QOS)
+    node.get_logger().info(f"waiting for the robot on {node.resolve_topic_name('robot_description')}")
+
+
+def status_name(node, what: str) -> str:
+    """DiagnosticStatus name with the node's namespace in it: '/arm_left/tolerance_ros: accuracy monitor'."""
+    return f"{node.get_namespace().rstrip('/')}/tolerance_ros: {what}"
+
+
+def _interrupt_once(signum, frame):
+    """The first Ctrl-C stops the node; later ones (``ros2 launch`` forwards one more) are ignored, so that
+    clean-up is not interrupted."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    raise KeyboardInterrupt
 
 
 def run(node_factory, args=None):
-    """Initialise rclpy, spin the node until Ctrl-C or an external shutdown, clean up.
-
-    Under ``ros2 launch`` a Ctrl-C reaches a node twice (from the terminal and from launch); further
-    SIGINTs are ignored once shutdown has begun, so that clean-up is not interrupted.
-    """
+    """Initialise rclpy, spin the node until Ctrl-C or an external shutdown, clean up."""
+    signal.signal(signal.SIGINT, _interrupt_once)  # rclpy's own handler, installed by init, calls it after its own
     rclpy.init(args=args)
     node = None
     try:

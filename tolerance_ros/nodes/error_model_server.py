@@ -1,6 +1,7 @@
 """Error-model server (node ``tolerance_error_model``): the JSON service ``compute_error_jacobian`` on
-``/tolerance/compute_error_jacobian/request`` -> ``.../response`` (std_msgs/String, remappable), and
-the predicted error bound at the current joint state on ``/tolerance/predicted_bound``."""
+``tolerance/compute_error_jacobian/request`` -> ``.../response`` (std_msgs/String, relative to the
+namespace), and the predicted error bound of the current budget at the current joint state on
+``tolerance/predicted_bound``. Robots: shipped names, robot files or ``robot_description``."""
 from __future__ import annotations
 
 from rclpy.node import Node
@@ -10,29 +11,32 @@ from std_msgs.msg import String
 from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, Limits, budget_from_message
 from ..services.error_model import ErrorModelService
-from .common import (BUDGET_QOS, MEASUREMENT_QOS, SERVICE_NAMESPACE, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS,
-                     STATUS_QOS, declare, load_models, run)
-
-TOPIC = f"{SERVICE_NAMESPACE}/compute_error_jacobian"
+from .common import (BUDGET_QOS, JACOBIAN_TOPIC, MEASUREMENT_QOS, PREFIX, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS,
+                     STATUS_QOS, declare, follow_robot_description, guarded, robot_set, run)
 
 
 class ErrorModelServer(Node):
     def __init__(self, **node_options):
         super().__init__("tolerance_error_model", **node_options)
-        robots = declare(self, "robots", ["gao2023_7dof"], "robot configs served (names or paths)")
+        specs = declare(self, "robots", ["gao2023_7dof"], "robots served: shipped names, robot files, or "
+                                                          "robot_description (the URDF on that topic)")
         default = declare(self, "default_robot", "gao2023_7dof", "robot used when a request names none")
         max_bytes = declare(self, "max_request_bytes", 1_000_000, "size cap of a request, bytes")
         max_poses = declare(self, "max_poses", 10_000, "size cap of a request, configurations")
+        max_worst = declare(self, "max_worst_case_poses", 1_000, "configurations per request with the 'worst-case' "
+                                                                 "criterion (O(p^3) work per configuration)")
         self.criterion = declare(self, "bound_criterion", "", "criterion of the predicted bound on joint states "
                                  "(paper | worst-case | rss); empty takes the budget's")
-        models, default_name = load_models(robots, default)
-        self.service = ErrorModelService(models, default_name, Limits(max_bytes, max_poses))
-        self.responses = self.create_publisher(String, f"{TOPIC}/response", SERVICE_RESPONSE_QOS)
-        self.bound_pub = self.create_publisher(String, f"{SERVICE_NAMESPACE}/predicted_bound", STATUS_QOS)
-        self.create_subscription(String, f"{TOPIC}/request", self.on_request, SERVICE_REQUEST_QOS)
-        self.create_subscription(JointState, "joint_states", self.on_joint_state, MEASUREMENT_QOS)
-        self.create_subscription(String, "tolerance_budget", self.on_budget, BUDGET_QOS)
-        self.get_logger().info(f"serving {sorted(models)} on {TOPIC}/request")
+        self.service = ErrorModelService(robot_set(self, specs, default), limits=Limits(max_bytes, max_poses, max_worst))
+        self.responses = self.create_publisher(String, f"{JACOBIAN_TOPIC}/response", SERVICE_RESPONSE_QOS)
+        self.bound_pub = self.create_publisher(String, f"{PREFIX}/predicted_bound", STATUS_QOS)
+        self.create_subscription(String, f"{JACOBIAN_TOPIC}/request", guarded(self, self.on_request),
+                                 SERVICE_REQUEST_QOS)
+        self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_state), MEASUREMENT_QOS)
+        self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
+        follow_robot_description(self, self.service.robots)
+        self.get_logger().info(f"serving {sorted(self.service.models) or 'robot_description'} on "
+                               f"{self.resolve_topic_name(JACOBIAN_TOPIC + '/request')}")
 
     def on_request(self, msg):
         self.responses.publish(String(data=self.service.handle_text(msg.data)))

@@ -1,5 +1,6 @@
-"""Joint-state publisher of the suite (node ``tolerance_joint_state_source``, so it cannot clash with
-the standard ``joint_state_publisher``): publishes sensor_msgs/JointState on ``joint_states``."""
+"""Joint-state source (node ``tolerance_joint_state_source``; a stand-in for the robot, or used with the
+standard ``joint_state_publisher``): publishes sensor_msgs/JointState on ``joint_states`` from a
+campaign, random or selected (index F) configurations. The robot may come from ``robot_description``."""
 from __future__ import annotations
 
 from rclpy.node import Node
@@ -7,37 +8,48 @@ from sensor_msgs.msg import JointState
 
 from ..core.campaign import load_campaign
 from ..services.joint_source import JointStateSequence
-from ..core.models import load_robot
-from .common import MEASUREMENT_QOS, declare, run
+from .common import MEASUREMENT_QOS, declare, follow_robot_description, guarded, robot_set, run
 
 
 class JointStateSource(Node):
     def __init__(self, **node_options):
         super().__init__("tolerance_joint_state_source", **node_options)
-        robot = declare(self, "robot", "gao2023_7dof", "robot config: shipped name or YAML/URDF path")
-        mode = declare(self, "mode", "random", "campaign | random | selected (highest pose-selection index F)")
-        campaign = declare(self, "campaign", "", "campaign config (mode 'campaign'): shipped name or path")
-        count = declare(self, "count", 100, "configurations for modes random and selected")
-        seed = declare(self, "seed", 0, "seed of the random and selected modes")
-        dwell = declare(self, "dwell", 0.0, "seconds at each configuration; 0 takes the campaign's dwell (or 2 s)")
+        robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
+        self.mode = declare(self, "mode", "random", "campaign | random | selected (highest pose-selection index F)")
+        self.campaign = declare(self, "campaign", "", "campaign config (mode 'campaign'): shipped name or path")
+        self.count = declare(self, "count", 100, "configurations for modes random and selected")
+        self.seed = declare(self, "seed", 0, "seed of the random and selected modes")
+        self.dwell = declare(self, "dwell", 0.0, "seconds at each configuration; 0 takes the campaign's dwell (or 2 s)")
         rate = declare(self, "rate", 50.0, "publishing rate, Hz")
-        loop = declare(self, "loop", False, "repeat the sequence instead of holding the last configuration")
-        self.model = load_robot(robot)
-        camp = load_campaign(campaign, self.model) if campaign else None
-        self.sequence = JointStateSequence(self.model, mode, camp, count, seed, dwell or None, loop)
+        self.loop = declare(self, "loop", False, "repeat the sequence instead of holding the last configuration")
+        self.robots = robot_set(self, [robot], robot)
+        self.sequence = None
         self.publisher = self.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
-        self.start = self.get_clock().now()
+        self.timer = self.create_timer(1.0 / rate, guarded(self, self.publish_joint_state))
+        follow_robot_description(self, self.robots, self.start)
+        self.start()
+
+    def start(self):
+        """The sequence of the current robot (again, when robot_description changes)."""
+        model = self.robots.single()
+        if model is None:
+            return
+        camp = load_campaign(self.campaign, model) if self.campaign else None
+        self.sequence = JointStateSequence(model, self.mode, camp, self.count, self.seed, self.dwell or None, self.loop)
+        self.names = list(model.joint_names)
+        self.t0 = self.get_clock().now()
         self.finished_logged = False
-        self.timer = self.create_timer(1.0 / rate, self.publish_joint_state)
-        self.get_logger().info(f"{mode}: {len(self.sequence)} configurations of {self.model.name}, "
-                               f"{self.sequence.dwell:g} s each, {rate:g} Hz")
+        self.get_logger().info(f"{self.mode}: {len(self.sequence)} configurations of {model.name}, "
+                               f"{self.sequence.dwell:g} s each")
 
     def publish_joint_state(self):
+        if self.sequence is None:
+            return
         now = self.get_clock().now()
-        step, label, q, finished = self.sequence.at((now - self.start).nanoseconds * 1e-9)
+        step, label, q, finished = self.sequence.at((now - self.t0).nanoseconds * 1e-9)
         msg = JointState()
         msg.header.stamp = now.to_msg()
-        msg.name = list(self.model.joint_names)
+        msg.name = self.names
         msg.position = [float(v) for v in q]
         self.publisher.publish(msg)
         if finished and not self.finished_logged:

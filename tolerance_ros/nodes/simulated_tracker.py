@@ -1,6 +1,7 @@
 """Simulated laser tracker (node ``tolerance_simulated_tracker``): an as-built robot drawn within a
 tolerance budget (seeded), measurement noise and a base-frame offset; subscribes to ``joint_states``
-and publishes ``measured_pose`` (PoseStamped, tracker frame) stamped like the joint state."""
+and publishes ``measured_pose`` (PoseStamped, tracker frame) stamped like the joint state. The robot
+may come from ``robot_description``."""
 from __future__ import annotations
 
 from geometry_msgs.msg import PoseStamped
@@ -10,39 +11,49 @@ from sensor_msgs.msg import JointState
 from ..core.budget import load_budget
 from ..core.geometry import transform
 from ..core.ingest import IngestError
-from ..core.models import load_robot
 from ..services.tracker import SimulatedTracker, stamp_fields
-from .common import MEASUREMENT_QOS, declare, run
+from .common import MEASUREMENT_QOS, declare, follow_robot_description, guarded, robot_set, run
 
 
 class SimulatedTrackerNode(Node):
     def __init__(self, **node_options):
         super().__init__("tolerance_simulated_tracker", **node_options)
-        robot = declare(self, "robot", "gao2023_7dof", "robot config: shipped name or YAML/URDF path")
-        budget = declare(self, "budget", "gao2023_delta2", "budget within which the as-built errors are drawn")
-        seed = declare(self, "seed", 0, "seed of the as-built robot and of the noise")
-        noise_p = declare(self, "noise_position", 1e-5, "tracker position noise (1 sigma), m")
-        noise_o = declare(self, "noise_orientation", 1e-5, "tracker orientation noise (1 sigma), rad")
+        robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
+        self.budget_spec = declare(self, "budget", "gao2023_delta2", "budget within which the as-built errors are "
+                                                                     "drawn")
+        self.seed = declare(self, "seed", 0, "seed of the as-built robot and of the noise")
+        self.noise = (declare(self, "noise_position", 1e-5, "tracker position noise (1 sigma), m"),
+                      declare(self, "noise_orientation", 1e-5, "tracker orientation noise (1 sigma), rad"))
         base = declare(self, "tracker_to_base", [0.0] * 6,
                        "pose of the robot base in the tracker frame, [x y z roll pitch yaw] (m, rad)")
         self.frame_id = declare(self, "frame_id", "tracker", "frame_id of the measured poses")
         self.every = max(1, declare(self, "measure_every", 1, "measure every n-th joint state"))
-        model = load_robot(robot)
-        delta = load_budget(budget, model).vector_for(model)
-        self.sim = SimulatedTracker(model, delta, seed, noise_p, noise_o, transform(base[:3], base[3:]))
+        self.T_tracker_base = transform(base[:3], base[3:])
+        self.robots = robot_set(self, [robot], robot)
+        self.sim = None
         self.pub = self.create_publisher(PoseStamped, "measured_pose", MEASUREMENT_QOS)
-        self.create_subscription(JointState, "joint_states", self.on_joint_state, MEASUREMENT_QOS)
+        self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_state), MEASUREMENT_QOS)
         self.count = 0
-        self.get_logger().info(f"simulating {model.name} built within {budget} (seed {seed})")
+        follow_robot_description(self, self.robots, self.start)
+        self.start()
+
+    def start(self):
+        """Draw the as-built robot of the current model (again, when robot_description changes)."""
+        model = self.robots.single()
+        if model is None:
+            return
+        delta = load_budget(self.budget_spec, model).vector_for(model)
+        self.sim = SimulatedTracker(model, delta, self.seed, *self.noise, self.T_tracker_base)
+        self.get_logger().info(f"simulating {model.name} built within {self.budget_spec} (seed {self.seed})")
 
     def on_joint_state(self, msg):
         self.count += 1
-        if (self.count - 1) % self.every:
+        if self.sim is None or (self.count - 1) % self.every:
             return
         try:
             stamp, p, q = self.sim.on_joint_state_msg(msg)
         except IngestError as exc:
-            self.get_logger().warning(f"joint state ignored: {exc}")
+            self.get_logger().warning(f"joint state ignored: {exc}", throttle_duration_sec=1.0)
             return
         out = PoseStamped()
         out.header.stamp.sec, out.header.stamp.nanosec = stamp_fields(stamp)

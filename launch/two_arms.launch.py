@@ -1,0 +1,21 @@
+"""Two arms in one graph: the accuracy suite twice, under /arm_left and /arm_right, with their own
+parameters (config/two_arms.yaml: the same arm model, different budgets). Nothing crosses between the
+namespaces; /diagnostics is shared, with the namespace in each status name.
+
+    ros2 launch tolerance_ros two_arms.launch.py
+"""
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import IncludeLaunchDescription
+from launch.launch_description_sources import PythonLaunchDescriptionSource
+
+
+def generate_launch_description():
+    share = get_package_share_directory("tolerance_ros")
+    suite = os.path.join(share, "launch", "accuracy_suite.launch.py")
+    params = os.path.join(share, "config", "two_arms.yaml")
+    return LaunchDescription([IncludeLaunchDescription(PythonLaunchDescriptionSource(suite),  # one source per include
+                                                       launch_arguments={"namespace": ns, "params_file": params}.items())
+                              for ns in ("arm_left", "arm_right")])
