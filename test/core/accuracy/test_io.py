@@ -1,10 +1,13 @@
-"""Readers: CSV (units, bad rows), rosbag2 (sqlite3 and mcap) and stamp pairing (the campaign log is
-tested with the monitor that writes it)."""
+"""Readers: CSV (units, bad rows), the campaign log, rosbag2 (sqlite3 and mcap) and stamp pairing; every
+malformed file of issue 12 is one MeasurementError naming file, line and field, or a listed skip (the
+monitor that writes the log has its own tests)."""
+import json
+
 import numpy as np
 import pytest
 
 from tolerance_ros.core.accuracy import io
-from tolerance_ros.core.accuracy.io import (MAX_LINE, Measurements, MeasurementError, read_csv,
+from tolerance_ros.core.accuracy.io import (MAX_LINE, Measurements, MeasurementError, read_csv, read_log,
                                             read_measurements, read_rosbag, write_csv, write_rosbag)
 from tolerance_ros.core.geometry import transform
 from tolerance_ros.core.ingest import pair_by_stamp
@@ -218,3 +221,119 @@ def test_all_rows_bad_says_how_many_were_skipped(tmp_path):
     with pytest.raises(MeasurementError,
                        match=r"no measurements \(2 bad row\(s\) skipped, the first on line 2: x: 'x'"):
         read_csv(p, skip_bad=True)
+
+
+# ---------------------------------------------------------------- malformed campaign logs (issue 12)
+
+
+def _m(seq, **kw):
+    return json.dumps({"event": "measurement", "seq": seq, "stamp": 10.0 + int(seq), "frame": "tracker",
+                       "position": [0.5, 0.1, 0.2], "quaternion": [0.0, 0.0, 0.0, 1.0], **kw})
+
+
+def _p(seq, **kw):
+    return json.dumps({"event": "paired", "seq": seq, "joint_stamp": 10.0 + seq, "joint_names": ["j1", "j2"],
+                       "joints": [0.1 * seq, 0.2], "pose": "P1", "verdict": "within", **kw})
+
+
+def _log_around(*bad_lines):
+    """Good records 0 (lines 1-2) and 1 (after ``bad_lines``, which start on line 3)."""
+    lines = [_m(0), _p(0), *bad_lines, _m(1), _p(1)]
+    if any(isinstance(x, bytes) for x in lines):
+        return b"".join((x if isinstance(x, bytes) else x.encode()) + b"\n" for x in lines)
+    return "".join(x + "\n" for x in lines)
+
+
+BAD_LOG_LINES = [
+    ("not an object", ["[1, 2]"], "expected a JSON object, got a JSON array"),
+    ("a number", ["7"], "expected a JSON object, got 7"),
+    ("100,000 deep array", ["[" * 100_000 + "]" * 100_000], "nested deeper than 64 levels"),
+    ("100,000 deep object", ['{"a":' * 100_000 + "1" + "}" * 100_000], "nested deeper than 64 levels"),
+    ("65 deep", [_m(5, frame=json.loads("[" * 64 + "]" * 64))], "nested deeper than 64 levels"),
+    ("line over MAX_LINE", [_m(5, frame="t" * MAX_LINE)], f"line longer than {MAX_LINE} characters"),
+    ("non-UTF-8 byte", [_m(5).encode().replace(b'"tracker"', b'"tr\xe4cker"')],
+     "byte 0xe4 at character 63 is not UTF-8"),
+    ("truncated line", [_m(5)[:-10]], "not valid JSON (Expecting value at character 126)"),
+    ("3-value quaternion", [_m(5, quaternion=[0, 0, 1])], "quaternion: expected 4 numbers, got 3"),
+    ("zero quaternion", [_m(5, quaternion=[0, 0, 0, 0])], "quaternion: zero norm"),
+    ("position as a number", [_m(5, position=3)], "position: expected a list of 3 numbers, got 3"),
+    ("joints as strings", [_m(5), _p(5, joints=["0.1", "0.2"])], "joints: expected numbers, got '0.1'"),
+    ("joints as booleans", [_m(5), _p(5, joints=[True, 0.2])], "joints: expected numbers, got true"),
+    ("a null joint", [_m(5), _p(5, joints=[0.1, None])], "joints: expected numbers, got null"),
+    ("a null position", [_m(5, position=[None, 0, 0])], "position: expected numbers, got null"),
+    ("a joint missing", [_m(5), _p(5, joint_names=["j1", "j3"])],
+     "joints: no value for joint(s) ['j2'] (have ['j1', 'j3'])"),
+    ("fewer joints than names", [_m(5), _p(5, joints=[0.1])], "joints: expected 2 numbers, got 1"),
+    ("underscore stamp", [_m(5, stamp="1_000")], "stamp: expected a number, got '1_000'"),
+    ("Arabic-Indic stamp", [_m(5, stamp="\u0661\u0662")], "stamp: expected a number, got '١٢'"),
+    ("stamp missing", [_m(5, stamp=None).replace('"stamp": null, ', "")], "stamp: missing"),
+    ("duplicate measurement seq", [_m(0)], "seq: measurement 0 already logged on line 1"),
+    ("duplicate pairing", [_p(0)], "seq: measurement 0 already paired on line 2"),
+    ("unpaired after paired", ['{"event": "unpaired", "seq": 0, "reason": "late"}'],
+     "seq: measurement 0 already paired on line 2"),
+    ("paired before its measurement", [_p(7)], "seq: no measurement 7 logged before this paired event"),
+    ("NaN position", [_m(5).replace("[0.5, 0.1, 0.2]", "[0.5, NaN, 0.2]")],
+     "position: NaN is not valid JSON (numbers must be finite)"),
+    ("Infinity stamp", [_m(5).replace('"stamp": 15.0', '"stamp": Infinity')],
+     "stamp: Infinity is not valid JSON (numbers must be finite)"),
+    ("NaN in a field the reader does not use", [_m(5), _p(5).replace('"within"', "NaN")],
+     "verdict: NaN is not valid JSON"),
+    ("overflowing stamp", [_m(5).replace('"stamp": 15.0', '"stamp": 1e999')],
+     "stamp: a number beyond the range of a float (not finite)"),
+    ("huge integer stamp", [_m(5).replace('"stamp": 15.0', '"stamp": ' + "9" * 400)],
+     "stamp: a number beyond the range of a float (not finite)"),
+    ("repeated key", [_m(5).replace('"seq": 5', '"seq": 5, "seq": 0')], "seq: appears twice in one object"),
+    ("seq as a string", [_m("5")], "seq: expected a non-negative integer, got '5'"),
+    ("negative seq", [_m(-5)], "seq: expected a non-negative integer, got -5"),
+    ("unknown event", ['{"event": "measurment", "seq": 5}'],
+     "event: expected start, budget, measurement, paired or unpaired, got 'measurment'"),
+    ("pose label as a list", [_m(5), _p(5, pose=["P1"])], "pose: expected a test pose name or null, got a JSON array"),
+]
+
+
+@pytest.mark.parametrize("bad_lines, message", [c[1:] for c in BAD_LOG_LINES], ids=[c[0] for c in BAD_LOG_LINES])
+def test_a_bad_log_line_is_named_or_skipped_and_listed(tmp_path, bad_lines, message):
+    p = _write(tmp_path / "campaign.jsonl", _log_around(*bad_lines))
+    bad_line = 2 + len(bad_lines)
+    with pytest.raises(MeasurementError) as err:
+        read_log(p)
+    assert str(err.value).startswith(f"{p}, line {bad_line}: {message}")
+    m = read_measurements(p, skip_bad=True)
+    assert m.stamps.tolist() == [10.0, 11.0] and m.joints.tolist() == [[0.0, 0.2], [0.1, 0.2]]
+    assert [s["line"] for s in m.skipped] == list(range(3, bad_line + 1))  # the bad line, and what it leaves undecided
+    assert m.skipped[-1]["reason"].startswith(message)
+
+
+def test_a_deep_log_line_never_reaches_the_parser(tmp_path, monkeypatch):
+    p = _write(tmp_path / "campaign.jsonl", _log_around("[" * 100_000 + "]" * 100_000))
+    parsed = []
+    real = json.loads
+    monkeypatch.setattr(io.json, "loads", lambda s, **kw: parsed.append(len(s)) or real(s, **kw))
+    with pytest.raises(MeasurementError, match="line 3: nested deeper than 64 levels"):
+        read_log(p)
+    assert parsed and max(parsed) < 1000
+
+
+def test_brackets_inside_strings_are_not_nesting(tmp_path):
+    deep_text = "[{" * 100 + '\\"' + "}]" * 100
+    p = _write(tmp_path / "campaign.jsonl",
+               _log_around(_m(5, frame=deep_text), '{"event": "unpaired", "seq": 5, "reason": "none"}'))
+    m = read_log(p)
+    assert len(m) == 2 and m.skipped == [{"line": 4, "seq": 5, "reason": "unpaired: none"}]
+
+
+def test_a_log_with_two_monitor_runs_keeps_both(tmp_path):
+    start = json.dumps({"event": "start", "robot": "r", "joint_names": ["j1", "j2"]})
+    second = _p(0, joint_names=["j2", "j1"], joints=[0.2, 0.7]).replace('"P1"', '"P2"')
+    p = _write(tmp_path / "campaign.jsonl", "\n".join([start, _m(0), _p(0), start, _m(0, stamp=20.0), second,
+                                                       _m(1)]) + "\n")
+    m = read_log(p)
+    assert m.stamps.tolist() == [10.0, 20.0] and m.pose.tolist() == ["P1", "P2"]
+    assert m.joints.tolist() == [[0.0, 0.2], [0.7, 0.2]]
+    assert m.skipped == [{"line": 7, "seq": 1, "reason": "pairing not decided before the log ended"}]
+
+
+def test_a_log_without_pairs_says_what_was_skipped(tmp_path):
+    p = _write(tmp_path / "campaign.jsonl", _m(0, rejected="pose: non-finite position or quaternion") + "\n")
+    with pytest.raises(MeasurementError, match=r"no paired measurements \(1 skipped, the first on line 1: rejected: "):
+        read_log(p)
