@@ -337,3 +337,41 @@ def test_a_log_without_pairs_says_what_was_skipped(tmp_path):
     p = _write(tmp_path / "campaign.jsonl", _m(0, rejected="pose: non-finite position or quaternion") + "\n")
     with pytest.raises(MeasurementError, match=r"no paired measurements \(1 skipped, the first on line 1: rejected: "):
         read_log(p)
+
+
+# ---------------------------------------------------------------- malformed rosbags
+
+
+def test_a_bag_with_a_non_finite_pose_or_missing_joints_names_the_message(tmp_path):
+    m = _meas(4)
+    m.T[2, 1, 3] = np.nan
+    write_rosbag(tmp_path / "nan", m, "mcap")
+    with pytest.raises(MeasurementError, match=r"nan: message 5 on /measured_pose: pose: non-finite position"):
+        read_rosbag(tmp_path / "nan")
+    back = read_rosbag(tmp_path / "nan", skip_bad=True)
+    assert len(back) == 3 and back.skipped[0]["message"] == 5
+    write_rosbag(tmp_path / "ok", _meas(4), "sqlite3")
+    with pytest.raises(MeasurementError, match=r"ok: message 0 on /joint_states: no value for joint\(s\) \['j3'\]"):
+        read_rosbag(tmp_path / "ok", joint_names=("j1", "j2", "j3"))
+
+
+def test_a_bag_that_is_not_what_it_claims_is_one_error(tmp_path):
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    with Writer(tmp_path / "garbage", version=9) as w:
+        w.write(w.add_connection("/measured_pose", "geometry_msgs/msg/PoseStamped", typestore=ts), 1, b"\x00\x01\x00")
+    with pytest.raises(MeasurementError, match="message 0 on /measured_pose: cannot be decoded as geometry_msgs"):
+        read_rosbag(tmp_path / "garbage")
+    String = ts.types["std_msgs/msg/String"]
+    with Writer(tmp_path / "string", version=9) as w:
+        c = w.add_connection("/measured_pose", String.__msgtype__, typestore=ts)
+        w.write(c, 1, ts.serialize_cdr(String(data="hi"), String.__msgtype__))
+    with pytest.raises(MeasurementError, match="topic /measured_pose carries std_msgs/msg/String, expected"):
+        read_rosbag(tmp_path / "string")
+    _write(tmp_path / "x.db3", b"\x00" * 200)
+    with pytest.raises(MeasurementError, match="x.db3: not a readable rosbag2 recording"):
+        read_measurements(tmp_path / "x.db3")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(MeasurementError, match="empty: not a readable rosbag2 recording"):
+        read_measurements(tmp_path / "empty")

@@ -645,7 +645,8 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
     Each measured pose is paired with the joint state nearest to its header stamp within ``slop`` s.
     Unpaired measurements are an error unless ``skip_bad`` (then listed in ``skipped``).
     """
-    from rosbags.highlevel import AnyReader
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.rosbag2 import ReaderError
     from rosbags.typesys import Stores, get_typestore
 
     path = Path(path)
@@ -654,30 +655,42 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
     poses, pstamps, jstates, jstamps = [], [], [], []
     order = None
     skipped = []
-    with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
-        conns = [c for c in reader.connections if c.topic in (pose_topic, joint_topic)]
-        if not any(c.topic == pose_topic for c in conns):
-            raise MeasurementError(f"{path}: no topic {pose_topic} (topics: {sorted({c.topic for c in reader.connections})})")
-        for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
-            msg = reader.deserialize(raw, conn.msgtype)
-            try:
-                st = stamp_seconds(msg.header.stamp)
-                if conn.topic == pose_topic:
-                    p, o = msg.pose.position, msg.pose.orientation
-                    poses.append(pose_from_values((p.x, p.y, p.z), (o.x, o.y, o.z, o.w)))
-                    pstamps.append(st)
-                else:
-                    if order is None:
-                        order = JointOrder(joint_names or msg.name)
-                    jstates.append(order(msg.name, msg.position))
-                    jstamps.append(st)
-            except IngestError as exc:
-                err = f"message {k} on {conn.topic}: {exc}"
-                if not skip_bad:
-                    raise MeasurementError(f"{path}: {err}") from None
-                skipped.append({"message": k, "reason": err})
+    types = {pose_topic: "geometry_msgs/msg/PoseStamped", joint_topic: "sensor_msgs/msg/JointState"}
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            conns = [c for c in reader.connections if c.topic in types]
+            if not any(c.topic == pose_topic for c in conns):
+                raise MeasurementError(f"{path}: no topic {pose_topic} "
+                                       f"(topics: {sorted({c.topic for c in reader.connections})})")
+            for c in conns:
+                if c.msgtype != types[c.topic]:
+                    raise MeasurementError(f"{path}: topic {c.topic} carries {c.msgtype}, expected {types[c.topic]}")
+            for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
+                try:
+                    try:
+                        msg = reader.deserialize(raw, conn.msgtype)
+                    except AnyReaderError as exc:
+                        raise IngestError(f"cannot be decoded as {conn.msgtype} ({_cut(str(exc), 80)})") from None
+                    st = stamp_seconds(msg.header.stamp)
+                    if conn.topic == pose_topic:
+                        p, o = msg.pose.position, msg.pose.orientation
+                        poses.append(pose_from_values((p.x, p.y, p.z), (o.x, o.y, o.z, o.w)))
+                        pstamps.append(st)
+                    else:
+                        if order is None:
+                            order = JointOrder(joint_names or msg.name)
+                        jstates.append(order(msg.name, msg.position))
+                        jstamps.append(st)
+                except IngestError as exc:
+                    err = f"message {k} on {conn.topic}: {exc}"
+                    if not skip_bad:
+                        raise MeasurementError(f"{path}: {err}") from None
+                    skipped.append({"message": k, "reason": err})
+    except (AnyReaderError, ReaderError, FileNotFoundError) as exc:
+        raise MeasurementError(f"{path}: not a readable rosbag2 recording ({exc})") from None
     if not poses:
-        raise MeasurementError(f"{path}: no messages on {pose_topic}")
+        raise MeasurementError(f"{path}: no messages on {pose_topic}"
+                               + (f" ({len(skipped)} skipped, the first: {skipped[0]['reason']})" if skipped else ""))
     by_time = np.argsort(pstamps, kind="stable")
     pst = np.array(pstamps)[by_time]
     T = np.array(poses)[by_time]
