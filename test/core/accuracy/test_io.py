@@ -1,10 +1,15 @@
 """Readers: CSV (units, bad rows), the campaign log, rosbag2 (sqlite3 and mcap) and stamp pairing; every
 malformed file of issue 12 is one MeasurementError naming file, line and field, or a listed skip (the
 monitor that writes the log has its own tests)."""
+import functools
 import json
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from tolerance_ros.core.accuracy import io
 from tolerance_ros.core.accuracy.io import (MAX_LINE, Measurements, MeasurementError, read_csv, read_log,
@@ -375,3 +380,67 @@ def test_a_bag_that_is_not_what_it_claims_is_one_error(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(MeasurementError, match="empty: not a readable rosbag2 recording"):
         read_measurements(tmp_path / "empty")
+
+
+# ---------------------------------------------------------------- random bytes and mutations
+
+@functools.cache
+def _valid_files():
+    with tempfile.TemporaryDirectory() as tmp:
+        csv_text = write_csv(Path(tmp) / "valid.csv", _meas(6)).read_bytes()
+    log = _log_around(_m(2), '{"event": "unpaired", "seq": 2, "reason": "none"}').encode()
+    return csv_text, log
+
+
+TOKENS = [b"NaN", b"Infinity", b"-inf", b"1_000", "\u0661".encode(), b"\xff", b"\xc3", b'"', b",", b"\n", b"\r",
+          b"[" * 70, b"\n" + b"[" * 5000 + b"\n", b"{", b"}", b"]", b"#", b"1e999", b"", b" ", b"\x00", b"\\",
+          b'"seq": 0, "seq": 1', b"null", b"true", "\ufeff".encode(), b"\n[1, 2]\n", b"\n7\n",
+          b'"' + b"p" * 140_000 + b'"']
+
+
+@st.composite
+def _mutated(draw, base):
+    data = bytearray(base)
+    for _ in range(draw(st.integers(1, 6))):
+        i = draw(st.integers(0, len(data)))
+        kind = draw(st.sampled_from(["insert", "delete", "replace", "duplicate-line"]))
+        if kind == "insert":
+            data[i:i] = draw(st.sampled_from(TOKENS) | st.binary(max_size=8))
+        elif kind == "delete":
+            del data[i:i + draw(st.integers(1, 20))]
+        elif kind == "replace":
+            data[i:i + 1] = draw(st.sampled_from(TOKENS) | st.binary(min_size=1, max_size=1))
+        else:
+            lines = bytes(data).split(b"\n")
+            k = draw(st.integers(0, len(lines) - 1))
+            data = bytearray(b"\n".join(lines[:k + 1] + lines[k:]))
+    return bytes(data)
+
+
+_FUZZ = settings(max_examples=300, deadline=None, database=None,
+                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+def _read_or_measurement_error(path, reader):
+    for skip in (False, True):
+        try:
+            m = reader(path, skip_bad=skip)
+        except MeasurementError:
+            continue
+        assert isinstance(m, Measurements) and len(m.T) == len(m.stamps)
+        assert np.all(np.isfinite(m.T)) and np.all(np.isfinite(m.stamps))
+
+
+@_FUZZ
+@given(content=st.binary(max_size=600))
+def test_random_bytes_are_read_or_refused(tmp_path, content):
+    for name, reader in (("f.csv", read_csv), ("f.jsonl", read_log)):
+        _read_or_measurement_error(_write(tmp_path / name, content), reader)
+
+
+@_FUZZ
+@given(data=st.data())
+def test_mutated_files_are_read_or_refused(tmp_path, data):
+    csv_text, log = _valid_files()
+    _read_or_measurement_error(_write(tmp_path / "m.csv", data.draw(_mutated(csv_text))), read_csv)
+    _read_or_measurement_error(_write(tmp_path / "m.jsonl", data.draw(_mutated(log))), read_log)
