@@ -167,6 +167,51 @@ def test_report_bad_file_names_the_line(capsys, tmp_path):
     assert code == 2 and "joint columns: no value for joint(s) ['joint2'" in err
 
 
+@pytest.mark.parametrize("name, content, message", [
+    ("m.csv", "stamp[s],x[mm],y[mm],z[mm]\n0,1_000,2,3\n", "m.csv, line 2: x: '1_000' is not a number"),
+    ("m.csv", b"# ok\nstamp[s],x[mm],y[mm],z[mm]\n0,1,\xff,3\n",
+     "m.csv, line 3: y: byte 0xff at character 5 is not UTF-8"),
+    ("m.csv", 'stamp[s],pose,x[mm],y[mm],z[mm]\n0,"' + "P" * 140_000 + '",1,2,3\n',
+     "m.csv, line 2: pose: longer than 131072 characters"),
+    ("m.csv", "stamp[s],x[mm],y[mm],z[mm],qx,qy,qz\n0,1,2,3,0,0,0\n", "m.csv, line 1: header: orientation needs all "
+     "of qx, qy, qz, qw; missing column(s) ['qw']"),
+    ("c.jsonl", "[1, 2]\n", "c.jsonl, line 1: expected a JSON object, got a JSON array"),
+    ("c.jsonl", "[" * 100_000 + "]" * 100_000 + "\n", "c.jsonl, line 1: nested deeper than 64 levels"),
+    ("c.jsonl", '{"event": "measurement", "seq": 0, "stamp": Infinity}\n',
+     "c.jsonl, line 1: stamp: Infinity is not valid JSON (numbers must be finite)"),
+])
+def test_report_of_a_malformed_file_is_one_line_naming_it(capsys, tmp_path, name, content, message):
+    p = tmp_path / name
+    p.write_bytes(content if isinstance(content, bytes) else content.encode())
+    code, out, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", str(p))
+    assert code == 2 and out == "" and err == f"tolerance-ros report: error: {p.parent}/{message}\n"
+
+
+def test_report_skip_bad_lists_what_it_skipped(capsys, tmp_path, gao):
+    _, path = _synthetic_campaign(tmp_path, gao)
+    lines = path.read_text().splitlines(keepends=True)
+    for k in range(3, 15):  # twelve rows with an x that is not a number
+        fields = lines[k].split(",")
+        fields[3] = "NaN" if k % 2 else "1_000"
+        lines[k] = ",".join(fields)
+    path.write_text("".join(lines))
+    code, out, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", str(path))
+    assert code == 2 and err.strip().endswith("m.csv, line 4: x: 'NaN' is not a number")
+    code, out, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", str(path), "--skip-bad",
+                         "--budget", "gao2023_delta2")
+    assert code == 0, err
+    assert "budget (paper bound): " in out
+    assert f"48 measurements from {path}; 12 skipped:\n  line 4: x: 'NaN' is not a number\n" \
+           "  line 5: x: '1_000' is not a number\n" in out
+    assert "  line 13: x: '1_000' is not a number\n  ... and 2 more (all of them in skipped_rows of --json)" in out
+    code, out, _ = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", str(path), "--skip-bad",
+                       "--json")
+    assert [s["line"] for s in json.loads(out)["skipped_rows"]] == list(range(4, 16))
+    code, _, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", str(path), "--skip-bad",
+                       "--stream")
+    assert code == 2 and "--skip-bad: not available with --stream" in err
+
+
 def test_the_3pups_robot_through_the_existing_subcommands(capsys, tmp_path):
     code, out, _ = run(capsys, "sensitivity", "--robot", "rong2018_3pups", "--samples", "200", "--quiet", "--json")
     doc = json.loads(out)

@@ -352,6 +352,9 @@ def print_allocation(doc):
         print(f"plot: {p}")
 
 
+SKIPPED_SHOWN = 10  # skipped rows and records listed by `report` (--json lists them all)
+
+
 def cmd_report(args):
     from .core.accuracy.evaluation import evaluate_file
     from .core.accuracy.io import read_measurements
@@ -362,6 +365,8 @@ def cmd_report(args):
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     if args.stream:
         from .core.accuracy.evaluation import stream_file
+        if args.skip_bad:
+            raise CLIError("--skip-bad: not available with --stream, which stops at the first bad row")
         if args.registration == "base+tool":
             raise CLIError("--stream: the tool offset needs all measurements at once; use --registration base")
         res = stream_file(model, args.measurements, budget, campaign, registration=args.registration)
@@ -384,7 +389,11 @@ def cmd_report(args):
     s = res["summary"]
     pe = s["position_error_m"]
     print(f"robot {model.name}: {res['measurements']} measurements from {res['source']}"
-          + (f" ({len(meas.skipped)} malformed rows skipped)" if meas.skipped else ""))
+          + (f"; {len(meas.skipped)} skipped:" if meas.skipped else ""))
+    for skip in meas.skipped[:SKIPPED_SHOWN]:
+        print("  " + ", ".join(f"{k} {v}" for k, v in skip.items() if k != "reason") + f": {skip['reason']}")
+    if len(meas.skipped) > SKIPPED_SHOWN:
+        print(f"  ... and {len(meas.skipped) - SKIPPED_SHOWN} more (all of them in skipped_rows of --json)")
     print(f"registration {res['registration']['method']}: residual RMS {res['registration']['residual_rms_m'] * 1e3:.4f}"
           f" mm; position error mean {pe['mean'] * 1e3:.4f}, max {pe['max'] * 1e3:.4f} mm")
     if budget is not None:

@@ -88,7 +88,7 @@ def pose_from_values(position, quaternion) -> np.ndarray:
     try:
         R = quat_to_matrices(o)[0]
     except ValueError:
-        raise IngestError("pose: zero quaternion") from None
+        raise IngestError("quaternion: zero norm (a zero quaternion is no rotation)") from None
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, p
     return T

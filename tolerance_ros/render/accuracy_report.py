@@ -92,7 +92,7 @@ def _registration_line(reg) -> str:
 def markdown(res, model, budget, files) -> str:
     s = res["summary"]
     L = [f"# Accuracy report: {model.name}", "", f"Measurements: {res['measurements']} from `{res['source']}`"
-         + (f"; {len(res['skipped_rows'])} malformed rows skipped (listed in report.json)" if res["skipped_rows"] else ""),
+         + (f"; {len(res['skipped_rows'])} measurements skipped (each with its reason in report.json)" if res["skipped_rows"] else ""),
          "", "## Registration", "", _registration_line(res["registration"]), ""]
     pe = s["position_error_m"]
     L += ["## Errors (base frame, after registration)", "",

@@ -9,8 +9,14 @@ CSV format: optional ``#`` comment lines, then a header naming each column with 
 Rx(roll)``; optional, or ``qx qy qz qw`` quaternion columns instead), ``pose`` the test pose name and
 ``cycle`` its 0-based cycle (both optional), ``joint:<name>`` the joint reading at the measurement
 (rad or deg for revolute, m or mm for prismatic). Lengths: m, mm, um; angles: rad, deg, mrad.
-Stamps must not decrease. A malformed row stops the read with its line number, unless the caller
-asks to skip bad rows; skipped rows are then listed, never dropped silently.
+The orientation columns come all three or all four, never some of them. A number is what ``float()``
+reads from ASCII digits, sign, point and exponent (no ``1_000``, no other digits, no nan or inf), and
+must be finite; stamps must not decrease. Files are UTF-8.
+
+Every problem is a ``MeasurementError`` naming the file, the line and the column or field. With
+``skip_bad`` a bad row or line is skipped instead and listed in ``skipped`` with its reason (a bad
+header still stops the read); nothing is dropped silently. A line longer than ``MAX_LINE`` characters
+is never held in memory.
 
 Campaign log of the accuracy monitor (JSON Lines of events, SI)::
 
@@ -19,11 +25,17 @@ Campaign log of the accuracy monitor (JSON Lines of events, SI)::
     {"event": "paired", "seq": 7, "joint_stamp": 12.49, "joint_names": [...], "joints": [...],
      "pose": "P1" | null, "verdict": "within", ...}           # written when its joint state is known
     {"event": "unpaired", "seq": 8, "reason": "..."}
+
+``seq`` counts from 0 again after each ``{"event": "start", ...}`` (the monitor restarted and appends
+to the same log). A second measurement, pairing or non-pairing of one ``seq``, a pairing before its
+measurement, a number given as a string, a NaN or Infinity and a line nested deeper than ``MAX_DEPTH``
+(checked before the JSON parser sees it) are errors.
 """
 from __future__ import annotations
 
 import csv
 import json
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +47,12 @@ from ..ingest import IngestError, JointOrder, pair_by_stamp, pose_from_values, s
 from ..units import ANGLE_UNITS, LENGTH_UNITS
 
 _COL = re.compile(r"^\s*([A-Za-z_][\w:.\-/]*)\s*(?:\[\s*([^\]]*)\s*\])?\s*$")
+_NOT_NUMERIC = re.compile(r"[^0-9eE.+\- \t]")  # a number is what float() takes from these characters
+_UNDECODED = re.compile("[\udc80-\udcff]")       # a byte that is not UTF-8, as surrogateescape decodes it
+_JSON_TOKEN = re.compile(r'\\.|["\[\]{}]')
+
+MAX_LINE = 1 << 20  # characters in one line of a CSV file or a campaign log
+MAX_DEPTH = 64      # nesting of one campaign log line
 
 
 class MeasurementError(ValueError):
@@ -59,12 +77,71 @@ class Measurements:
         return len(self.stamps)
 
 
+def _show(text, n=40):
+    """repr of ``text``, cut to about ``n`` characters."""
+    return repr(text) if len(text) <= n else repr(text[:n]) + f"... ({len(text)} characters)"
+
+
+def _cut(text, n=40):
+    return text if len(text) <= n else text[:n] + "..."
+
+
+def _lines(fh):
+    """(line number, text) of each line of a text file opened with ``errors="surrogateescape"``; the text
+    is None for a line longer than MAX_LINE characters, which is not kept in memory."""
+    lineno = 0
+    while True:
+        line = fh.readline(MAX_LINE + 1)
+        if not line:
+            return
+        lineno += 1
+        if len(line) > MAX_LINE:
+            while line and line[-1] not in "\r\n":
+                line = fh.readline(MAX_LINE)
+            yield lineno, None
+            continue
+        if lineno == 1 and line.startswith("\ufeff"):
+            line = line[1:]
+        yield lineno, line
+
+
+def _check_text(line):
+    """Index of the first character of ``line`` that stands for a byte that is not UTF-8, or None;
+    MeasurementError for a line that was too long (None)."""
+    if line is None:
+        raise MeasurementError(f"line longer than {MAX_LINE} characters")
+    if not line.isascii():
+        bad = _UNDECODED.search(line)
+        if bad:
+            return bad.start()
+    return None
+
+
+def _not_utf8(line, pos):
+    return f"byte 0x{ord(line[pos]) - 0xdc00:02x} at character {pos + 1} is not UTF-8"
+
+
+def _csv_row(line, spec):
+    """Fields of one CSV line (split at commas when nothing is quoted)."""
+    if '"' not in line:
+        return line.rstrip("\r\n").split(",")
+    try:
+        return next(csv.reader([line]))
+    except csv.Error as exc:
+        limit = csv.field_size_limit()
+        k = next((i for i, f in enumerate(line.split(",")) if len(f) > limit), None)
+        if k is None:
+            raise MeasurementError(f"not a CSV row ({exc})") from None
+        name = next((n for n, (i, _) in spec.cols.items() if i == k), None) if spec else None
+        raise MeasurementError(f"{name or f'column {k + 1}'}: longer than {limit} characters") from None
+
+
 def _parse_header(header, source):
     cols = {}
     for i, h in enumerate(header):
         m = _COL.match(h)
         if not m:
-            raise MeasurementError(f"{source}: header column {i + 1} {h!r} is not 'name[unit]'")
+            raise MeasurementError(f"{source}: header column {i + 1} {_show(h)} is not 'name[unit]'")
         name, unit = m.group(1), (m.group(2) or "").strip()
         if name in cols:
             raise MeasurementError(f"{source}: column {name!r} appears twice")
@@ -96,187 +173,232 @@ def read_csv(path, skip_bad: bool = False, chunk_rows: int | None = None):
     if chunk_rows:
         return gen
     parts = list(gen)
-    if not parts:
-        raise MeasurementError(f"{path}: no measurements")
-    return concat(parts)
+    m = concat(parts) if parts else None
+    if m is None or len(m) == 0:
+        bad = m.skipped if m is not None else []
+        raise MeasurementError(f"{path}: no measurements"
+                               + (f" ({len(bad)} bad row(s) skipped, the first on line {bad[0]['line']}: "
+                                  f"{bad[0]['reason']})" if bad else ""))
+    return m
 
 
 _TIME_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_RPY, _QUAT = ("roll", "pitch", "yaw"), ("qx", "qy", "qz", "qw")
+
+
+@dataclass
+class _Spec:
+    """What the header says: column indices and the scale of each numeric column to SI."""
+
+    ncols: int
+    cols: dict
+    orientation: str | None   # 'rpy', 'quat' or None
+    num_cols: list            # stamp, x, y, z, then the orientation and joint columns
+    num_names: list
+    scale: np.ndarray
+    joint_names: tuple
+
+    def rotations_and_joints(self, A):
+        """(n, 3, 3) rotations (None without orientation; ValueError for a zero quaternion) and (n, dof)
+        joint values of numeric rows ``A`` in SI."""
+        if self.orientation == "rpy":
+            return rpy_to_matrices(A[:, 4:7]), A[:, 7:]
+        if self.orientation == "quat":
+            return quat_to_matrices(A[:, 4:8]), A[:, 8:]
+        return None, A[:, 4:]
+
+
+def _spec_from_header(header, source):
+    cols = _parse_header(header, source)
+    missing = [c for c in ("stamp", "x", "y", "z") if c not in cols]
+    if missing:
+        raise MeasurementError(f"{source}: missing column(s) {missing}; header is {header}")
+    rpy, quat = [c for c in _RPY if c in cols], [c for c in _QUAT if c in cols]
+    for have, group in ((rpy, _RPY), (quat, _QUAT)):
+        if have and len(have) < len(group):
+            raise MeasurementError(f"{source}: orientation needs all of {', '.join(group)}; missing column(s) "
+                                   f"{[c for c in group if c not in have]}")
+    if rpy and quat:
+        raise MeasurementError(f"{source}: give the orientation as roll, pitch, yaw or as qx, qy, qz, qw, not both")
+    if cols["stamp"][1] not in _TIME_UNITS:
+        raise MeasurementError(f"{source}: column 'stamp' needs a time unit (s, ms, us, ns), "
+                               f"got {cols['stamp'][1]!r}")
+    names = ["stamp", "x", "y", "z"]
+    scale = [_TIME_UNITS[cols["stamp"][1]]] + [_scale(c, cols[c][1], "length", source) for c in "xyz"]
+    if rpy:
+        names += list(_RPY)
+        scale += [_scale(c, cols[c][1], "angle", source) for c in _RPY]
+    elif quat:
+        names += list(_QUAT)
+        scale += [1.0] * 4
+    joints = [c for c in cols if c.startswith("joint:")]
+    for c in joints:
+        unit = cols[c][1]
+        kind = "angle" if unit in ANGLE_UNITS else "length" if unit in LENGTH_UNITS else None
+        if kind is None:
+            raise MeasurementError(f"{source}: column {c!r} needs a unit (rad, deg, m, mm), got {unit!r}")
+        scale.append(_scale(c, unit, kind, source))
+    names += joints
+    return _Spec(len(header), cols, "rpy" if rpy else "quat" if quat else None, [cols[c][0] for c in names],
+                 names, np.array(scale), tuple(c[len("joint:"):] for c in joints))
 
 
 def _read_csv_chunks(path, skip_bad, chunk_rows):
     source = str(path)
     if not path.is_file():
         raise MeasurementError(f"{source}: file not found")
-    with path.open(newline="") as fh:
-        header, cols, spec = None, None, None
+    with path.open(encoding="utf-8", errors="surrogateescape", newline="") as fh:
+        header, spec = None, None
         raw, skipped, last = [], [], -np.inf
-        for lineno, line in enumerate(fh, start=1):
-            if not line.strip() or line.lstrip().startswith("#"):
+        for lineno, line in _lines(fh):
+            try:
+                bad = _check_text(line)
+                if bad is not None:
+                    k = len(_csv_row(line[:bad], None)) - 1 if line[:bad].strip() else 0
+                    name = next((n for n, (i, _) in spec.cols.items() if i == k), None) if spec else None
+                    raise MeasurementError((f"{name}: " if name else "") + _not_utf8(line, bad))
+                if not line.strip() or line.lstrip().startswith("#"):
+                    continue
+                row = _csv_row(line, spec)
+            except MeasurementError as exc:
+                before_header = header is None and (line is None or not line.lstrip().startswith("#"))
+                if not skip_bad or before_header:
+                    raise MeasurementError(f"{source}, line {lineno}: {exc}") from None
+                skipped.append({"line": lineno, "reason": str(exc)})
                 continue
-            row = next(csv.reader([line]))
             if header is None:
                 header = row
-                cols = _parse_header(header, source)
-                missing = [c for c in ("stamp", "x", "y", "z") if c not in cols]
-                if missing:
-                    raise MeasurementError(f"{source}: missing column(s) {missing}; header is {header}")
-                has_rpy = all(c in cols for c in ("roll", "pitch", "yaw"))
-                has_quat = all(c in cols for c in ("qx", "qy", "qz", "qw"))
-                if any(c in cols for c in ("roll", "pitch", "yaw")) and not has_rpy:
-                    raise MeasurementError(f"{source}: orientation needs all of roll, pitch, yaw")
-                if cols["stamp"][1] not in _TIME_UNITS:
-                    raise MeasurementError(f"{source}: column 'stamp' needs a time unit (s, ms, us, ns), "
-                                           f"got {cols['stamp'][1]!r}")
-                s_stamp = _TIME_UNITS[cols["stamp"][1]]
-                s_pos = [_scale(c, cols[c][1], "length", source) for c in ("x", "y", "z")]
-                s_ang = [_scale(c, cols[c][1], "angle", source) for c in ("roll", "pitch", "yaw")] if has_rpy else None
-                joint_cols = [(c[len("joint:"):], cols[c]) for c in cols if c.startswith("joint:")]
-                s_joint = []
-                for name, (_, unit) in joint_cols:
-                    kind = "angle" if unit in ANGLE_UNITS else "length" if unit in LENGTH_UNITS else None
-                    if kind is None:
-                        raise MeasurementError(f"{source}: column 'joint:{name}' needs a unit (rad, deg, m, mm), "
-                                               f"got {unit!r}")
-                    s_joint.append(_scale(f"joint:{name}", unit, kind, source))
-                spec = (s_stamp, s_pos, s_ang, has_quat, joint_cols, s_joint)
+                try:
+                    spec = _spec_from_header(header, "header")
+                except MeasurementError as exc:
+                    raise MeasurementError(f"{source}, line {lineno}: {exc}") from None
                 continue
             raw.append((lineno, row))
             if chunk_rows and len(raw) >= chunk_rows:
-                recs, bad, last = _convert(raw, header, cols, spec, last, skip_bad, source)
-                skipped += bad
-                yield _pack(recs, joint_cols, has_rpy or has_quat, source, skipped)
+                block, bad_rows, last = _convert(raw, spec, last, skip_bad, source)
+                yield _pack(block, spec, source, sorted(skipped + bad_rows, key=lambda s: s["line"]))
                 raw, skipped = [], []
         if header is None:
             raise MeasurementError(f"{source}: empty file (no header)")
-        if raw:
-            recs, bad, last = _convert(raw, header, cols, spec, last, skip_bad, source)
-            skipped += bad
-            yield _pack(recs, joint_cols, has_rpy or has_quat, source, skipped)
+        if raw or skipped:
+            block, bad_rows, last = _convert(raw, spec, last, skip_bad, source)
+            yield _pack(block, spec, source, sorted(skipped + bad_rows, key=lambda s: s["line"]))
 
 
-def _convert(raw, header, cols, spec, last, skip_bad, source):
-    """Rows -> records. Fast path: numeric columns converted by numpy in one go; any problem falls back
-    to row-by-row parsing, which names the line (or skips and lists it)."""
-    s_stamp, s_pos, s_ang, has_quat, joint_cols, s_joint = spec
+def _convert(raw, spec, last, skip_bad, source):
+    """Rows -> a _Block, the rows skipped and the last stamp. Fast path: the numeric columns of a clean
+    chunk converted by numpy in one go; any problem falls back to row-by-row parsing, which names the
+    line (or skips and lists it)."""
+    if raw:
+        block = _convert_fast([r for _, r in raw], spec, last)
+        if block is not None:
+            return block, [], float(block.stamps[-1])
+    return _convert_slow(raw, spec, last, skip_bad, source)
+
+
+def _convert_fast(rows, spec, last):
+    """The rows of a clean chunk as a _Block, or None when any row is not clean."""
+    if any(len(r) != spec.ncols for r in rows):
+        return None
+    by_col = list(zip(*rows))
+    if _NOT_NUMERIC.search("".join(["".join(by_col[i]) for i in spec.num_cols])):
+        return None
+    A = np.empty((len(rows), len(spec.num_cols)))
     try:
-        if any(len(r) != len(header) for _, r in raw):
-            raise ValueError
-        num_cols = [cols["stamp"][0]] + [cols[c][0] for c in ("x", "y", "z")]
-        if s_ang is not None:
-            num_cols += [cols[c][0] for c in ("roll", "pitch", "yaw")]
-        elif has_quat:
-            num_cols += [cols[c][0] for c in ("qx", "qy", "qz", "qw")]
-        num_cols += [i for _, (i, _) in joint_cols]
-        A = np.array([[r[i] for i in num_cols] for _, r in raw], dtype=float)
-        if not np.all(np.isfinite(A)):
-            raise ValueError
-        stamps = A[:, 0] * s_stamp
-        if stamps[0] < last or np.any(np.diff(stamps) < 0):
-            raise ValueError
-        cyc = [r[cols["cycle"][0]].strip() for _, r in raw] if "cycle" in cols else None
-        cycles = np.array([int(c) if c else -1 for c in cyc]) if cyc is not None else np.full(len(raw), -1)
-        if cyc is not None and any(c and (not c.isdigit()) for c in cyc):
-            raise ValueError
+        for j, i in enumerate(spec.num_cols):
+            A[:, j] = np.fromiter(map(float, by_col[i]), float, len(rows))
     except ValueError:
-        return _convert_slow(raw, header, cols, spec, last, skip_bad, source)
-    k = 4
-    pos = A[:, 1:4] * s_pos
-    if s_ang is not None:
-        orient, k = ("rpy", A[:, 4:7] * s_ang), 7
-    elif has_quat:
-        orient, k = ("quat", A[:, 4:8]), 8
-    else:
-        orient = None
-    joints = A[:, k:] * np.array(s_joint) if joint_cols else np.zeros((len(raw), 0))
-    poses = [r[cols["pose"][0]].strip() if "pose" in cols else "" for _, r in raw]
-    recs = _Block(stamps, pos, orient, poses, cycles, joints)
-    return recs, [], float(stamps[-1])
+        return None
+    if not np.all(np.isfinite(A)):
+        return None
+    A *= spec.scale
+    stamps = A[:, 0]
+    if stamps[0] < last or np.any(np.diff(stamps) < 0):
+        return None
+    try:
+        cycles = [_cycle(c) for c in by_col[spec.cols["cycle"][0]]] if "cycle" in spec.cols else [-1] * len(rows)
+        R, joints = spec.rotations_and_joints(A)
+    except ValueError:
+        return None
+    poses = [p.strip() for p in by_col[spec.cols["pose"][0]]] if "pose" in spec.cols else [""] * len(rows)
+    return _Block(stamps, A[:, 1:4], R, poses, np.array(cycles, int), joints)
 
 
-def _convert_slow(raw, header, cols, spec, last, skip_bad, source):
-    s_stamp, s_pos, s_ang, has_quat, joint_cols, s_joint = spec
+def _convert_slow(raw, spec, last, skip_bad, source):
     buf, skipped = [], []
     for lineno, row in raw:
         try:
-            if len(row) != len(header):
-                raise MeasurementError(f"expected {len(header)} columns, got {len(row)}")
-            rec = _parse_row(row, cols, s_stamp, s_pos, s_ang, has_quat, joint_cols, s_joint)
-            if rec[0] < last:
-                raise MeasurementError(f"stamp {rec[0]:.9g} s is earlier than the previous row's {last:.9g} s "
+            if len(row) != spec.ncols:
+                raise MeasurementError(f"expected {spec.ncols} columns, got {len(row)}")
+            rec = _parse_row(row, spec)
+            if rec[0][0] < last:
+                raise MeasurementError(f"stamp {rec[0][0]:.9g} s is earlier than the previous row's {last:.9g} s "
                                        f"(stamps must not decrease)")
         except MeasurementError as exc:
             if not skip_bad:
                 raise MeasurementError(f"{source}, line {lineno}: {exc}") from None
             skipped.append({"line": lineno, "reason": str(exc)})
             continue
-        last = rec[0]
+        last = rec[0][0]
         buf.append(rec)
-    n = len(buf)
-    orient = None
-    if s_ang is not None or has_quat:
-        orient = ("rpy" if s_ang is not None else "quat", np.array([r[2][1] for r in buf]).reshape(n, -1))
-    block = _Block(np.array([r[0] for r in buf], float), np.array([r[1] for r in buf], float).reshape(n, 3), orient,
-                   [r[3] for r in buf], np.array([r[4] for r in buf], int),
-                   np.array([r[5] for r in buf], float).reshape(n, len(joint_cols)))
+    A = np.array([r[0] for r in buf], float).reshape(len(buf), len(spec.num_cols))
+    R, joints = spec.rotations_and_joints(A)
+    block = _Block(A[:, 0], A[:, 1:4], R, [r[1] for r in buf], np.array([r[2] for r in buf], int), joints)
     return block, skipped, last
 
 
 class _Block:
-    """Parsed rows of one chunk, column-wise (SI)."""
+    """Parsed rows of one chunk, column-wise (SI); ``R`` is None without orientation columns."""
 
-    def __init__(self, stamps, pos, orient, poses, cycles, joints):
-        self.stamps, self.pos, self.orient, self.poses, self.cycles, self.joints = \
-            stamps, pos, orient, poses, cycles, joints
+    def __init__(self, stamps, pos, R, poses, cycles, joints):
+        self.stamps, self.pos, self.R, self.poses, self.cycles, self.joints = stamps, pos, R, poses, cycles, joints
 
 
 def _num(text, what):
+    """A finite number written in plain ASCII (what ``float()`` takes from digits, sign, point, exponent)."""
+    if _NOT_NUMERIC.search(text):
+        raise MeasurementError(f"{what}: {_show(text)} is not a number")
     try:
         v = float(text)
     except ValueError:
-        raise MeasurementError(f"{what}: {text!r} is not a number") from None
+        raise MeasurementError(f"{what}: {_show(text)} is not a number") from None
     if not np.isfinite(v):
-        raise MeasurementError(f"{what}: {text!r} is not finite")
+        raise MeasurementError(f"{what}: {_show(text)} is not finite")
     return v
 
 
-def _parse_row(row, cols, s_stamp, s_pos, s_ang, has_quat, joint_cols, s_joint):
-    stamp = _num(row[cols["stamp"][0]], "stamp") * s_stamp
-    p = [_num(row[cols[c][0]], c) * s for c, s in zip(("x", "y", "z"), s_pos)]
-    if s_ang is not None:
-        o = ("rpy", [_num(row[cols[c][0]], c) * s for c, s in zip(("roll", "pitch", "yaw"), s_ang)])
-    elif has_quat:
-        o = ("quat", [_num(row[cols[c][0]], c) for c in ("qx", "qy", "qz", "qw")])
-    else:
-        o = None
-    pose = row[cols["pose"][0]].strip() if "pose" in cols else ""
-    cycle = -1
-    if "cycle" in cols and row[cols["cycle"][0]].strip():
-        c = _num(row[cols["cycle"][0]], "cycle")
-        if c != int(c) or c < 0:
-            raise MeasurementError(f"cycle: expected a non-negative integer, got {row[cols['cycle'][0]]!r}")
-        cycle = int(c)
-    joints = [_num(row[i], f"joint:{n}") * s for (n, (i, _)), s in zip(joint_cols, s_joint)]
-    return stamp, p, o, pose, cycle, joints
+def _parse_row(row, spec):
+    """(numeric values in SI, pose label, cycle) of one row; MeasurementError names the column."""
+    vals = [_num(row[i], name) * s for i, name, s in zip(spec.num_cols, spec.num_names, spec.scale)]
+    if spec.orientation == "quat":
+        try:
+            quat_to_matrices(vals[4:8])
+        except ValueError as exc:
+            raise MeasurementError(f"qx, qy, qz, qw: {exc}") from None
+    pose = row[spec.cols["pose"][0]].strip() if "pose" in spec.cols else ""
+    cycle = _cycle(row[spec.cols["cycle"][0]]) if "cycle" in spec.cols else -1
+    return vals, pose, cycle
 
 
-def _pack(block, joint_cols, has_orientation, source, skipped):
+def _cycle(text):
+    """A cycle number (ASCII digits, below 10**9), or -1 for an empty field."""
+    t = text.strip(" \t")
+    if not t:
+        return -1
+    if not (t.isascii() and t.isdigit() and len(t) <= 9):
+        raise MeasurementError(f"cycle: expected a non-negative integer below 10**9, got {_show(text)}")
+    return int(t)
+
+
+def _pack(block, spec, source, skipped):
     n = len(block.stamps)
     T = np.tile(np.eye(4), (n, 1, 1))
     T[:, :3, 3] = block.pos
-    if has_orientation and n:
-        kind, vals = block.orient
-        if kind == "rpy":
-            T[:, :3, :3] = rpy_to_matrices(vals)
-        else:
-            try:
-                T[:, :3, :3] = quat_to_matrices(vals)
-            except ValueError as exc:
-                raise MeasurementError(f"{source}: {exc}") from None
-    joints = block.joints if joint_cols else None
-    return Measurements(block.stamps, T, joints, tuple(n for n, _ in joint_cols),
-                        np.array(block.poses, dtype=object), np.asarray(block.cycles, dtype=int), has_orientation,
-                        source, list(skipped))
+    if block.R is not None:
+        T[:, :3, :3] = block.R
+    joints = block.joints if spec.joint_names else None
+    return Measurements(block.stamps, T, joints, spec.joint_names, np.array(block.poses, dtype=object),
+                        np.asarray(block.cycles, dtype=int), spec.orientation is not None, source, list(skipped))
 
 
 def concat(parts) -> Measurements:
@@ -317,44 +439,203 @@ def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="
 
 def read_log(path, skip_bad=False) -> Measurements:
     """Measurements (with joints) rebuilt from the accuracy monitor's campaign log (JSON Lines of events:
-    ``measurement`` as it arrived, then ``paired`` or ``unpaired``); unpaired, rejected and undecided
-    measurements are listed in ``skipped`` with their reason."""
+    ``measurement`` as it arrived, then ``paired`` or ``unpaired``; ``seq`` counts from 0 again after each
+    ``start``). Unpaired, rejected and undecided measurements are listed in ``skipped`` with their line and
+    reason; a malformed line is an error naming it, or with ``skip_bad`` is listed there too."""
     path = Path(path)
+    source = str(path)
     if not path.is_file():
-        raise MeasurementError(f"{path}: file not found")
-    meas, pairs, skipped, names = {}, {}, [], None
-    with path.open() as fh:
-        for lineno, line in enumerate(fh, start=1):
-            if not line.strip():
-                continue
+        raise MeasurementError(f"{source}: file not found")
+    meas, pairs, logged, decided, skipped = {}, {}, {}, {}, []
+    order, session = None, 0
+    with path.open(encoding="utf-8", errors="surrogateescape", newline="") as fh:
+        for lineno, line in _lines(fh):
             try:
-                rec = json.loads(line)
+                bad = _check_text(line)
+                if bad is not None:
+                    raise MeasurementError(_not_utf8(line, bad))
+                if not line.strip():
+                    continue
+                rec = _json_object(line)
                 ev = rec.get("event")
+                if ev == "start":
+                    session += 1
+                    continue
+                if ev == "budget":
+                    continue
+                if ev not in ("measurement", "paired", "unpaired"):
+                    raise MeasurementError(f"event: expected start, budget, measurement, paired or unpaired, "
+                                           f"got {_brief(ev)}")
+                seq = rec.get("seq")
+                if type(seq) is not int or seq < 0:
+                    raise MeasurementError(f"seq: expected a non-negative integer, got {_brief(seq)}")
+                key = (session, seq)
                 if ev == "measurement":
+                    if key in logged:
+                        raise MeasurementError(f"seq: measurement {seq} already logged on line {logged[key][0]}")
                     if "rejected" in rec:
-                        skipped.append({"seq": rec["seq"], "reason": rec["rejected"]})
-                    else:
-                        meas[rec["seq"]] = (float(rec["stamp"]), rec["position"], rec["quaternion"])
-                elif ev == "paired":
-                    pairs[rec["seq"]] = (rec["joints"], rec.get("pose") or "")
-                    names = names or tuple(rec["joint_names"])
-                elif ev == "unpaired":
-                    skipped.append({"seq": rec["seq"], "reason": rec["reason"]})
-            except (ValueError, KeyError, TypeError) as exc:
+                        logged[key] = (lineno, "rejected")
+                        skipped.append({"line": lineno, "seq": seq, "reason": f"rejected: {rec['rejected']}"})
+                        continue
+                    stamp = stamp_seconds(_number(rec, "stamp"))
+                    T = pose_from_values(_numbers(rec, "position", 3), _numbers(rec, "quaternion", 4))
+                    logged[key] = (lineno, "measured")
+                    meas[key] = (stamp, T)
+                    continue
+                if key not in logged:
+                    raise MeasurementError(f"seq: no measurement {seq} logged before this {ev} event")
+                if logged[key][1] == "rejected":
+                    raise MeasurementError(f"seq: measurement {seq} was rejected (line {logged[key][0]})")
+                if key in decided:
+                    raise MeasurementError(f"seq: measurement {seq} already {decided[key][1]} on line "
+                                           f"{decided[key][0]}")
+                if ev == "unpaired":
+                    decided[key] = (lineno, ev)
+                    skipped.append({"line": lineno, "seq": seq, "reason": f"unpaired: {rec.get('reason')}"})
+                    continue
+                names = rec.get("joint_names")
+                if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+                    raise MeasurementError(f"joint_names: expected a list of names, got {_brief(names)}")
+                joints = _numbers(rec, "joints", len(names))
+                pose = rec.get("pose")
+                if pose is not None and not isinstance(pose, str):
+                    raise MeasurementError(f"pose: expected a test pose name or null, got {_brief(pose)}")
+                order = order or JointOrder(names)
+                try:
+                    q = order(names, joints)
+                except IngestError as exc:
+                    raise MeasurementError(f"joints: {exc}") from None
+                decided[key] = (lineno, ev)
+                pairs[key] = (q, pose or "")
+            except (MeasurementError, IngestError) as exc:
                 if not skip_bad:
-                    raise MeasurementError(f"{path}, line {lineno}: {exc}") from None
+                    raise MeasurementError(f"{source}, line {lineno}: {exc}") from None
                 skipped.append({"line": lineno, "reason": str(exc)})
-    for seq in sorted(set(meas) - set(pairs) - {s.get("seq") for s in skipped}):
-        skipped.append({"seq": seq, "reason": "pairing not decided before the log ended"})
-    seqs = sorted(set(meas) & set(pairs))
-    if not seqs:
-        raise MeasurementError(f"{path}: no paired measurements")
-    T = np.tile(np.eye(4), (len(seqs), 1, 1))
-    T[:, :3, :3] = quat_to_matrices(np.array([meas[s][2] for s in seqs]))
-    T[:, :3, 3] = [meas[s][1] for s in seqs]
-    return Measurements(np.array([meas[s][0] for s in seqs]), T, np.array([pairs[s][0] for s in seqs], float),
-                        names or (), np.array([pairs[s][1] for s in seqs], dtype=object), np.full(len(seqs), -1),
-                        True, str(path), skipped)
+    for key in meas:
+        if key not in decided:
+            skipped.append({"line": logged[key][0], "seq": key[1],
+                            "reason": "pairing not decided before the log ended"})
+    keys = [k for k in meas if k in pairs]
+    if not keys:
+        raise MeasurementError(f"{source}: no paired measurements"
+                               + (f" ({len(skipped)} skipped, the first on line {skipped[0]['line']}: "
+                                  f"{skipped[0]['reason']})" if skipped else ""))
+    skipped.sort(key=lambda s: s["line"])
+    T = np.array([meas[k][1] for k in keys])
+    return Measurements(np.array([meas[k][0] for k in keys]), T, np.array([pairs[k][0] for k in keys]),
+                        order.joint_names, np.array([pairs[k][1] for k in keys], dtype=object), np.full(len(keys), -1),
+                        True, source, skipped)
+
+
+def _brief(value):
+    """A JSON value as a short text for a message."""
+    if isinstance(value, (dict, list)):
+        return f"a JSON {'object' if isinstance(value, dict) else 'array'}"
+    if isinstance(value, str):
+        return _show(value)
+    return _cut(json.dumps(value))
+
+
+class _Constant(str):
+    """NaN, Infinity or -Infinity in a log line: not JSON, and never a number here."""
+
+
+def _no_duplicate_keys(pairs):
+    obj = {}
+    for k, v in pairs:
+        if k in obj:
+            raise MeasurementError(f"{k}: appears twice in one object")
+        obj[k] = v
+    return obj
+
+
+def _nesting(line):
+    """Deepest nesting of arrays and objects in a line of JSON (brackets inside strings do not count),
+    found without parsing; stops counting past MAX_DEPTH."""
+    depth = deepest = 0
+    in_string = False
+    for m in _JSON_TOKEN.finditer(line):
+        t = m.group()
+        if t == '"':
+            in_string = not in_string
+        elif in_string or t[0] == "\\":
+            continue
+        elif t in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+            if deepest > MAX_DEPTH:
+                break
+        else:
+            depth -= 1
+    return deepest
+
+
+def _json_object(line):
+    """One log line as a dict. Nesting deeper than MAX_DEPTH is rejected before the (recursive) parser
+    sees it; NaN and Infinity, repeated keys and anything but an object are errors naming the field."""
+    if line.count("[") + line.count("{") > MAX_DEPTH and _nesting(line) > MAX_DEPTH:
+        raise MeasurementError(f"nested deeper than {MAX_DEPTH} levels")
+    try:
+        rec = json.loads(line, parse_constant=_Constant, object_pairs_hook=_no_duplicate_keys)
+    except MeasurementError:
+        raise
+    except json.JSONDecodeError as exc:
+        raise MeasurementError(f"not valid JSON ({exc.msg} at character {exc.pos + 1})") from None
+    except ValueError as exc:
+        raise MeasurementError(f"not valid JSON ({exc})") from None
+    if not isinstance(rec, dict):
+        raise MeasurementError(f"expected a JSON object, got {_brief(rec)}")
+    if "NaN" in line or "Infinity" in line:
+        for k, v in rec.items():
+            name = next(_constants(v), None)
+            if name is not None:
+                raise MeasurementError(f"{k}: {name} is not valid JSON (numbers must be finite)")
+    return rec
+
+
+def _constants(value):
+    if isinstance(value, _Constant):
+        yield str(value)
+    elif isinstance(value, (list, dict)):
+        for v in (value.values() if isinstance(value, dict) else value):
+            yield from _constants(v)
+
+
+def _field(rec, key):
+    if key not in rec:
+        raise MeasurementError(f"{key}: missing")
+    return rec[key]
+
+
+def _number(rec, key):
+    """A finite JSON number (not a string, not a boolean) of a log record, as a float."""
+    v = _field(rec, key)
+    if type(v) not in (int, float):
+        raise MeasurementError(f"{key}: expected a number, got {_brief(v)}")
+    return _finite(key, [v])[0]
+
+
+def _numbers(rec, key, n):
+    """A list of ``n`` finite JSON numbers (not strings, not booleans) of a log record, as floats."""
+    v = _field(rec, key)
+    if not isinstance(v, list):
+        raise MeasurementError(f"{key}: expected a list of {n} numbers, got {_brief(v)}")
+    bad = [x for x in v if type(x) not in (int, float)]
+    if bad:
+        raise MeasurementError(f"{key}: expected numbers, got {_brief(bad[0])}")
+    if len(v) != n:
+        raise MeasurementError(f"{key}: expected {n} numbers, got {len(v)}")
+    return _finite(key, v)
+
+
+def _finite(key, values):
+    try:
+        out = [float(x) for x in values]
+    except OverflowError:
+        out = [math.inf]
+    if not all(map(math.isfinite, out)):
+        raise MeasurementError(f"{key}: a number beyond the range of a float (not finite)")
+    return out
 
 
 def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic="/joint_states",
@@ -364,7 +645,8 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
     Each measured pose is paired with the joint state nearest to its header stamp within ``slop`` s.
     Unpaired measurements are an error unless ``skip_bad`` (then listed in ``skipped``).
     """
-    from rosbags.highlevel import AnyReader
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.rosbag2 import ReaderError
     from rosbags.typesys import Stores, get_typestore
 
     path = Path(path)
@@ -373,30 +655,42 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
     poses, pstamps, jstates, jstamps = [], [], [], []
     order = None
     skipped = []
-    with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
-        conns = [c for c in reader.connections if c.topic in (pose_topic, joint_topic)]
-        if not any(c.topic == pose_topic for c in conns):
-            raise MeasurementError(f"{path}: no topic {pose_topic} (topics: {sorted({c.topic for c in reader.connections})})")
-        for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
-            msg = reader.deserialize(raw, conn.msgtype)
-            try:
-                st = stamp_seconds(msg.header.stamp)
-                if conn.topic == pose_topic:
-                    p, o = msg.pose.position, msg.pose.orientation
-                    poses.append(pose_from_values((p.x, p.y, p.z), (o.x, o.y, o.z, o.w)))
-                    pstamps.append(st)
-                else:
-                    if order is None:
-                        order = JointOrder(joint_names or msg.name)
-                    jstates.append(order(msg.name, msg.position))
-                    jstamps.append(st)
-            except IngestError as exc:
-                err = f"message {k} on {conn.topic}: {exc}"
-                if not skip_bad:
-                    raise MeasurementError(f"{path}: {err}") from None
-                skipped.append({"message": k, "reason": err})
+    types = {pose_topic: "geometry_msgs/msg/PoseStamped", joint_topic: "sensor_msgs/msg/JointState"}
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            conns = [c for c in reader.connections if c.topic in types]
+            if not any(c.topic == pose_topic for c in conns):
+                raise MeasurementError(f"{path}: no topic {pose_topic} "
+                                       f"(topics: {sorted({c.topic for c in reader.connections})})")
+            for c in conns:
+                if c.msgtype != types[c.topic]:
+                    raise MeasurementError(f"{path}: topic {c.topic} carries {c.msgtype}, expected {types[c.topic]}")
+            for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
+                try:
+                    try:
+                        msg = reader.deserialize(raw, conn.msgtype)
+                    except AnyReaderError as exc:
+                        raise IngestError(f"cannot be decoded as {conn.msgtype} ({_cut(str(exc), 80)})") from None
+                    st = stamp_seconds(msg.header.stamp)
+                    if conn.topic == pose_topic:
+                        p, o = msg.pose.position, msg.pose.orientation
+                        poses.append(pose_from_values((p.x, p.y, p.z), (o.x, o.y, o.z, o.w)))
+                        pstamps.append(st)
+                    else:
+                        if order is None:
+                            order = JointOrder(joint_names or msg.name)
+                        jstates.append(order(msg.name, msg.position))
+                        jstamps.append(st)
+                except IngestError as exc:
+                    err = f"message {k} on {conn.topic}: {exc}"
+                    if not skip_bad:
+                        raise MeasurementError(f"{path}: {err}") from None
+                    skipped.append({"message": k, "reason": err})
+    except (AnyReaderError, ReaderError, FileNotFoundError) as exc:
+        raise MeasurementError(f"{path}: not a readable rosbag2 recording ({exc})") from None
     if not poses:
-        raise MeasurementError(f"{path}: no messages on {pose_topic}")
+        raise MeasurementError(f"{path}: no messages on {pose_topic}"
+                               + (f" ({len(skipped)} skipped, the first: {skipped[0]['reason']})" if skipped else ""))
     by_time = np.argsort(pstamps, kind="stable")
     pst = np.array(pstamps)[by_time]
     T = np.array(poses)[by_time]
