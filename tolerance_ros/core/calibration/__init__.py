@@ -1,0 +1,7 @@
+"""From measured errors to a calibrated model (ROS-free, SI): ``calibrate`` (fit and hold-out validation),
+``writers`` (the calibration file, calibrated D-H YAML and URDF)."""
+from .calibrate import Calibration, calibrate, calibrate_measurements, calibrated_mechanism
+from .writers import load_calibrated_model, load_calibration, save_calibration, write_calibrated_robot
+
+__all__ = ["Calibration", "calibrate", "calibrate_measurements", "calibrated_mechanism", "load_calibrated_model",
+           "load_calibration", "save_calibration", "write_calibrated_robot"]
