@@ -2,7 +2,9 @@
 
 Request fields (SI): ``joints`` (one configuration or a list), ``robot``, ``outputs`` ('position' |
 'pose'), ``tolerances`` (parameter -> +-tolerance, or 'current' for the latest budget), ``criteria``,
-``allow_out_of_limits``, ``include_jacobian``; see ``schemas/compute_error_jacobian.*.json``.
+``allow_out_of_limits``, ``include_jacobian``, ``model`` ('nominal' | 'calibrated': the robot's loaded
+calibration); see ``schemas/compute_error_jacobian.*.json``. ``"command": "compensate"`` (fields
+``joints`` or ``poses``, ``seed``, ``match``, ``model``) is served by ``services/compensation.py``.
 """
 from __future__ import annotations
 
@@ -77,18 +79,21 @@ def parse_tolerances(value, model, current_budget=None) -> tuple:
         raise ContractError("invalid_request", str(exc)) from None
 
 
-JACOBIAN_FIELDS = {"robot": ((str,), False), "joints": ((list,), True), "outputs": ((str,), False),
+JACOBIAN_FIELDS = {"robot": ((str,), False), "joints": ((list,), False), "outputs": ((str,), False),
                    "tolerances": ((dict, str), False), "criteria": ((list,), False),
-                   "allow_out_of_limits": ((bool,), False), "include_jacobian": ((bool,), False)}
+                   "allow_out_of_limits": ((bool,), False), "include_jacobian": ((bool,), False),
+                   "command": ((str,), False), "model": ((str,), False), "poses": ((list,), False),
+                   "seed": ((list,), False), "match": ((str,), False)}
 
 
 class ErrorModelService:
     """Logic of ``compute_error_jacobian``: text request in, response dict out; never raises."""
 
-    def __init__(self, models: dict, default_robot: str, limits: Limits | None = None):
+    def __init__(self, models: dict, default_robot: str, limits: Limits | None = None, calibrations=None):
         if default_robot not in models:
             raise ValueError(f"default robot {default_robot!r} is not among the models {sorted(models)}")
         self.models = models
+        self.calibrations = dict(calibrations or {})  # robot -> calibrated Mechanism
         self.default_robot = default_robot
         self.limits = limits or Limits()
         self.current_budget = None
@@ -132,7 +137,10 @@ class ErrorModelService:
         return self.bound_at(msg.name, msg.position, criterion, msg.header.stamp)
 
     def _serve(self, req) -> dict:
-        name, model = select_robot(req, self.models, self.default_robot)
+        from .compensation import compensate_request, jacobian_model
+        if req.get("command") == "compensate":
+            return compensate_request(req, self.models, self.calibrations, self.default_robot, self.limits)
+        name, model = jacobian_model(req, self.models, self.calibrations, self.default_robot)
         outputs = req.get("outputs", "pose")
         if outputs not in ("position", "pose"):
             raise ContractError("invalid_request", f"outputs: expected 'position' or 'pose', got {outputs!r}")
