@@ -417,8 +417,8 @@ def cmd_calibrate(args):
     source = getattr(model, "config_path", None) or getattr(model, "source", None)
     cal.sources.update({"robot": _relative(source, out) if source else model.name,
                         "measurements": _relative(args.measurements, out),
-                        "campaign": _relative(args.campaign, out) if campaign is not None and Path(args.campaign).is_file()
-                        else args.campaign,
+                        "campaign": (_relative(args.campaign, out) if campaign is not None
+                                     and Path(args.campaign).is_file() else args.campaign),
                         "calibrated_robot": Path(files["robot"]).name})
     files["calibration"] = str(save_calibration(cal, out / "calibration.yaml"))
     written = write_calibration_report(cal, out, files)
@@ -503,9 +503,10 @@ def cmd_compensate(args):
     print(f"robot {model.name}, calibration {args.calibration}: {len(results)} targets ({args.match}); joints in deg "
           f"(prismatic mm), corrections in mdeg (prismatic um)")
     print(table(["target", "given", "compensated joints", "correction", "residual um", "flags"],
-                [[r["name"], r["target"], shown(r["joints"], 180 / np.pi, 1e3), shown(r["correction"], 18e4 / np.pi, 1e6),
-                  f"{r['residual_position_m'] * 1e6:.3g}",
-                  ", ".join(f for f, on in (("out of reach", not r["reached"]), ("near singularity", r["near_singularity"]),
+                [[r["name"], r["target"], shown(r["joints"], 180 / np.pi, 1e3),
+                  shown(r["correction"], 18e4 / np.pi, 1e6), f"{r['residual_position_m'] * 1e6:.3g}",
+                  ", ".join(f for f, on in (("out of reach", not r["reached"]),
+                                            ("near singularity", r["near_singularity"]),
                                             ("out of limits", r["out_of_limits"])) if on)]
                  for r in results]))
     if out_path:
@@ -663,8 +664,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--stream", action="store_true", help="constant memory for large CSV files (summary only)")
     p.set_defaults(func=cmd_report)
 
-    p = common(sub.add_parser("calibrate", help="calibrated robot file from measured poses, validated on held-out poses"))
-    p.add_argument("--measurements", required=True, help="CSV file, campaign log (.jsonl) or rosbag2 (dir, .db3, .mcap)")
+    p = common(sub.add_parser("calibrate", help="calibrated robot file from measured poses, validated on "
+                                                "held-out poses"))
+    p.add_argument("--measurements", required=True,
+                   help="CSV file, campaign log (.jsonl) or rosbag2 (dir, .db3, .mcap)")
     p.add_argument("--campaign", help="campaign with the test poses (joints of rows labelled by pose)")
     p.add_argument("--registration", choices=["base", "base+tool"], default="base",
                    help="estimate the tracker-to-base transform (and the tool offset)")
@@ -689,15 +692,19 @@ def build_parser() -> argparse.ArgumentParser:
     p = common(sub.add_parser("plan-campaign", help="test poses that make the identification best conditioned"))
     p.add_argument("--n", type=int, default=30, help="number of test poses (default 30)")
     p.add_argument("--criterion", choices=["observability", "condition", "min-singular", "noise-amplification"],
-                   default="observability", help="observability: O1 (Borm & Menq 1991); condition: O2; min-singular: O3; "
-                                                 "noise-amplification: O4 (Nahvi & Hollerbach 1996)")
-    p.add_argument("--candidates", type=int, default=2000, help="candidate poses within the joint limits (default 2000)")
+                   default="observability",
+                   help="observability: O1 (Borm & Menq 1991); condition: O2; min-singular: O3; "
+                        "noise-amplification: O4 (Nahvi & Hollerbach 1996)")
+    p.add_argument("--candidates", type=int, default=2000,
+                   help="candidate poses within the joint limits (default 2000)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--cycles", type=int, default=3, help="visits per test pose in the campaign file (default 3)")
     p.add_argument("--budget", help="scale each parameter by its tolerance (default 1 mm / 1 mrad)")
     p.add_argument("--noise", default="10um", help="tracker position noise (default 10um)")
-    p.add_argument("--orientation-noise", help="tracker orientation noise, e.g. 10urad: the tracker measures orientation")
-    p.add_argument("--compare", metavar="CAMPAIGN", help="ISO 9283 cube campaign to compare with (default: built by IK)")
+    p.add_argument("--orientation-noise",
+                   help="tracker orientation noise, e.g. 10urad: the tracker measures orientation")
+    p.add_argument("--compare", metavar="CAMPAIGN",
+                   help="ISO 9283 cube campaign to compare with (default: built by IK)")
     p.add_argument("--out", metavar="FILE", help="campaign file to write (default <robot>_planned.yaml)")
     p.add_argument("--plot", metavar="DIR", help="write singular_values.png into DIR")
     p.set_defaults(func=cmd_plan_campaign)

@@ -30,7 +30,8 @@ def write_calibration_report(cal, out_dir, files=None) -> dict:
              f"registration '{cal.registration}'. Identified {cal.unknowns - 6} parameter errors and the base "
              f"correction (6) from {cal.rows} equations; condition number of the scaled Jacobian "
              f"{cal.fit_condition:.1f}; residual noise {cal.sigma * 1e6:.2f} um (residual RMS "
-             f"{cal.residual_rms_before * 1e3:.4f} mm before, {cal.residual_rms_after * 1e3:.4f} mm after the fit).", "",
+             f"{cal.residual_rms_before * 1e3:.4f} mm before, {cal.residual_rms_after * 1e3:.4f} mm after the "
+             f"fit).", "",
              "Held at nominal (not identifiable from these poses): " + (", ".join(cal.held) or "none") + ".", "",
              "## Validation on held-out poses", "", v["method"] + ".", "",
              "| | before | after |", "|---|---|---|"]
@@ -58,7 +59,8 @@ def summary_rows(validation) -> list:
     """[[figure, before, after]] of a validation, mm and mrad."""
     rows = []
     for key, label in (("position_rms_m", "position RMS [mm]"), ("position_max_m", "position max [mm]"),
-                       ("orientation_rms_rad", "orientation RMS [mrad]"), ("orientation_max_rad", "orientation max [mrad]"),
+                       ("orientation_rms_rad", "orientation RMS [mrad]"),
+                       ("orientation_max_rad", "orientation max [mrad]"),
                        ("AP_p_mean_m", "AP_p mean [mm]"), ("AP_p_max_m", "AP_p max [mm]")):
         b, a = validation["before"][key], validation["after"][key]
         if b is not None:

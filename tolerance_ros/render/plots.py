@@ -148,7 +148,8 @@ def identified_with_uncertainty(names, kinds, error, std, held, path) -> Path:
         e = np.array([error[j] for j in sel]) * 1e3
         s = np.array([std[j] for j in sel]) * 1e3
         h = np.array([names[j] in held for j in sel], bool)
-        ax.errorbar(x[~h], e[~h], yerr=3 * s[~h], fmt="o", color="tab:blue", ms=3, capsize=2, label="identified +-3 std")
+        ax.errorbar(x[~h], e[~h], yerr=3 * s[~h], fmt="o", color="tab:blue", ms=3, capsize=2,
+                    label="identified +-3 std")
         ax.plot(x[h], e[h], "s", color="lightgray", ms=4, label="held at nominal")
         ax.axhline(0.0, color="black", linewidth=0.5)
         ax.set_xticks(x)

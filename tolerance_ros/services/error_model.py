@@ -17,7 +17,7 @@ from ..core.errors import CRITERIA, criterion_bound
 from ..core.ingest import IngestError, JointOrder, stamp_seconds
 from ..core.jsonio import dumps_fast
 from ..core.models.base import ModelError
-from .contracts import ContractError, Limits, error_response, parse_request, request_id_of, select_robot
+from .contracts import ContractError, Limits, error_response, parse_request, request_id_of
 
 
 def parse_joints(value, model, limits: Limits, allow_out_of_limits: bool) -> np.ndarray:

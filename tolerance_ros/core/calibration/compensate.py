@@ -132,7 +132,8 @@ def solve(model: Mechanism, T_target, q0, match="pose", tol_position=1e-9, tol_o
         dp[ok], dphi[ok], err[ok] = dp_try[better], dphi_try[better], err_try[better]
         lam[ok] = np.maximum(lam[ok] / 3.0, 1e-12)
         lam[act[~better]] *= 4.0
-        done[ok] = (np.linalg.norm(dp[ok], axis=1) <= tol_position) & (np.linalg.norm(dphi[ok], axis=1) <= tol_orientation)
+        done[ok] = ((np.linalg.norm(dp[ok], axis=1) <= tol_position)
+                    & (np.linalg.norm(dphi[ok], axis=1) <= tol_orientation))
     return q, np.linalg.norm(dp, axis=1), np.linalg.norm(dphi, axis=1), iters
 
 
@@ -168,7 +169,8 @@ def nominal_solution(model: Mechanism, T_target, seed=None, restarts=8, rng=0, m
     q, rp, ro, _ = solve(model, np.repeat(T_target, k, axis=0), q0, match, **kw)
     q = into_limits(model, q, q0).reshape(n, k, model.dof)
     tol_p, tol_o = kw.get("tol_position", 1e-9), kw.get("tol_orientation", 1e-9)
-    bad = ((rp > tol_p) | (ro > tol_o)).reshape(n, k) | model.out_of_limits(q.reshape(n * k, -1)).any(axis=1).reshape(n, k)
+    bad = ((rp > tol_p) | (ro > tol_o)).reshape(n, k)
+    bad |= model.out_of_limits(q.reshape(n * k, -1)).any(axis=1).reshape(n, k)
     score = np.linalg.norm(q - mid, axis=2) + 1e6 * bad + (rp + ro).reshape(n, k)
     return q[np.arange(n), np.argmin(score, axis=1)]
 

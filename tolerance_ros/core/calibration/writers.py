@@ -281,7 +281,8 @@ def calibrated_dh_yaml(model: DHChain, dx, base) -> str:
             if dx[j] != 0 or key not in joint and p[j] != 0 or not cfg:
                 joint[key] = float(p[j] / (ls if key in ("a", "d") else as_))
     if not np.array_equal(cal.base, model.base) or not cfg:
-        data["base"] = {"xyz": _floats(cal.base[:3, 3] / ls), "rpy": _floats(rpy_from_matrix(cal.base[None, :3, :3])[0] / as_)}
+        data["base"] = {"xyz": _floats(cal.base[:3, 3] / ls),
+                        "rpy": _floats(rpy_from_matrix(cal.base[None, :3, :3])[0] / as_)}
     return _header(model) + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120)
 
 
