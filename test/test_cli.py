@@ -268,3 +268,26 @@ def test_calibrate_without_improvement_exits_3(capsys, tmp_path, gao):
 def test_calibration_commands_report_bad_input_in_one_line(capsys, argv, message):
     code, _, err = run(capsys, *argv)
     assert code == 2 and message in err and "Traceback" not in err
+
+
+def test_calibrate_a_urdf_robot_writes_a_urdf(capsys, tmp_path):
+    from helpers import example_urdf
+    from tolerance_ros.core.calibration.planning import campaign_dict
+    from tolerance_ros.core.models import URDFChain
+    import yaml
+    ur5 = URDFChain(example_urdf("ur5_robot.urdf"))
+    camp = tmp_path / "c.yaml"
+    camp.write_text(yaml.safe_dump(campaign_dict(ur5, ur5.sample_joints(24, 3), "c", cycles=2)))
+    delta = np.array([1e-4 if k == "length" else 5e-4 for k in ur5.param_kinds])
+    csv_path = _simulated_csv(tmp_path / "m.csv", ur5, camp, delta)
+    code, out, err = run(capsys, "calibrate", "--robot", str(example_urdf("ur5_robot.urdf")), "--measurements",
+                         str(csv_path), "--campaign", str(camp), "--folds", "3", "--out", str(tmp_path / "cal"), "--json",
+                         "--quiet")
+    assert code == 0, err
+    doc = json.loads(out)
+    urdf = tmp_path / "cal" / "ur5_robot_calibrated.urdf"
+    assert doc["files"]["urdf"] == doc["files"]["robot"] == str(urdf) and doc["validation"]["improvement"] > 0.9
+    q = ur5.sample_joints(5, 9)
+    from tolerance_ros.core.calibration.writers import load_calibration
+    cal = load_calibration(tmp_path / "cal" / "calibration.yaml")
+    np.testing.assert_allclose(URDFChain(urdf).fk(q), cal.fk(ur5, q), atol=1e-12)

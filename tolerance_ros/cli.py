@@ -388,11 +388,14 @@ def cmd_report(args):
 
 
 def _relative(path, start) -> str:
-    """``path`` relative to the directory ``start`` where possible (a file written beside others)."""
+    """``path`` relative to the directory ``start`` when it lies at most two levels up from it (files that
+    move together), else absolute."""
+    target = Path(path).resolve()
     try:
-        return os.path.relpath(Path(path).resolve(), Path(start).resolve())
+        rel = os.path.relpath(target, Path(start).resolve())
     except ValueError:  # another drive
-        return str(Path(path).resolve())
+        return str(target)
+    return rel if Path(rel).parts[:3] != (os.pardir,) * 3 else str(target)
 
 
 def cmd_calibrate(args):
@@ -441,9 +444,8 @@ def cmd_calibrate(args):
     print(f"\nvalidation: {v['method']}")
     print(table(["held-out poses", "before", "after"], summary_rows(v)))
     print(f"position error RMS reduced by {v['improvement'] * 100:.1f} %")
-    for k in ("robot", "urdf", "calibration", "report", "json"):
-        if k in files:
-            print(f"wrote {files[k]}")
+    for f in dict.fromkeys(files[k] for k in ("robot", "urdf", "calibration", "report", "json") if k in files):
+        print(f"wrote {f}")
     for f in files["plots"]:
         print(f"plot: {f}")
 
