@@ -406,3 +406,117 @@ def test_paper_table3_and_report_agree_when_they_use_the_same_registration(capsy
     assert report["registration"]["method"] == "none"
     for pose, ap in table3.items():
         assert report["per_pose"][pose]["AP_p"] == pytest.approx(ap, rel=1e-9)
+
+
+def _simulated_csv(path, model, campaign_path, delta, seed=0):
+    """Tracker readings (10 um, 10 urad) of a campaign on a robot drawn within delta; the CSV path."""
+    from tolerance_ros.core.accuracy.io import Measurements, write_csv
+    from tolerance_ros.core.accuracy.simulate import measure
+    from tolerance_ros.core.campaign import load_campaign
+    from tolerance_ros.core.geometry import transform
+    from tolerance_ros.services.tracker import SimulatedTracker
+    camp = load_campaign(campaign_path, model)
+    T_tb = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
+    dx = SimulatedTracker(model, delta, seed, 1e-5, 1e-5, T_tb).dx
+    seq = camp.sequence()
+    q = camp.joints_for(model)[[i for i, _ in seq]]
+    T = measure(model, q, dx, 1e-5, 1e-5, T_tb, seed=seed + 1)
+    labels = np.array([camp.names[i] for i, _ in seq], dtype=object)
+    return write_csv(path, Measurements(np.arange(len(q)) * 1.0, T, q, model.joint_names, labels,
+                                        np.array([c for _, c in seq])))
+
+
+def test_plan_calibrate_compensate_closes_the_loop(capsys, tmp_path, gao):
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.campaign import load_campaign
+    from tolerance_ros.core.models import load_robot
+    planned = tmp_path / "planned.yaml"
+    code, out, err = run(capsys, "plan-campaign", "--robot", "gao2023_7dof", "--n", "24", "--candidates", "300",
+                         "--cycles", "2", "--out", str(planned), "--plot", str(tmp_path), "--json", "--quiet")
+    assert code == 0, err
+    doc = json.loads(out)
+    obs = doc["observability"]
+    assert obs["planned"]["O1"] > obs["random"]["O1"] and obs["iso_cube"]["rank"] < len(doc["unknowns"])
+    assert (tmp_path / "singular_values.png").exists() and load_campaign(planned, gao).cycles == 2
+    csv_path = _simulated_csv(tmp_path / "m.csv", gao, planned, load_budget("gao2023_delta2", gao).vector_for(gao))
+    code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", str(csv_path),
+                         "--campaign", str(planned), "--noise", "10um", "--orientation-noise", "10urad",
+                         "--folds", "4", "--out", str(tmp_path / "cal"), "--json", "--quiet")
+    assert code == 0, err
+    cal = json.loads(out)
+    assert cal["validation"]["improvement"] > 0.9 and cal["held"] == ["d1", "theta1"]
+    assert cal["validation"]["after"]["orientation_rms_rad"] < 0.1 * cal["validation"]["before"]["orientation_rms_rad"]
+    for name in ("gao2023_7dof_calibrated.yaml", "calibration.yaml", "calibration.md", "calibration.json",
+                 "validation.png", "parameters.png"):
+        assert (tmp_path / "cal" / name).exists(), name
+    assert load_robot(tmp_path / "cal" / "gao2023_7dof_calibrated.yaml").name == "gao2023_7dof"
+    code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", str(csv_path),
+                         "--campaign", str(planned), "--out", str(tmp_path / "cal_text"))
+    assert code == 0 and "position error RMS reduced by" in out and "held at nominal" in out and "alpha6" in out
+    compensated = tmp_path / "iso_compensated.yaml"
+    code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration",
+                         str(tmp_path / "cal" / "calibration.yaml"), "--targets", "gao2023_iso_cube",
+                         "--out", str(compensated), "--json")
+    assert code == 0, err
+    comp = json.loads(out)
+    assert [t["name"] for t in comp["targets"]] == ["P1", "P2", "P3", "P4", "P5"]
+    assert all(t["reached"] and t["residual_position_m"] < 1e-9 for t in comp["targets"])
+    back = load_campaign(compensated, gao).joints_for(gao)
+    np.testing.assert_allclose(back, [t["joints"] for t in comp["targets"]], atol=1e-12)
+    code, out, _ = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration",
+                       str(tmp_path / "cal" / "calibration.yaml"), "--targets", "gao2023_iso_cube")
+    assert code == 0 and "P5" in out and "correction" in out
+
+
+def test_calibrate_without_improvement_exits_3(capsys, tmp_path, gao):
+    """A robot built exactly to nominal: the fit only adds estimation noise to the held-out predictions."""
+    from tolerance_ros.core.calibration.planning import campaign_dict
+    import yaml
+    camp = tmp_path / "c.yaml"
+    camp.write_text(yaml.safe_dump(campaign_dict(gao, gao.sample_joints(20, 4), "c", cycles=2)))
+    csv_path = _simulated_csv(tmp_path / "m.csv", gao, camp, np.zeros(gao.n_params))
+    code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", str(csv_path),
+                         "--campaign", str(camp), "--out", str(tmp_path / "cal"), "--json", "--quiet")
+    doc = json.loads(out)
+    assert code == 3 and doc["ok"] is False and "does not reduce" in doc["failed"][0]
+    assert (tmp_path / "cal" / "calibration.yaml").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["calibrate", "--robot", "gao2023_7dof", "--measurements", "m.csv", "--out", "x", "--noise", "10"], "--noise"),
+    (["calibrate", "--robot", "gao2023_7dof", "--measurements", "m.csv", "--out", "x", "--folds", "1"], "--folds"),
+    (["plan-campaign", "--robot", "gao2023_7dof", "--n", "5", "--candidates", "50"], "plan at least"),
+    (["plan-campaign", "--robot", "gao2023_7dof", "--orientation-noise", "1e-5"], "--orientation-noise"),
+    (["compensate", "--robot", "gao2023_7dof", "--calibration", "missing.yaml", "--targets", "gao2023_iso_cube"],
+     "file not found"),
+])
+def test_calibration_commands_report_bad_input_in_one_line(capsys, argv, message):
+    code, _, err = run(capsys, *argv)
+    assert code == 2 and message in err and "Traceback" not in err
+
+
+def test_calibrate_a_urdf_robot_writes_a_urdf(capsys, tmp_path):
+    from helpers import example_urdf
+    from tolerance_ros.core.calibration.planning import campaign_dict
+    from tolerance_ros.core.models import URDFChain
+    import yaml
+    ur5 = URDFChain(example_urdf("ur5_robot.urdf"), tip_link="tool0")
+    camp = tmp_path / "c.yaml"
+    camp.write_text(yaml.safe_dump(campaign_dict(ur5, ur5.sample_joints(24, 3), "c", cycles=2)))
+    delta = np.array([1e-4 if k == "length" else 5e-4 for k in ur5.param_kinds])
+    csv_path = _simulated_csv(tmp_path / "m.csv", ur5, camp, delta)
+    code, out, err = run(capsys, "calibrate", "--robot", str(example_urdf("ur5_robot.urdf")), "--tip-link", "tool0",
+                         "--measurements", str(csv_path), "--campaign", str(camp), "--folds", "3", "--out",
+                         str(tmp_path / "cal"), "--json", "--quiet")
+    assert code == 0, err
+    doc = json.loads(out)
+    urdf = tmp_path / "cal" / "ur5_robot_calibrated.urdf"
+    assert doc["files"]["urdf"] == str(urdf) and doc["validation"]["improvement"] > 0.9
+    assert doc["files"]["robot"] == str(tmp_path / "cal" / "ur5_calibrated.yaml")
+    q = ur5.sample_joints(5, 9)
+    from tolerance_ros.core.calibration.writers import calibration_robot, load_calibration
+    from tolerance_ros.core.models import load_robot
+    cal = load_calibration(tmp_path / "cal" / "calibration.yaml")
+    np.testing.assert_allclose(load_robot(doc["files"]["robot"]).fk(q), cal.fk(ur5, q), atol=1e-12)
+    np.testing.assert_allclose(URDFChain(urdf, tip_link="tool0").fk(q), cal.fk(ur5, q), atol=1e-12)
+    assert calibration_robot(tmp_path / "cal" / "calibration.yaml").tip_link == "tool0"

@@ -420,6 +420,191 @@ def _over_limit(args, summary):
         missed(args, f"{n} of {summary['measurements']} measurements over the design limit ({what})")
 
 
+def _relative(path, start) -> str:
+    """``path`` relative to the directory ``start`` when it lies at most two levels up from it (files that
+    move together), else absolute."""
+    target = Path(path).resolve()
+    try:
+        rel = os.path.relpath(target, Path(start).resolve())
+    except ValueError:  # another drive
+        return str(target)
+    return rel if Path(rel).parts[:3] != (os.pardir,) * 3 else str(target)
+
+
+def cmd_calibrate(args):
+    from .core.accuracy.io import read_measurements
+    from .core.calibration.calibrate import calibrate_measurements
+    from .core.calibration.writers import save_calibration, write_calibrated_robot
+    from .core.campaign import load_campaign
+    from .render.calibration_report import parameter_rows, summary_rows, write_calibration_report
+    model = load_model(args)
+    noise = quantity(args.noise, "length", "--noise")
+    onoise = quantity(args.orientation_noise, "angle", "--orientation-noise")
+    if args.folds < 2:
+        raise CLIError("--folds: must be >= 2")
+    campaign = load_campaign(args.campaign, model) if args.campaign else None
+    meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
+    prog = Progress("calibrate", not args.quiet)
+    prog(0, 1)
+    cal = calibrate_measurements(model, meas, campaign, args.registration, noise, onoise, args.folds, args.seed)
+    prog(1, 1)
+    out = Path(args.out)
+    files = write_calibrated_robot(model, cal, out)
+    source = getattr(model, "config_path", None) or getattr(model, "source", None)
+    cal.sources.update({"robot": _relative(source, out) if source else model.name,
+                        "measurements": _relative(args.measurements, out),
+                        "campaign": (_relative(args.campaign, out) if campaign is not None
+                                     and Path(args.campaign).is_file() else args.campaign),
+                        "calibrated_robot": Path(files["robot"]).name})
+    if hasattr(model, "tip_link"):  # a URDF chain: the links that choose it, to load the same chain again
+        cal.sources.update(tip_link=model.tip_link, base_link=model.base_link)
+    files["calibration"] = str(save_calibration(cal, out / "calibration.yaml"))
+    written = write_calibration_report(cal, out, files)
+    files.update(report=written["report"], json=written["json"], plots=written["plots"])
+    v = cal.validation
+    if v["after"]["position_rms_m"] >= v["before"]["position_rms_m"]:
+        missed(args, f"hold-out validation: the calibrated model does not reduce the position error RMS "
+                     f"({v['before']['position_rms_m'] * 1e3:.4f} mm before, {v['after']['position_rms_m'] * 1e3:.4f} "
+                     f"mm after)")
+    if args.json:
+        doc = cal.to_dict()
+        doc["files"] = files
+        return doc
+    print(f"robot {model.name}: {cal.measurements} measurements at {cal.poses} test poses from {meas.source}; "
+          f"registration '{cal.registration}'")
+    print(f"identified {cal.unknowns - 6} parameter errors and the base correction from {cal.rows} equations; "
+          f"condition number {cal.fit_condition:.1f} (scaled); residual noise {cal.sigma * 1e6:.2f} um")
+    print("held at nominal (not identifiable from these poses): " + (", ".join(cal.held) or "none"))
+    print(table(["param", "unit", "error", "std", "|error|/std", "absorbs (first order)"], parameter_rows(cal)))
+    print(f"\nvalidation: {v['method']}")
+    print(table(["held-out poses", "before", "after"], summary_rows(v)))
+    print(f"position error RMS reduced by {v['improvement'] * 100:.1f} %")
+    for f in dict.fromkeys(files[k] for k in ("robot", "urdf", "calibration", "report", "json") if k in files):
+        print(f"wrote {f}")
+    for f in files["plots"]:
+        print(f"plot: {f}")
+
+
+def cmd_compensate(args):
+    from .core.calibration.compensate import compensate
+    from .core.calibration.writers import load_calibration
+    from .core.campaign import load_campaign
+    model = load_model(args)
+    cal = load_calibration(args.calibration, model)
+    calibrated = cal.mechanism(model)
+    targets = load_campaign(args.targets, model)
+    by_joints = [i for i, tp in enumerate(targets.poses) if tp.joints is not None]
+    by_pose = [i for i, tp in enumerate(targets.poses) if tp.joints is None]
+    results = [None] * len(targets.poses)
+    for idx, kind in ((by_joints, "joints"), (by_pose, "pose")):
+        if not idx:
+            continue
+        if kind == "joints":
+            q = np.array([targets.poses[i].joints for i in idx])
+            comp = compensate(calibrated, model, joints=model.check_joints(q, "targets"), match=args.match)
+        else:
+            comp = compensate(calibrated, model, poses=np.array([targets.poses[i].pose for i in idx]), match=args.match,
+                              rng=args.seed)
+        d = comp.to_dict()
+        for k, i in enumerate(idx):
+            results[i] = {"name": targets.poses[i].name, "target": kind, "nominal_joints": d["nominal_joints"][k],
+                          "joints": d["joints"][k], "correction": d["correction"][k],
+                          "residual_position_m": float(comp.residual_position[k]),
+                          "residual_orientation_rad": float(comp.residual_orientation[k]),
+                          "reached": bool(comp.reached[k]), "near_singularity": bool(comp.near_singularity[k]),
+                          "out_of_limits": bool(comp.out_of_limits[k])}
+    unreached = [r["name"] for r in results if not r["reached"]]
+    if unreached:
+        missed(args, f"{len(unreached)} target(s) out of reach of the calibrated robot: {', '.join(unreached)}")
+    out_path = None
+    if args.out:
+        from .core.calibration.planning import campaign_dict
+        doc = campaign_dict(model, np.array([r["joints"] for r in results]), f"{targets.name}_compensated",
+                            targets.cycles, targets.dwell_s,
+                            f"{targets.name} compensated with {Path(args.calibration).name} (tolerance-ros compensate)")
+        for entry, r in zip(doc["poses"], results):
+            entry["name"] = r["name"]
+        out_path = Path(args.out)
+        out_path.parent.mkdir(parents=True, exist_ok=True)
+        import yaml
+        out_path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
+    if args.json:
+        return {"robot": model.name, "calibration": str(args.calibration), "match": args.match,
+                "joint_names": list(model.joint_names), "targets": results,
+                "out_of_reach": unreached, "out": str(out_path) if out_path else None}
+    rev = [t != "prismatic" for t in model.joint_types]
+
+    def shown(v, per_rad, per_m):
+        return ", ".join(f"{x * (per_rad if r else per_m):.4f}" for x, r in zip(v, rev))
+
+    print(f"robot {model.name}, calibration {args.calibration}: {len(results)} targets ({args.match}); joints in deg "
+          f"(prismatic mm), corrections in mdeg (prismatic um)")
+    print(table(["target", "given", "compensated joints", "correction", "residual um", "flags"],
+                [[r["name"], r["target"], shown(r["joints"], 180 / np.pi, 1e3),
+                  shown(r["correction"], 18e4 / np.pi, 1e6), f"{r['residual_position_m'] * 1e6:.3g}",
+                  ", ".join(f for f, on in (("out of reach", not r["reached"]),
+                                            ("near singularity", r["near_singularity"]),
+                                            ("out of limits", r["out_of_limits"])) if on)]
+                 for r in results]))
+    if out_path:
+        print(f"wrote {out_path}")
+
+
+def cmd_plan_campaign(args):
+    from .core.calibration.planning import CRITERIA, REFERENCES, campaign_dict, plan
+    from .core.campaign import load_campaign
+    model = load_model(args)
+    for name in ("candidates", "cycles"):
+        if getattr(args, name) < 1:
+            raise CLIError(f"--{name}: must be >= 1")
+    noise = quantity(args.noise, "length", "--noise")
+    onoise = quantity(args.orientation_noise, "angle", "--orientation-noise")
+    delta = load_budget(args.budget, model).vector_for(model) if args.budget else None
+    iso = load_campaign(args.compare, model).joints_for(model) if args.compare else None
+    prog = Progress("plan-campaign", not args.quiet)
+    prog(0, 1)
+    pl = plan(model, args.n, args.criterion, args.candidates, args.seed, delta,
+              noise / onoise if onoise else None, iso)
+    prog(1, 1)
+    out_path = Path(args.out or f"{model.name}_planned.yaml")
+    idx = CRITERIA[args.criterion]
+    desc = (f"{args.n} poses chosen by tolerance-ros plan-campaign: {idx} ({REFERENCES[idx]}) maximised by a DETMAX "
+            f"exchange over {args.candidates} candidates within the joint limits (seed {args.seed})")
+    import yaml
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    out_path.write_text(f"# {desc}\n" + yaml.safe_dump(campaign_dict(model, pl.q, f"{model.name}_planned", args.cycles,
+                                                                        description=desc),
+                                                         sort_keys=False, default_flow_style=None, width=120))
+    plots = []
+    if args.plot:
+        from .render import plots as P
+        plots.append(str(P.singular_values(pl.spectra, Path(args.plot) / "singular_values.png",
+                                           f"{model.name}: scaled identification Jacobian")))
+    if args.json:
+        doc = pl.to_dict()
+        doc.update(robot=model.name, campaign_file=str(out_path), plots=plots)
+        return doc
+    print(f"robot {model.name}: {args.n} poses maximising {idx} ({REFERENCES[idx]}) over {args.candidates} "
+          f"candidates (seed {args.seed}, {pl.exchanges} exchanges); {len(pl.columns)} unknowns "
+          f"({len(pl.columns) - 6} parameters + base), held: {', '.join(pl.held) or 'none'}")
+    rows = []
+    for label, d in (("planned", pl.chosen), (f"random (median of {pl.random['draws']})", pl.random),
+                     ("ISO 9283 cube", pl.iso_cube)):
+        if d is None:
+            rows.append([label, "-", "-", "-", "-", "-", "-", "-"])
+            continue
+        rows.append([label, d.get("poses", args.n), f"{d['rank']}/{len(pl.columns)}", f"{d['O1'] * 1e3:.4g}",
+                     f"{d['O2']:.4g}", f"{d['O3'] * 1e3:.4g}", f"{d['O4'] * 1e3:.4g}", f"{d['condition']:.4g}"])
+    print(table(["pose set", "poses", "rank", "O1 mm", "O2", "O3 mm", "O4 mm", "condition"], rows))
+    print(pl.iso_cube_note)
+    print(f"wrote {out_path}")
+    for f in plots:
+        print(f"plot: {f}")
+
+
+# ---------------------------------------------------------------- parser
+
+
 def cmd_paper(args):
     from .papers import gao2023, rong2018
     if args.name == "gao2023":
@@ -517,6 +702,51 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="write report.md, plots, JSON and CSV into DIR")
     p.add_argument("--stream", action="store_true", help="constant memory for large CSV files (summary only)")
     p.set_defaults(func=cmd_report)
+
+    p = common(sub.add_parser("calibrate", help="calibrated robot file from measured poses, validated on "
+                                                "held-out poses"))
+    p.add_argument("--measurements", required=True,
+                   help="CSV file, campaign log (.jsonl) or rosbag2 (dir, .db3, .mcap)")
+    p.add_argument("--campaign", help="campaign with the test poses (joints of rows labelled by pose)")
+    p.add_argument("--registration", choices=["base", "base+tool"], default="base",
+                   help="estimate the tracker-to-base transform (and the tool offset)")
+    p.add_argument("--noise", default="10um", help="tracker position noise, weights the rows (default 10um); the "
+                                                   "uncertainties use the residual noise")
+    p.add_argument("--orientation-noise", help="tracker orientation noise, e.g. 10urad: also fit orientations")
+    p.add_argument("--folds", type=int, default=5, help="k of the k-fold validation by test pose (default 5)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the split into folds")
+    p.add_argument("--skip-bad", action="store_true", help="skip malformed rows (they are listed), instead of failing")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="write the calibrated robot file, calibration.yaml, calibration.md/.json and plots into DIR")
+    p.set_defaults(func=cmd_calibrate)
+
+    p = common(sub.add_parser("compensate", help="joints that put the calibrated robot's tool at each target"))
+    p.add_argument("--calibration", required=True, help="calibration.yaml written by calibrate")
+    p.add_argument("--targets", required=True, help="campaign file: test poses as nominal joints or as tool poses")
+    p.add_argument("--match", choices=["pose", "position"], default="pose", help="match the whole pose or the position")
+    p.add_argument("--seed", type=int, default=0, help="seed of the starts for tool-pose targets")
+    p.add_argument("--out", metavar="FILE", help="write the compensated joints as a campaign file")
+    p.set_defaults(func=cmd_compensate)
+
+    p = common(sub.add_parser("plan-campaign", help="test poses that make the identification best conditioned"))
+    p.add_argument("--n", type=int, default=30, help="number of test poses (default 30)")
+    p.add_argument("--criterion", choices=["observability", "condition", "min-singular", "noise-amplification"],
+                   default="observability",
+                   help="observability: O1 (Borm & Menq 1991); condition: O2; min-singular: O3; "
+                        "noise-amplification: O4 (Nahvi & Hollerbach 1996)")
+    p.add_argument("--candidates", type=int, default=2000,
+                   help="candidate poses within the joint limits (default 2000)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cycles", type=int, default=3, help="visits per test pose in the campaign file (default 3)")
+    p.add_argument("--budget", help="scale each parameter by its tolerance (default 1 mm / 1 mrad)")
+    p.add_argument("--noise", default="10um", help="tracker position noise (default 10um)")
+    p.add_argument("--orientation-noise",
+                   help="tracker orientation noise, e.g. 10urad: the tracker measures orientation")
+    p.add_argument("--compare", metavar="CAMPAIGN",
+                   help="ISO 9283 cube campaign to compare with (default: built by IK)")
+    p.add_argument("--out", metavar="FILE", help="campaign file to write (default <robot>_planned.yaml)")
+    p.add_argument("--plot", metavar="DIR", help="write singular_values.png into DIR")
+    p.set_defaults(func=cmd_plan_campaign)
 
     p = common(sub.add_parser("paper", help="reproduce a source paper's figures"), robot=False)
     p.add_argument("name", help="gao2023 or rong2018")

@@ -23,6 +23,17 @@ def test_rpy_from_matrix_inverts_within_the_principal_range():
     np.testing.assert_allclose(G.rpy_from_matrix(R), rpy, atol=1e-12)
 
 
+@pytest.mark.parametrize("pitch", [np.pi / 2, -np.pi / 2, np.pi / 2 - 1e-7, 1.57079632679, -np.pi / 2 + 3e-4])
+def test_rpy_from_matrix_rebuilds_the_rotation_at_and_near_gimbal_lock(pitch):
+    """Near pitch = +-pi/2 roll and yaw are ill-defined one by one, but the three angles must rebuild the
+    rotation to rounding error (a calibrated URDF origin is written as such angles)."""
+    rpy = np.column_stack([RNG.uniform(-np.pi, np.pi, 50), np.full(50, pitch), RNG.uniform(-np.pi, np.pi, 50)])
+    R = Rotation.from_euler("xyz", rpy).as_matrix()
+    back = G.rpy_from_matrix(R)
+    np.testing.assert_allclose(G.rpy_to_matrices(back), R, atol=2e-15)
+    np.testing.assert_allclose(back[:, 1], pitch, atol=1e-15)
+
+
 def test_axis_angle_and_base_axis_rotations():
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
     angles = RNG.uniform(-4, 4, 50)

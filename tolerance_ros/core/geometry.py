@@ -34,11 +34,16 @@ def rpy_to_matrix(rpy) -> np.ndarray:
 
 
 def rpy_from_matrix(R) -> np.ndarray:
-    """(n, 3) roll, pitch, yaw (rad) of (n, 3, 3) rotations (pitch in [-pi/2, pi/2])."""
+    """(n, 3) roll, pitch, yaw (rad) of (n, 3, 3) rotations (pitch in [-pi/2, pi/2]).
+
+    Pitch from atan2 (arcsin loses half the digits near +-pi/2) and roll from the rotation left after
+    yaw, so the angles rebuild the matrix to rounding error also at and near gimbal lock.
+    """
     R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
-    pitch = np.arcsin(np.clip(-R[:, 2, 0], -1.0, 1.0))
-    roll = np.arctan2(R[:, 2, 1], R[:, 2, 2])
+    pitch = np.arctan2(-R[:, 2, 0], np.hypot(R[:, 0, 0], R[:, 1, 0]))
     yaw = np.arctan2(R[:, 1, 0], R[:, 0, 0])
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    roll = np.arctan2(sy * R[:, 0, 2] - cy * R[:, 1, 2], cy * R[:, 1, 1] - sy * R[:, 0, 1])
     return np.stack([roll, pitch, yaw], axis=1)
 
 

@@ -10,6 +10,7 @@ from std_msgs.msg import String
 
 from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, Limits, budget_from_message
+from ..services.compensation import load_calibrations
 from ..services.error_model import ErrorModelService
 from .common import (BUDGET_QOS, JACOBIAN_TOPIC, MEASUREMENT_QOS, PREFIX, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS,
                      STATUS_QOS, declare, follow_robot_description, guarded, robot_set, run)
@@ -27,16 +28,32 @@ class ErrorModelServer(Node):
                                                                  "criterion (O(p^3) work per configuration)")
         self.criterion = declare(self, "bound_criterion", "", "criterion of the predicted bound on joint states "
                                  "(paper | worst-case | rss); empty takes the budget's")
+        self.calibration = declare(self, "calibration", "", "calibration file (tolerance-ros calibrate) of a served robot: "
+                                   "requests with \"model\": \"calibrated\" and \"command\": \"compensate\" use it")
         self.service = ErrorModelService(robot_set(self, specs, default), limits=Limits(max_bytes, max_poses, max_worst))
+        self.load_calibration()
         self.responses = self.create_publisher(String, f"{JACOBIAN_TOPIC}/response", SERVICE_RESPONSE_QOS)
         self.bound_pub = self.create_publisher(String, f"{PREFIX}/predicted_bound", STATUS_QOS)
         self.create_subscription(String, f"{JACOBIAN_TOPIC}/request", guarded(self, self.on_request),
                                  SERVICE_REQUEST_QOS)
         self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_state), MEASUREMENT_QOS)
         self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
-        follow_robot_description(self, self.service.robots)
+        follow_robot_description(self, self.service.robots, self.load_calibration)
         self.get_logger().info(f"serving {sorted(self.service.models) or 'robot_description'} on "
                                f"{self.resolve_topic_name(JACOBIAN_TOPIC + '/request')}")
+
+    def load_calibration(self):
+        """Load the calibration file for its robot once that robot is served (robot_description may come later)."""
+        if not self.calibration:
+            return
+        try:
+            self.service.calibrations = load_calibrations([self.calibration], self.service.models)
+        except ValueError as exc:
+            if not self.service.robots.waiting:
+                raise
+            self.get_logger().info(f"calibration waits for its robot: {exc}")
+            return
+        self.get_logger().info(f"calibrated model of {sorted(self.service.calibrations)} from {self.calibration}")
 
     def on_request(self, msg):
         self.responses.publish(String(data=self.service.handle_text(msg.data)))

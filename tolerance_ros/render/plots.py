@@ -124,6 +124,78 @@ def identified_vs_tolerance(names, ratio, unidentifiable, path) -> Path:
     return _save(fig, plt, path)
 
 
+def validation_before_after(validation: dict, path, title="Hold-out validation") -> Path:
+    """Two panels from ``calibration.validate``: held-out position errors sorted (mm, log scale) and
+    ISO 9283 AP_p per held-out test pose (mm, log scale), each before and after calibration."""
+    plt = _plt()
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11.0, 4.0))
+    errs = validation["position_error_m"]
+    for label, color in (("before", "tab:red"), ("after", "tab:blue")):
+        e = np.sort(np.asarray(errs[label])) * 1e3
+        rms = validation[label]["position_rms_m"] * 1e3
+        ax1.plot(e, (np.arange(len(e)) + 1) / len(e), color=color,
+                 label=f"{label} calibration (RMS {rms:.4f} mm)")
+    ax1.set_xscale("log")
+    ax1.set_xlabel("held-out position error |dP| [mm]")
+    ax1.set_ylabel("fraction of held-out measurements")
+    ax1.set_title("Held-out position errors")
+    ax1.legend(fontsize=8)
+    per = validation["per_pose"]
+    x = np.arange(len(per))
+    ax2.bar(x - 0.2, [v["AP_p_before_m"] * 1e3 for v in per.values()], 0.4, color="tab:red", label="before")
+    ax2.bar(x + 0.2, [v["AP_p_after_m"] * 1e3 for v in per.values()], 0.4, color="tab:blue", label="after")
+    ax2.set_yscale("log")
+    ax2.set_xticks(x)
+    ax2.set_xticklabels(list(per), rotation=90, fontsize=7)
+    ax2.set_xlabel("held-out test pose")
+    ax2.set_ylabel("ISO 9283 AP_p [mm]")
+    ax2.set_title("Pose accuracy per held-out test pose")
+    ax2.legend(fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, plt, path)
+
+
+def identified_with_uncertainty(names, kinds, error, std, held, path) -> Path:
+    """Identified parameter errors with +-3 standard uncertainties: lengths in mm, angles in mrad;
+    held parameters (not identifiable, left at nominal) shown grey at 0."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(max(8.0, 0.25 * len(names)), 3.8))
+    for ax, kind, unit in ((axes[0], "length", "mm"), (axes[1], "angle", "mrad")):
+        sel = [j for j, k in enumerate(kinds) if k == kind]
+        x = np.arange(len(sel))
+        e = np.array([error[j] for j in sel]) * 1e3
+        s = np.array([std[j] for j in sel]) * 1e3
+        h = np.array([names[j] in held for j in sel], bool)
+        ax.errorbar(x[~h], e[~h], yerr=3 * s[~h], fmt="o", color="tab:blue", ms=3, capsize=2,
+                    label="identified +-3 std")
+        ax.plot(x[h], e[h], "s", color="lightgray", ms=4, label="held at nominal")
+        ax.axhline(0.0, color="black", linewidth=0.5)
+        ax.set_xticks(x)
+        ax.set_xticklabels([names[j] for j in sel], rotation=90, fontsize=6)
+        ax.set_ylabel(f"identified error [{unit}]")
+        ax.set_title(f"{kind} parameters")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    return _save(fig, plt, path)
+
+
+def singular_values(series: dict, path, title="Scaled identification Jacobian") -> Path:
+    """Singular values (mm of tool displacement per expected parameter error, log scale) of named pose
+    sets, largest first."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.0, 3.6))
+    for label, s in series.items():
+        s = np.sort(np.asarray(s, float))[::-1] * 1e3
+        ax.semilogy(np.arange(1, len(s) + 1), np.maximum(s, 1e-12), marker="o", ms=3, label=label)
+    ax.set_xlabel("singular value index")
+    ax.set_ylabel("singular value [mm per expected error]")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _save(fig, plt, path)
+
+
 def _save(fig, plt, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

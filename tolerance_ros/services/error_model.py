@@ -2,10 +2,12 @@
 
 Request fields (SI): ``joints`` (one configuration or a list), ``robot``, ``outputs`` ('position' |
 'pose'), ``tolerances`` (parameter -> +-tolerance, or 'current' for the latest budget), ``criteria``,
-``allow_out_of_limits``, ``include_jacobian``, ``arrays`` ('json' | 'base64'); see
-``schemas/compute_error_jacobian.*.json``. The work of an accepted request is bounded: at most
-``Limits.max_poses`` configurations (``max_worst_case_poses`` with the 'worst-case' criterion),
-duplicate criteria counted once, tolerances within physical ranges.
+``allow_out_of_limits``, ``include_jacobian``, ``arrays`` ('json' | 'base64'), ``model`` ('nominal' |
+'calibrated': the robot's loaded calibration); see ``schemas/compute_error_jacobian.*.json``.
+``"command": "compensate"`` (fields ``joints`` or ``poses``, ``seed``, ``match``, ``model``) is served by
+``services/compensation.py``. The work of an accepted request is bounded: at most ``Limits.max_poses``
+configurations (``max_worst_case_poses`` with the 'worst-case' criterion), duplicate criteria counted
+once, tolerances within physical ranges.
 """
 from __future__ import annotations
 
@@ -21,10 +23,11 @@ from .robots import RobotSet
 
 MAX_TOLERANCE = {"length": 1.0, "angle": np.pi}  # the largest tolerance that makes physical sense, m and rad
 ROWS = ("dx", "dy", "dz", "drx", "dry", "drz")
-JACOBIAN_FIELDS = {"robot": ((str,), False), "joints": ((list,), True), "outputs": ((str,), False),
+JACOBIAN_FIELDS = {"robot": ((str,), False), "joints": ((list,), False), "outputs": ((str,), False),
                    "tolerances": ((dict, str), False), "criteria": ((list,), False),
                    "allow_out_of_limits": ((bool,), False), "include_jacobian": ((bool,), False),
-                   "arrays": ((str,), False)}
+                   "arrays": ((str,), False), "command": ((str,), False), "model": ((str,), False),
+                   "poses": ((list,), False), "seed": ((list,), False), "match": ((str,), False)}
 ARRAYS = ("json", "base64")
 
 
@@ -122,16 +125,18 @@ def parse_criteria(value, n_poses: int, limits: Limits) -> list:
 class ErrorModelService:
     """Logic of ``compute_error_jacobian``: text request in, response dict out; never raises.
 
-    robots : a RobotSet (or a {name: model} dict with ``default_robot``).
+    robots : a RobotSet (or a {name: model} dict with ``default_robot``); calibrations : {robot name:
+    calibrated model} served with ``"model": "calibrated"`` and by ``compensate``.
     """
 
-    def __init__(self, robots, default_robot: str | None = None, limits: Limits | None = None):
+    def __init__(self, robots, default_robot: str | None = None, limits: Limits | None = None, calibrations=None):
         if not isinstance(robots, RobotSet):
             if default_robot not in robots:
                 raise ValueError(f"default robot {default_robot!r} is not among the models {sorted(robots)}")
             specs = list(robots.values())
             robots = RobotSet(specs, robots[default_robot])
         self.robots = robots
+        self.calibrations = dict(calibrations or {})
         self.limits = limits or Limits()
         self.current_budget = None
         self.joint_orders = {}
@@ -181,13 +186,17 @@ class ErrorModelService:
         return self.bound_at(msg.name, msg.position, criterion, msg.header.stamp)
 
     def _serve(self, req) -> dict:
-        name, model = self.robots.select(req.get("robot"))
-        outputs = req.get("outputs", "pose")
-        if outputs not in ("position", "pose"):
-            raise ContractError("invalid_request", f"outputs: expected 'position' or 'pose', got {outputs[:40]!r}")
+        from .compensation import compensate_request, jacobian_model
         arrays = req.get("arrays", "json")
         if arrays not in ARRAYS:
             raise ContractError("invalid_request", f"arrays: expected one of {list(ARRAYS)}, got {arrays[:40]!r}")
+        if req.get("command") == "compensate":
+            resp = compensate_request(req, self.robots, self.calibrations, self.limits)
+            return {**(encode_arrays(resp) if arrays == "base64" else resp), "arrays": arrays}
+        name, model = jacobian_model(req, self.robots, self.calibrations)
+        outputs = req.get("outputs", "pose")
+        if outputs not in ("position", "pose"):
+            raise ContractError("invalid_request", f"outputs: expected 'position' or 'pose', got {outputs[:40]!r}")
         q = parse_joints(req["joints"], model, self.limits, req.get("allow_out_of_limits", False))
         criteria = None
         if "tolerances" in req:

@@ -66,3 +66,51 @@ def test_streaming_identification_is_the_same_result_as_the_batch_fit(gao, truth
     ok = np.array([n not in batch.unidentifiable for n in gao.param_names])
     assert np.all(np.abs(stream.dx - batch.dx)[ok] < 0.5 * batch.std[ok] + 1e-9)
     assert stream.residual_rms_after == pytest.approx(batch.residual_rms_after, rel=0.05)
+
+
+def test_dependent_parameters_keep_one_of_each_dependent_set():
+    """Two equal parameter columns and one equal to a base column: QR pivoting keeps one of the pair,
+    holds the other, and holds the one the base already explains; independent columns stay."""
+    from tolerance_ros.core.accuracy.identification import dependent_parameters
+    rng = np.random.default_rng(0)
+    base = rng.standard_normal((60, 6))
+    A = rng.standard_normal((60, 4))
+    A[:, 1] = A[:, 0]                 # p1 duplicates p0
+    A[:, 3] = 2.0 * base[:, 2]        # p3 moves the tool like base.z
+    held = dependent_parameters(np.hstack([A, base]), 4)
+    assert held[3] and not held[2] and held[0] != held[1]
+
+
+def test_holding_the_dependent_parameters_estimates_the_rest_from_the_data(gao, truth):
+    """Position rows only, no prior: d1/theta1 (the base's), alpha6/theta6 (equivalent to d6/a6 when the
+    tool point lies on the last axis) and alpha7/theta7 (no effect on position) are held at 0; the
+    others are estimated with uncertainties scaled by the residual noise, which estimates the tracker's."""
+    delta, dx, q, T = truth
+    Tb = register(gao.fk(q), T).to_base(T)
+    ident = identify(gao, q, Tb, None, 1e-5, hold="dependent", noise_from_residuals=True)
+    assert set(ident.held) == {"d1", "theta1", "alpha6", "theta6", "alpha7", "theta7"}
+    held = gao.param_index(ident.held)
+    assert np.all(ident.dx[held] == 0) and np.all(ident.std[held] == 0)
+    d7 = gao.nominal[gao.param_index(["d7"])[0]]
+    assert ident.aliases["a6"] == {"theta6": pytest.approx(-d7)} and ident.aliases["d6"] == {"alpha6": pytest.approx(d7)}
+    assert ident.aliases["base.z"] == {"d1": pytest.approx(1.0)}
+    assert ident.sigma == pytest.approx(1e-5, rel=0.15)
+    effective = dx.copy()
+    effective[held] = 0.0
+    for name, absorbed in ident.aliases.items():
+        if name in gao.param_names:
+            j = gao.param_index([name])[0]
+            effective[j] += sum(c * dx[gao.param_index([h])[0]] for h, c in absorbed.items())
+    ok = np.setdiff1d(np.arange(gao.n_params), held)
+    z = (ident.dx - effective)[ok] / ident.std[ok]
+    assert 0.6 < np.sqrt(np.mean(z ** 2)) < 1.5 and np.abs(z).max() < 4.0
+    assert ident.fit_condition < ident.condition * 10 and np.isfinite(ident.fit_condition)
+
+
+def test_hold_by_name_and_too_few_rows(gao, truth):
+    delta, dx, q, T = truth
+    Tb = register(gao.fk(q), T).to_base(T)
+    ident = identify(gao, q, Tb, delta, 1e-5, 1e-5, hold=["a1", "theta7"])
+    assert ident.held == ["a1", "theta7"] and ident.dx[0] == 0
+    with pytest.raises(ValueError, match="cannot be estimated"):
+        identify(gao, q[:9], Tb[:9], None, 1e-5, hold="dependent", noise_from_residuals=True)

@@ -6,6 +6,9 @@ nonlinear model, positions and optionally orientations) and for the streaming on
 were accumulated in constant memory, positions only). Both use the prior ``N(0, delta^2)`` of the
 tolerances when a budget is given (a weak ridge otherwise), judge identifiability from the singular
 values of the column-scaled Jacobian, and list the identifiable parameters outside their tolerance.
+For a calibration, ``identify(..., hold="dependent")`` holds a minimal set of dependent parameters at
+nominal (chosen by QR with column pivoting, ``dependent_parameters``) so that the others are
+estimated without a prior, and ``noise_from_residuals`` scales their covariance by the residual noise.
 SI throughout; the base correction is [x y z (m), rx ry rz (rad)] applied on the left of the model.
 """
 from __future__ import annotations
@@ -13,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import qr
 
 from ..geometry import exp_so3
 from .verdicts import pose_errors
@@ -25,7 +29,12 @@ SCALE_WITHOUT_BUDGET = 1e-3  # column scale (m or rad) of parameters without a t
 class Identification:
     """Identified parameter errors (SI) with their standard deviations and identifiability.
 
-    ``method`` is 'gauss-newton' (batch, nonlinear) or 'linearised' (streaming, one step).
+    ``method`` is 'gauss-newton' (batch, nonlinear) or 'linearised' (streaming, one step). ``held``
+    names the parameters held at nominal (error 0, std 0); ``aliases`` maps an estimated unknown to the
+    held parameters it absorbs, ``{name: {held: c}}`` with ``estimate = own error + sum c * held error``
+    to first order (SI ratios, at nominal); ``sigma`` is the position noise (m) that scales the
+    covariance (estimated from the residuals when asked); ``fit_condition`` is the condition number of
+    the column-scaled Jacobian of the estimated unknowns (parameters and base).
     """
 
     names: tuple
@@ -41,6 +50,10 @@ class Identification:
     iterations: int
     method: str = "gauss-newton"
     out_of_tolerance: list = field(default_factory=list)
+    held: list = field(default_factory=list)
+    aliases: dict = field(default_factory=dict)
+    sigma: float | None = None
+    fit_condition: float | None = None
 
     def to_dict(self) -> dict:
         return {"method": self.method,
@@ -49,7 +62,8 @@ class Identification:
                 "base_correction": dict(zip(BASE_NAMES, map(float, self.base))), "rank": self.rank,
                 "unknowns": self.n_unknowns, "condition": self.condition, "unidentifiable": self.unidentifiable,
                 "residual_rms_before_m": self.residual_rms_before, "residual_rms_after_m": self.residual_rms_after,
-                "iterations": self.iterations, "out_of_tolerance": self.out_of_tolerance}
+                "iterations": self.iterations, "out_of_tolerance": self.out_of_tolerance, "held": self.held,
+                "aliases": self.aliases, "sigma_m": self.sigma, "fit_condition": self.fit_condition}
 
 
 def base_jacobian(p) -> np.ndarray:
@@ -119,6 +133,41 @@ def _identifiability(s, V, cols, n_unknowns, tol_rank):
     return rank, cond, weight
 
 
+def dependent_parameters(Js, p, estimate_base=True, tol_rank=1e-6) -> np.ndarray:
+    """(p,) mask of the parameters to hold at nominal so that the rest (and the base) are identifiable.
+
+    ``Js`` is the column-scaled Jacobian in the unknowns [dx (p); base (6)]. The base columns are kept;
+    their span is projected out of the parameter columns, and QR with column pivoting (the elimination
+    of redundant parameters of Hollerbach & Wampler 1996) keeps the parameters whose pivot exceeds
+    ``tol_rank`` times the largest singular value of ``Js``; the other parameters are dependent.
+    """
+    A = Js[:, :p]
+    if estimate_base:
+        Qb, Rb = np.linalg.qr(Js[:, p:])
+        Qb = Qb[:, np.abs(np.diag(Rb)) > 1e-12 * max(np.abs(Rb).max(), 1e-300)]
+        A = A - Qb @ (Qb.T @ A)
+    smax = np.linalg.norm(Js, 2) if Js.size else 0.0
+    _, R, piv = qr(A, mode="economic", pivoting=True)
+    pivots = np.zeros(p)
+    k = min(R.shape)
+    pivots[piv[:k]] = np.abs(np.diag(R))[:k]
+    return ~(pivots > tol_rank * smax)
+
+
+def _aliases(Js, free, held, scale, names, tol=1e-6) -> dict:
+    """What each estimated unknown absorbs of the held parameters (see ``Identification``), from the
+    least-squares projection of the held columns on the estimated ones at nominal."""
+    if not len(held) or not len(free):
+        return {}
+    A = np.linalg.lstsq(Js[:, free], Js[:, held], rcond=None)[0]
+    out = {}
+    for i, j in enumerate(free):
+        hits = {names[h]: float(A[i, k] * scale[j] / scale[h]) for k, h in enumerate(held) if abs(A[i, k]) > tol}
+        if hits:
+            out[names[j]] = hits
+    return out
+
+
 def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iterations, method, estimate_base=True):
     p = model.n_params
     names = tuple(model.param_names) + BASE_NAMES
@@ -141,7 +190,7 @@ def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iteratio
 
 
 def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientation=None, iterations=8,
-             estimate_base=True, tol_rank=1e-6) -> Identification:
+             estimate_base=True, tol_rank=1e-6, hold=None, noise_from_residuals=False) -> Identification:
     """Estimate parameter errors dx (and a base correction) from measured base-frame poses (n, 4, 4).
 
     Regularised Gauss-Newton on the nonlinear model: minimise ``|r(dx)|^2 / sigma^2 + |dx / delta|^2``.
@@ -149,6 +198,11 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     property of the model and the poses; the perturbed model only blurs its null space): singular values
     below ``tol_rank`` of the largest leave a null space, and a parameter with a weight of 0.1 or more
     in it cannot be separated from others. ``sigma_orientation`` (rad) adds the orientation rows.
+
+    ``hold``: None estimates every parameter; ``"dependent"`` holds the parameters of
+    ``dependent_parameters`` (judged at nominal) at 0; a list of names holds those. With
+    ``noise_from_residuals`` the covariance is scaled by the residual noise ``|r|^2 / (rows - unknowns)``
+    instead of ``sigma_position^2`` (the prior, if any, is kept).
     """
     q = model.check_joints(q)
     T_meas = np.asarray(T_meas, float)
@@ -161,21 +215,45 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     J, r = _stack(model, q, T_meas, None, x[p:], use_ori, w_ori)
     Js = J * scale
     rms0 = float(np.sqrt(np.mean(r ** 2)))
+    held = np.zeros(p + 6, bool)
+    if not estimate_base:
+        held[p:] = True
+    if isinstance(hold, str) and hold == "dependent":
+        held[:p] = dependent_parameters(Js, p, estimate_base, tol_rank)
+    elif hold is not None:
+        held[model.param_index(list(hold))] = True
+    free = np.flatnonzero(~held)
     it = 0
     for it in range(1, iterations + 1):
-        step = np.linalg.solve(J.T @ J + np.diag(prior), J.T @ r - prior * x)
-        x = x + step
+        Jf = J[:, free]
+        step = np.linalg.solve(Jf.T @ Jf + np.diag(prior[free]), Jf.T @ r - prior[free] * x[free])
+        x[free] += step
         J, r = _stack(model, q, T_meas, x[:p], x[p:], use_ori, w_ori)
-        if np.max(np.abs(step) / scale) < 1e-10:
+        if np.max(np.abs(step) / scale[free]) < 1e-10:
             break
-    cov = np.linalg.inv(J.T @ J + np.diag(prior)) * sigma_position ** 2
+    Jf = J[:, free]
+    noise = sigma_position
+    if noise_from_residuals:
+        dof = len(r) - len(free)
+        if dof < 1:
+            raise ValueError(f"identification: {len(r)} residuals for {len(free)} unknowns; the noise cannot be "
+                             f"estimated (measure more poses)")
+        noise = float(np.sqrt(r @ r / dof))
+    cov = np.zeros((p + 6, p + 6))
+    cov[np.ix_(free, free)] = np.linalg.inv(Jf.T @ Jf + np.diag(prior[free])) * noise ** 2
     cols = np.flatnonzero(np.linalg.norm(Js, axis=0) > 0)
     A = Js[:, cols]
     _, s, Vt = np.linalg.svd(A, full_matrices=A.shape[0] < A.shape[1])  # Vt square; U small or thin
     s = np.concatenate([s, np.zeros(len(cols) - len(s))])
     rank, cond, weight = _identifiability(s, Vt.T, cols, p + 6, tol_rank)
-    return _result(model, x, cov, rank, cond, weight, cols, delta, rms0, float(np.sqrt(np.mean(r ** 2))), it,
-                   "gauss-newton", estimate_base)
+    ident = _result(model, x, cov, rank, cond, weight, cols, delta, rms0, float(np.sqrt(np.mean(r ** 2))), it,
+                    "gauss-newton", estimate_base)
+    ident.held = [model.param_names[j] for j in np.flatnonzero(held[:p])]
+    ident.aliases = _aliases(Js, free, np.flatnonzero(held[:p]), scale, tuple(model.param_names) + BASE_NAMES)
+    ident.sigma = noise
+    sf = np.linalg.svd(Js[:, free], compute_uv=False)
+    ident.fit_condition = float(sf.max() / sf.min()) if sf.size and sf.min() > 0 else float("inf")
+    return ident
 
 
 def identify_from_normal_equations(model, JtJ, Jtr, rtr, rows, delta=None, sigma_position=1e-5,

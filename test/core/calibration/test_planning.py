@@ -1,0 +1,75 @@
+"""Pose planning: the observability indices as defined, the exchange's local optimality, and planned sets
+against random ones and the ISO 9283 cube."""
+import itertools
+
+import numpy as np
+import pytest
+import yaml
+
+from helpers import random_dh
+from tolerance_ros.core.calibration.planning import _gains, campaign_dict, indices, plan, select
+from tolerance_ros.core.campaign import load_campaign
+
+
+def test_indices_follow_their_definitions():
+    s = np.array([1.0, 4.0, 2.0])
+    out = indices(s, 2, 3)
+    assert out["O1"] == pytest.approx(2.0 / np.sqrt(2)) and out["O2"] == pytest.approx(0.25)
+    assert out["O3"] == pytest.approx(1.0) and out["O4"] == pytest.approx(0.25) and out["condition"] == pytest.approx(4)
+    short = indices(np.array([3.0, 1.0]), 1, 3)  # fewer equations than unknowns
+    assert short["O1"] == 0 and short["rank"] == 2 and short["condition"] == np.inf
+
+
+@pytest.mark.parametrize("index", ["O1", "O2", "O3", "O4"])
+def test_gains_are_the_criterion_of_the_updated_matrix(index):
+    rng = np.random.default_rng(1)
+    A = rng.standard_normal((30, 5))
+    M = A.T @ A
+    G = rng.standard_normal((7, 2, 5)) * 0.3
+    for sign in (+1.0, -1.0):
+        got = _gains(M, G, index, sign)
+        for k in range(len(G)):
+            Mk = M + sign * G[k].T @ G[k]
+            lam = np.linalg.eigvalsh(Mk)
+            ref = {"O1": np.sum(np.log(lam)) - np.linalg.slogdet(M)[1], "O2": np.sqrt(lam[0] / lam[-1]),
+                   "O3": np.sqrt(lam[0]), "O4": lam[0] / np.sqrt(lam[-1])}[index]
+            assert got[k] == pytest.approx(ref, rel=1e-9)
+
+
+def test_the_exchange_ends_where_no_single_swap_improves_the_determinant():
+    rng = np.random.default_rng(2)
+    G = rng.standard_normal((40, 2, 5))
+    design, exchanges = select(G, 6, "O1", seed=3)
+    assert exchanges > 0 and len(set(design.tolist())) == 6
+    info = np.einsum("kri,krj->kij", G, G)
+    best = np.linalg.slogdet(info[design].sum(axis=0))[1]
+    start = rng.choice(40, 6, replace=False)
+    assert best > np.linalg.slogdet(info[start].sum(axis=0))[1]
+    for i, c in itertools.product(design, np.setdiff1d(np.arange(40), design)):
+        M = info[design].sum(axis=0) - info[i] + info[c]
+        assert np.linalg.slogdet(M)[1] <= best + 1e-9
+
+
+def test_planned_poses_beat_random_ones_and_the_iso_cube(gao):
+    pl = plan(gao, 30, "observability", candidates=600, seed=1)
+    assert set(pl.held) == {"d1", "theta1", "alpha6", "theta6", "alpha7", "theta7"} and len(pl.columns) == 28
+    assert pl.chosen["rank"] == 28 and pl.chosen["O1"] > pl.random["O1"]
+    assert pl.chosen["condition"] < pl.random["condition"]
+    assert pl.iso_cube["poses"] == 5 and pl.iso_cube["rank"] == 15 and pl.iso_cube["O1"] == 0
+    assert np.all(~gao.out_of_limits(pl.q))
+    ampl = plan(gao, 30, "noise-amplification", candidates=300, seed=1, iso_joints=pl.q[:5])
+    assert ampl.chosen["O4"] > ampl.random["O4"] and ampl.iso_cube_note.startswith("ISO 9283 cube: the given")
+    with pytest.raises(ValueError, match="plan at least 10 poses"):
+        plan(gao, 9, candidates=100)
+
+
+def test_the_campaign_file_reads_back_the_planned_joints(gao, tmp_path):
+    chain = random_dh(np.random.default_rng(5), dof=4)
+    assert "prismatic" in chain.joint_types  # its joint is written in m, the others in degrees
+    for model in (gao, chain):
+        q = model.sample_joints(7, 2)
+        path = tmp_path / f"{model.name}.yaml"
+        path.write_text(yaml.safe_dump(campaign_dict(model, q, "planned", cycles=2)))
+        camp = load_campaign(path, model)
+        assert camp.names == [f"C{i + 1}" for i in range(7)] and camp.cycles == 2
+        np.testing.assert_allclose(camp.joints_for(model), q, atol=1e-13)

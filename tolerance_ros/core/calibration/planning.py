@@ -1,0 +1,238 @@
+"""Which poses to measure: observability indices of the identification Jacobian and a pose selection.
+
+The identification Jacobian is the one ``identify`` solves: per pose, the position rows (and, when the
+tracker measures orientation, the orientation rows weighted ``sigma_position / sigma_orientation``) in
+the unknowns [parameter errors; base correction], at the nominal parameters, each column scaled by the
+expected size of its unknown (its tolerance with a budget, else 1 mm or 1 mrad), without the parameters
+that no pose can separate (``dependent_parameters`` over the candidate set, held at nominal by the
+calibration). With ``s_1 >= ... >= s_L`` its singular values over ``m`` measured poses:
+
+- ``O1 = (s_1 s_2 ... s_L)^(1/L) / sqrt(m)``: Borm & Menq (1991), "Determination of optimal measurement
+  configurations for robot calibration based on observability measure", Int. J. Robotics Research
+  10(1); maximising it is D-optimal design (the determinant of ``J^T J``);
+- ``O2 = s_L / s_1``, the inverse condition number: Driels & Pathre (1990), IEEE Trans. Robotics and
+  Automation 6(2);
+- ``O3 = s_L``, the smallest singular value: Nahvi, Hollerbach & Hayward (1994), ICRA;
+- ``O4 = s_L^2 / s_1``, the noise amplification index: Nahvi & Hollerbach (1996), ICRA.
+Sun & Hollerbach (2008, ICRA) compare them; O1 and O4 are the usual choices.
+
+``plan`` draws seeded candidate poses within the joint limits and chooses ``n`` of them by a DETMAX
+exchange (Mitchell 1974): from a seeded random design, add the candidate that raises the criterion
+most, then drop the design pose whose loss lowers it least, until the pose dropped is the one added.
+O1 uses the determinant lemma (one small determinant per candidate); the others the eigenvalues of
+``J^T J`` per candidate, in batches.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..accuracy.identification import BASE_NAMES, base_jacobian, column_scale, dependent_parameters
+from ..accuracy.iso9283 import iso_cube_points
+from ..models.base import Mechanism
+
+CRITERIA = {"observability": "O1", "condition": "O2", "min-singular": "O3", "noise-amplification": "O4"}
+REFERENCES = {"O1": "Borm & Menq 1991", "O2": "Driels & Pathre 1990", "O3": "Nahvi, Hollerbach & Hayward 1994",
+              "O4": "Nahvi & Hollerbach 1996"}
+
+
+def pose_blocks(model: Mechanism, q, delta=None, sigma_ratio=None, held=None):
+    """((n, r, L) scaled identification Jacobian per pose, names of its L columns, (p,) held mask).
+
+    ``sigma_ratio`` = sigma_position / sigma_orientation (m/rad) adds the orientation rows; ``held``
+    ((p,) mask) drops those parameters, by default ``dependent_parameters`` over these poses.
+    """
+    q = model.check_joints(q)
+    p = model.n_params
+    T, EJ = model.fk_and_jacobian(q)
+    Jb = base_jacobian(T[:, :3, 3])
+    rows = [np.concatenate([EJ.position, Jb[:, :3]], axis=2)]
+    if sigma_ratio is not None:
+        rows.append(sigma_ratio * np.concatenate([EJ.orientation, Jb[:, 3:]], axis=2))
+    G = np.concatenate(rows, axis=1) * column_scale(delta, p)
+    if held is None:
+        held = dependent_parameters(G.reshape(-1, p + 6), p)
+    keep = np.r_[~np.asarray(held, bool), np.ones(6, bool)]
+    names = tuple(model.param_names) + BASE_NAMES
+    return G[:, :, keep], tuple(n for n, k in zip(names, keep) if k), np.asarray(held, bool)
+
+
+def indices(s, m: int, L: int) -> dict:
+    """O1..O4 (see the module docstring; m), rank and condition from the singular values ``s`` of the
+    scaled Jacobian of ``m`` measured poses in ``L`` unknowns; O1..O4 are 0 when it is rank-deficient."""
+    s = np.sort(np.asarray(s, float))[::-1]
+    rank = int(np.sum(s > 1e-9 * s[0])) if len(s) else 0
+    full = rank == L
+    if not full:
+        return {"O1": 0.0, "O2": 0.0, "O3": 0.0, "O4": 0.0, "rank": rank, "unknowns": L, "condition": float("inf")}
+    return {"O1": float(np.exp(np.mean(np.log(s))) / np.sqrt(m)), "O2": float(s[-1] / s[0]), "O3": float(s[-1]),
+            "O4": float(s[-1] ** 2 / s[0]), "rank": rank, "unknowns": L, "condition": float(s[0] / s[-1])}
+
+
+def design_indices(G, design) -> dict:
+    """``indices`` of the poses ``design`` (indices into G (n, r, L)), with their singular values ``s``
+    (padded with zeros to L)."""
+    A = G[np.asarray(design)].reshape(-1, G.shape[2])
+    s = np.linalg.svd(A, compute_uv=False)
+    out = indices(s, len(design), G.shape[2])
+    out["s"] = np.r_[s, np.zeros(G.shape[2] - len(s))]
+    return out
+
+
+def _score(M, index):
+    """O2, O3 or O4 of a batch of information matrices ``J^T J`` (k, L, L), from their eigenvalues."""
+    lam = np.linalg.eigvalsh(M)
+    lmin, lmax = np.maximum(lam[:, 0], 0.0), lam[:, -1]
+    if index == "O2":
+        return np.sqrt(lmin / lmax)
+    if index == "O3":
+        return np.sqrt(lmin)
+    return lmin / np.sqrt(lmax)
+
+
+def _gains(M, G, index, sign, chunk=500):
+    """Criterion of M + sign * G_c^T G_c for every block G_c of G (k, r, L); for O1 the change of
+    log det (the same maximiser as O1 for a fixed number of poses), by the determinant lemma."""
+    if index == "O1":
+        Minv = np.linalg.inv(M)
+        S = np.eye(G.shape[1]) + sign * np.einsum("kri,ij,ksj->krs", G, Minv, G)
+        sgn, logdet = np.linalg.slogdet(S)
+        return np.where(sgn > 0, logdet, -np.inf)
+    out = np.empty(len(G))
+    for a in range(0, len(G), chunk):
+        g = G[a:a + chunk]
+        out[a:a + chunk] = _score(M[None] + sign * np.einsum("kri,krj->kij", g, g), index)
+    return out
+
+
+@dataclass
+class Plan:
+    """Chosen poses (joints (n, dof), SI) and the observability of the chosen, ISO-cube and random sets."""
+
+    q: np.ndarray
+    criterion: str
+    index: str
+    candidates: int
+    seed: int
+    exchanges: int
+    columns: tuple
+    held: list
+    chosen: dict
+    random: dict
+    iso_cube: dict | None
+    iso_cube_note: str
+    spectra: dict
+
+    def to_dict(self) -> dict:
+        return {"criterion": self.criterion, "index": self.index, "reference": REFERENCES[self.index],
+                "poses": len(self.q), "joints": self.q, "candidates": self.candidates, "seed": self.seed,
+                "exchanges": self.exchanges, "unknowns": list(self.columns), "held": list(self.held),
+                "observability": {"planned": self.chosen, "random": self.random, "iso_cube": self.iso_cube},
+                "iso_cube_note": self.iso_cube_note, "singular_values": self.spectra}
+
+
+def select(G, n: int, index="O1", seed=0, max_exchanges=None):
+    """(design (n,) indices into G, exchanges made): DETMAX exchange (see the module docstring)."""
+    k, _, L = G.shape
+    if n > k:
+        raise ValueError(f"n: {n} poses requested from {k} candidates")
+    rng = np.random.default_rng(seed)
+    design = list(rng.choice(k, n, replace=False))
+    info = np.einsum("kri,krj->kij", G, G)
+    M = info[design].sum(axis=0) + 1e-12 * np.eye(L)
+    exchanges = 0
+    for exchanges in range(max_exchanges or 20 * n):
+        outside = np.setdiff1d(np.arange(k), design)
+        add = outside[np.argmax(_gains(M, G[outside], index, +1.0))]
+        M1 = M + info[add]
+        pool = np.array(design + [add])
+        drop = pool[np.argmax(_gains(M1, G[pool], index, -1.0))]
+        if drop == add:
+            break
+        design.remove(drop)
+        design.append(add)
+        M = M1 - info[drop]
+    return np.array(design), exchanges
+
+
+def iso_cube_joints(model: Mechanism, q_candidates, rng=0, centres=10):
+    """(joints (5, dof) of the ISO 9283 cube's test poses P1-P5, note), or (None, note).
+
+    The cube is centred on a candidate tool pose in front of the robot (the ``centres`` nearest the
+    median tool position of the candidates with x > 0 in the base frame, in turn) at that pose's
+    orientation, with the largest edge (halving from half the median distance of those candidates from
+    their median) whose five poses the nominal model reaches.
+    """
+    from .compensate import nominal_solution
+    T = model.fk(q_candidates)
+    front = T[:, 0, 3] > 0
+    T = T[front] if front.sum() >= 5 else T
+    qf = q_candidates[front] if front.sum() >= 5 else q_candidates
+    P = T[:, :3, 3]
+    dist = np.linalg.norm(P - np.median(P, axis=0), axis=1)
+    for c in np.argsort(dist)[:centres]:
+        side = 0.5 * np.median(dist)
+        for _ in range(5):
+            targets = np.tile(T[c], (5, 1, 1))
+            targets[:, :3, 3] = iso_cube_points(P[c], side)
+            q = nominal_solution(model, targets, seed=qf[c], tol_position=1e-7, tol_orientation=1e-7)
+            if np.allclose(model.fk(q), targets, atol=1e-6) and not model.out_of_limits(q).any():
+                return q, (f"ISO 9283 cube P1-P5, edge {side * 1e3:.0f} mm, centred at "
+                           f"[{', '.join(f'{v * 1e3:.0f}' for v in P[c])}] mm")
+            side /= 2.0
+    return None, "ISO 9283 cube: no reachable cube found in front of the robot"
+
+
+def plan(model: Mechanism, n: int, criterion="observability", candidates=2000, seed=0, delta=None,
+         sigma_ratio=None, iso_joints=None, random_draws=20) -> Plan:
+    """Choose ``n`` poses within the joint limits that maximise the criterion (see the module docstring).
+
+    iso_joints : (k, dof) joints of an ISO 9283 cube campaign to compare with (default: built by
+    ``iso_cube_joints``). The random set's indices are the medians over ``random_draws`` seeded draws
+    of ``n`` candidates.
+    """
+    if criterion not in CRITERIA:
+        raise ValueError(f"criterion: expected one of {sorted(CRITERIA)}, got {criterion!r}")
+    index = CRITERIA[criterion]
+    rng = np.random.default_rng(seed)
+    qc = model.sample_joints(int(candidates), rng)
+    G, columns, held = pose_blocks(model, qc, delta, sigma_ratio)
+    if n * G.shape[1] < G.shape[2]:
+        raise ValueError(f"n: {n} poses give {n * G.shape[1]} equations for {G.shape[2]} unknowns; "
+                         f"plan at least {-(-G.shape[2] // G.shape[1])} poses")
+    design, exchanges = select(G, n, index, seed)
+    chosen = design_indices(G, design)
+    spectra = {"planned": chosen.pop("s")}
+    draws = [design_indices(G, rng.choice(len(qc), n, replace=False)) for _ in range(random_draws)]
+    rand = {k: float(np.median([d[k] for d in draws])) for k in ("O1", "O2", "O3", "O4", "condition")}
+    rand["rank"] = int(np.median([d["rank"] for d in draws]))
+    rand["draws"] = random_draws
+    spectra["random (median O1 draw)"] = draws[int(np.argsort([d["O1"] for d in draws])[len(draws) // 2])]["s"]
+    if iso_joints is None:
+        iso_joints, note = iso_cube_joints(model, qc, seed)
+    else:
+        note = "ISO 9283 cube: the given campaign's test poses"
+    iso = None
+    if iso_joints is not None:
+        Gi = pose_blocks(model, iso_joints, delta, sigma_ratio, held)[0]
+        iso = design_indices(Gi, np.arange(len(Gi)))
+        iso["poses"] = int(len(Gi))
+        spectra["ISO 9283 cube"] = iso.pop("s")
+    return Plan(qc[design], criterion, index, int(candidates), int(seed), int(exchanges), columns,
+                [model.param_names[j] for j in np.flatnonzero(held)], chosen, rand, iso, note, spectra)
+
+
+def campaign_dict(model: Mechanism, q, name, cycles=3, dwell=2.0, description="") -> dict:
+    """A campaign file (``core/campaign.py`` format) with the poses q (n, dof): angles in degrees,
+    prismatic joints in m; test poses C1..Cn."""
+    prismatic = [t == "prismatic" for t in model.joint_types]
+    poses = []
+    for i, row in enumerate(np.asarray(q, float)):
+        vals = [float(v) if pr else float(np.degrees(v)) for v, pr in zip(row, prismatic)]
+        entry = {"name": f"C{i + 1}", "joints": vals}
+        if any(prismatic):
+            entry["joint_units"] = ["length" if pr else "angle" for pr in prismatic]
+        poses.append(entry)
+    return {"name": name, "robot": model.name, "units": {"length": "m", "angle": "deg"}, "cycles": int(cycles),
+            "dwell": float(dwell), "order": "cycle", "description": description, "poses": poses}

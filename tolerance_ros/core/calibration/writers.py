@@ -1,0 +1,354 @@
+"""Files of a calibration: the calibration file, and the calibrated robot in the input's own form.
+
+Calibration file (YAML; ``units`` applies to ``parameters``, ``base_correction``, ``registration`` and
+``aliases``; the ``fit`` and ``validation`` blocks name their unit in each key, ``_m`` or ``_rad``)::
+
+    format: tolerance_ros.calibration/1
+    robot: gao2023_7dof
+    units: {length: mm, angle: mrad}
+    sources: {robot: .../gao2023_7dof.yaml, measurements: m.csv, campaign: null,
+              calibrated_robot: gao2023_7dof_calibrated.yaml}     # relative to this file, or absolute
+    registration:
+      method: base                                 # base | base+tool
+      T_tracker_base: {xyz: [...], rpy: [...]}     # nominal base frame -> tracker frame
+      tool_offset: null                            # [x, y, z], tool frame (base+tool)
+    base_correction: {xyz: [...], rotation_vector: [...]}   # on the left of the model: T = B T(q, dx)
+    parameters:                                    # identified - nominal, standard uncertainty
+      a1: {error: 0.0123, std: 0.0011}
+      d1: {error: 0, std: 0}                       # held at nominal (listed under held)
+    held: [d1, theta1]                             # not identifiable from these poses: left at nominal
+    unidentifiable: [d1, theta1, base.z, base.rz]  # the identifiability analysis of `report`
+    aliases: {a6: {theta6: -91.12}}                # estimate = own error + c * held error (file units)
+    fit: {measurements: 90, poses: 30, rows: 270, unknowns: 30, rank: 28, condition: 25.2,
+          fit_condition: 21.3, noise_m: 1.0e-05, residual_rms_before_m: ..., residual_rms_after_m: ...}
+    validation: {method: ..., before: {position_rms_m: ...}, after: {...}, improvement: 0.93, per_pose: {...}}
+
+Calibrated robot files: a D-H robot YAML with the identified values written in the file's own units
+(other keys and unchanged values kept as written; the base correction becomes ``base``), or a URDF
+whose corrected joints' ``<origin xyz rpy>`` attributes carry the identified errors, zero offsets
+and the base correction folded in exactly; every other byte of the file is kept.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..accuracy.identification import BASE_NAMES, base_matrix
+from ..geometry import rpy_from_matrix
+from ..models.base import Mechanism, ModelError
+from ..models.dh import DHChain
+from ..models.loader import frame_from_dict, load_robot
+from ..models.urdf import URDFChain
+from ..units import UnitError, angle_scale, length_scale, parse_number
+from .calibrate import Calibration, calibrated_mechanism, corrected_origins
+
+FORMAT = "tolerance_ros.calibration/1"
+UNITS = {"length": "mm", "angle": "mrad"}
+
+
+class CalibrationError(ValueError):
+    """An invalid calibration file, or one that does not fit the robot; the message names the field."""
+
+
+# ------------------------------------------------------------------ the calibration file
+
+
+def _name_scales(names, kinds, ls, as_) -> dict:
+    """SI value of one file unit for every parameter name and base-correction component."""
+    out = {n: ls if k == "length" else as_ for n, k in zip(names, kinds)}
+    out.update({b: ls if b in BASE_NAMES[:3] else as_ for b in BASE_NAMES})
+    return out
+
+
+def save_calibration(cal: Calibration, path, units=None) -> Path:
+    """Write the calibration file (format in the module docstring); lengths and angles in ``units``."""
+    units = dict(units or UNITS)
+    ls, as_ = length_scale(units["length"]), angle_scale(units["angle"])
+    kind_scale = {"length": ls, "angle": as_}
+    T = cal.T_tracker_base
+    scale_of = _name_scales(cal.names, cal.kinds, ls, as_)
+    doc = {
+        "format": FORMAT,
+        "robot": cal.robot,
+        "units": units,
+        "sources": {k: (str(v) if v is not None else None) for k, v in cal.sources.items()},
+        "registration": {"method": cal.registration,
+                         "T_tracker_base": {"xyz": _floats(T[:3, 3] / ls),
+                                            "rpy": _floats(rpy_from_matrix(T[None, :3, :3])[0] / as_)},
+                         "tool_offset": None if cal.tool_offset is None else _floats(np.asarray(cal.tool_offset) / ls)},
+        "base_correction": {"xyz": _floats(cal.base[:3] / ls), "rotation_vector": _floats(cal.base[3:] / as_)},
+        "parameters": {n: {"error": float(v / kind_scale[k]), "std": float(s / kind_scale[k])}
+                       for n, k, v, s in zip(cal.names, cal.kinds, cal.dx, cal.std)},
+        "held": list(cal.held),
+        "unidentifiable": list(cal.unidentifiable),
+        "aliases": {n: {h: float(c * scale_of[h] / scale_of[n]) for h, c in a.items()} for n, a in cal.aliases.items()},
+        "fit": {"measurements": cal.measurements, "poses": cal.poses, "rows": cal.rows, "unknowns": cal.unknowns,
+                "rank": cal.rank, "condition": float(cal.condition), "fit_condition": float(cal.fit_condition),
+                "noise_m": float(cal.sigma), "residual_rms_before_m": float(cal.residual_rms_before),
+                "residual_rms_after_m": float(cal.residual_rms_after)},
+        "validation": _plain(_without_samples(cal.validation)),
+    }
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    head = (f"# Calibration of {cal.robot} by tolerance-ros calibrate; format: "
+            f"tolerance_ros/core/calibration/writers.py\n")
+    path.write_text(head + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=110))
+    return path
+
+
+def load_calibration(path, model: Mechanism | None = None) -> Calibration:
+    """Calibration from its file, checked against ``model`` (the nominal robot; by default
+    ``calibration_robot(path)``)."""
+    doc = _read(path)
+    model = model if model is not None else calibration_robot(path)
+    try:
+        return _calibration_from_dict(doc, Path(path), model)
+    except (UnitError, ModelError, CalibrationError, KeyError, TypeError, ValueError) as exc:
+        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        raise CalibrationError(f"{path}: {msg}") from None
+
+
+def load_calibrated_model(path, model: Mechanism | None = None) -> Mechanism:
+    """The calibrated Mechanism of a calibration file (what the error-model service serves)."""
+    model = model if model is not None else calibration_robot(path)
+    return load_calibration(path, model).mechanism(model)
+
+
+def _read(path):
+    path = Path(path)
+    if not path.is_file():
+        raise CalibrationError(f"calibration {str(path)!r}: file not found")
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise CalibrationError(f"{path}: not valid YAML: {exc}") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise CalibrationError(f"{path}: format: expected {FORMAT!r}")
+    return doc
+
+
+def calibration_robot(path) -> Mechanism:
+    """The nominal robot of a calibration file: its ``sources.robot`` (relative to the file) when that
+    file exists, else its robot name (a shipped robot)."""
+    doc = _read(path)
+    sources = doc.get("sources") or {}
+    src = sources.get("robot")
+    if src:
+        cand = Path(src) if Path(src).is_absolute() else Path(path).parent / src
+        if cand.is_file():
+            chain = {k: sources.get(k) for k in ("tip_link", "base_link")} if cand.suffix == ".urdf" else {}
+            return load_robot(cand, **chain)
+    return load_robot(str(doc.get("robot")))
+
+
+def _calibration_from_dict(doc, path, model):
+    robot = doc.get("robot")
+    sources = doc.get("sources") or {}
+    if robot != model.name:
+        raise CalibrationError(f"robot: the calibration is for {robot!r}, not {model.name!r}")
+    units = doc.get("units") or {}
+    ls, as_ = length_scale(units.get("length", "m")), angle_scale(units.get("angle", "rad"))
+    kind_scale = {"length": ls, "angle": as_}
+    params = doc.get("parameters")
+    if not isinstance(params, dict):
+        raise CalibrationError("parameters: expected a mapping of parameter -> {error, std}")
+    unknown = sorted(set(params) - set(model.param_names))
+    missing = [n for n in model.param_names if n not in params]
+    if unknown or missing:
+        raise CalibrationError(f"parameters: unknown {unknown}, missing {missing} for robot {model.name!r}")
+    dx = np.empty(model.n_params)
+    std = np.empty(model.n_params)
+    for j, (n, k) in enumerate(zip(model.param_names, model.param_kinds)):
+        entry = params[n]
+        if not isinstance(entry, dict):
+            raise CalibrationError(f"parameters.{n}: expected {{error, std}}")
+        dx[j] = parse_number(entry.get("error"), f"parameters.{n}.error") * kind_scale[k]
+        std[j] = parse_number(entry.get("std", 0), f"parameters.{n}.std") * kind_scale[k]
+    bc = doc.get("base_correction") or {}
+    base = np.r_[[parse_number(v, f"base_correction.xyz[{i}]") * ls for i, v in enumerate(bc.get("xyz", [0] * 3))],
+                 [parse_number(v, f"base_correction.rotation_vector[{i}]") * as_
+                  for i, v in enumerate(bc.get("rotation_vector", [0] * 3))]]
+    if base.shape != (6,):
+        raise CalibrationError("base_correction: expected xyz and rotation_vector of three numbers each")
+    reg = doc.get("registration") or {}
+    T = frame_from_dict(reg.get("T_tracker_base"), "registration.T_tracker_base", ls, as_)
+    tool = reg.get("tool_offset")
+    tool = None if tool is None else np.array([parse_number(v, f"registration.tool_offset[{i}]") * ls
+                                               for i, v in enumerate(tool)])
+    fitd = doc.get("fit") or {}
+    held = [str(h) for h in doc.get("held") or []]
+    bad = sorted(set(held) - set(model.param_names))
+    if bad:
+        raise CalibrationError(f"held: unknown parameter(s) {bad}")
+    scale_of = _name_scales(model.param_names, model.param_kinds, ls, as_)
+    aliases = {n: {h: float(c) * scale_of[n] / scale_of[h] for h, c in a.items()}
+               for n, a in (doc.get("aliases") or {}).items()}
+    return Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), dx, std, base, T, tool, held,
+                       list(doc.get("unidentifiable") or []), aliases, float(fitd.get("condition", np.nan)),
+                       float(fitd.get("fit_condition", np.nan)), int(fitd.get("rank", 0)),
+                       int(fitd.get("unknowns", 0)), float(fitd.get("noise_m", np.nan)),
+                       float(fitd.get("residual_rms_before_m", np.nan)),
+                       float(fitd.get("residual_rms_after_m", np.nan)), int(fitd.get("measurements", 0)),
+                       int(fitd.get("poses", 0)), int(fitd.get("rows", 0)), str(reg.get("method", "base")),
+                       doc.get("validation"), dict(sources))
+
+
+def _floats(v):
+    return [float(x) for x in np.asarray(v, float).ravel()]
+
+
+def _without_samples(validation):
+    if not validation:
+        return validation
+    return {k: v for k, v in validation.items() if k != "position_error_m"}
+
+
+def _plain(obj):
+    """YAML-safe copy (numpy scalars and arrays to Python)."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain(obj.tolist())
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+# ------------------------------------------------------------------ calibrated robot files
+
+
+def write_calibrated_robot(model: Mechanism, cal: Calibration, out_dir) -> dict:
+    """Write the calibrated robot in the input's own form into ``out_dir``; {kind: path}.
+
+    D-H: ``<name>_calibrated.yaml``. URDF: ``<stem>_calibrated.urdf``, and ``<name>_calibrated.yaml`` of
+    kind urdf pointing at it with the chain's tip and base links (the robot YAML it came from, edited).
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if isinstance(model, DHChain):
+        path = out_dir / f"{model.name}_calibrated.yaml"
+        path.write_text(calibrated_dh_yaml(model, cal.dx, cal.base))
+        return {"robot": str(path)}
+    if isinstance(model, URDFChain):
+        if model.source == "<string>":
+            raise CalibrationError("calibrated URDF: the robot was built from a string; give it a file")
+        stem = Path(model.source).stem
+        urdf = out_dir / f"{stem}_calibrated.urdf"
+        urdf.write_text(calibrated_urdf_text(model, Path(model.source).read_text(), cal.dx, cal.base))
+        files = {"urdf": str(urdf)}
+        cfg = getattr(model, "config_path", None)
+        data = yaml.safe_load(Path(cfg).read_text()) if cfg and Path(cfg).suffix in (".yaml", ".yml") else \
+            {"name": model.name, "kind": "urdf"}
+        data.update(urdf=urdf.name, tip_link=model.tip_link, base_link=model.base_link)
+        path = out_dir / f"{model.name}_calibrated.yaml"
+        path.write_text(_header(model) + yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
+        files["robot"] = str(path)
+        return files
+    raise CalibrationError(f"calibration: robot {model.name!r} is a {type(model).__name__}; calibrated files are "
+                           f"written for D-H and URDF chains")
+
+
+def _header(model):
+    return f"# {model.name}, calibrated by tolerance-ros calibrate (the calibration file lists what changed)\n"
+
+
+def calibrated_dh_yaml(model: DHChain, dx, base) -> str:
+    """Text of the calibrated D-H robot file: the input file's keys and units with the identified values
+    (a value whose error is 0 stays as written), ``base := B @ base``; SI when the model has no file."""
+    cal = calibrated_mechanism(model, dx, base)
+    dx = np.asarray(dx, float)
+    cfg = getattr(model, "config_path", None)
+    if cfg:
+        data = yaml.safe_load(Path(cfg).read_text())
+    else:
+        data = {"name": model.name, "kind": "dh", "convention": model.convention,
+                "units": {"length": "m", "angle": "rad"},
+                "joints": [{"name": n, "type": t, "limits": [float(lo), float(hi)]}
+                           for n, t, (lo, hi) in zip(model.joint_names, model.joint_types, model.joint_limits)]}
+        data["tool"] = {"xyz": _floats(model.tool[:3, 3]), "rpy": _floats(rpy_from_matrix(model.tool[None, :3, :3])[0])}
+    units = data.get("units") or {}
+    ls, as_ = length_scale(units.get("length", "m")), angle_scale(units.get("angle", "rad"))
+    n = model.dof
+    p = cal.nominal
+    for i, joint in enumerate(data["joints"]):
+        for k, key in enumerate(("a", "d", "alpha", "theta")):
+            j = k * n + i
+            if dx[j] != 0 or key not in joint and p[j] != 0 or not cfg:
+                joint[key] = float(p[j] / (ls if key in ("a", "d") else as_))
+    if not np.array_equal(cal.base, model.base) or not cfg:
+        data["base"] = {"xyz": _floats(cal.base[:3, 3] / ls),
+                        "rpy": _floats(rpy_from_matrix(cal.base[None, :3, :3])[0] / as_)}
+    return _header(model) + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120)
+
+
+_COMMENT = re.compile(r"<!--.*?-->", re.S)
+_JOINT = re.compile(r"<joint\b[^>]*>")
+_ATTR = r"\b{}\s*=\s*([\"'])(.*?)\1"
+
+
+def calibrated_urdf_text(model: URDFChain, text: str, dx, base) -> str:
+    """The URDF text with the corrected joints' ``<origin xyz rpy>`` values (``corrected_origins``).
+
+    Only those attribute values change (an absent attribute or ``<origin>`` element is added); a
+    component equal to its written value keeps its text. Comments are not touched.
+    """
+    values, changed = corrected_origins(model, dx, base_matrix(np.asarray(base, float)))
+    wanted = {model.joint_names[k]: values[k] for k in np.flatnonzero(changed)}
+    masked = _COMMENT.sub(lambda m: " " * len(m.group()), text)
+    edits = []
+    found = set()
+    for m in _JOINT.finditer(masked):
+        tag = m.group()
+        name = re.search(_ATTR.format("name"), tag)
+        if name is None or name.group(2) not in wanted or re.search(_ATTR.format("type"), tag) is None:
+            continue
+        jname = name.group(2)
+        if tag.endswith("/>"):
+            raise CalibrationError(f"urdf: joint {jname!r} is an empty element; it needs its <origin> and <axis>")
+        end = masked.find("</joint>", m.end())
+        body = masked[m.end():end]
+        xyz, rpy = wanted[jname][:3], wanted[jname][3:]
+        om = re.search(r"<origin\b[^>]*?/?>", body)
+        if om is None:
+            line_start = masked.rfind("\n", 0, m.start()) + 1
+            indent = re.match(r"[ \t]*", masked[line_start:]).group() + "  "
+            edits.append((m.end(), m.end(), f"\n{indent}<origin xyz=\"{_fmt(xyz)}\" rpy=\"{_fmt(rpy)}\"/>"))
+        else:
+            start = m.end() + om.start()
+            edits += _origin_edits(masked[start:m.end() + om.end()], start, xyz, rpy)
+        found.add(jname)
+    lost = sorted(set(wanted) - found)
+    if lost:
+        raise CalibrationError(f"urdf: joint(s) {lost} not found in the text")
+    out = text
+    for a, b, new in sorted(edits, reverse=True):
+        out = out[:a] + new + out[b:]
+    return out
+
+
+def _origin_edits(tag, offset, xyz, rpy):
+    edits = []
+    for attr, vals in (("xyz", xyz), ("rpy", rpy)):
+        m = re.search(_ATTR.format(attr), tag)
+        if m is None:
+            close = len(tag) - (2 if tag.endswith("/>") else 1)
+            edits.append((offset + close, offset + close, f" {attr}=\"{_fmt(vals)}\""))
+            continue
+        old = m.group(2).split()
+        try:
+            old_vals = [float(t) for t in old]
+        except ValueError:
+            old_vals = []
+        tokens = [o if len(old) == 3 and old_vals[i] == v else repr(float(v)) for i, (o, v) in
+                  enumerate(zip(old if len(old) == 3 else [""] * 3, vals))]
+        edits.append((offset + m.start(2), offset + m.end(2), " ".join(tokens)))
+    return edits
+
+
+def _fmt(vals):
+    return " ".join(repr(float(v)) for v in vals)
