@@ -15,7 +15,7 @@ data_files = [
     ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
     (f"share/{PACKAGE}", ["package.xml"]),
 ]
-for subdir, pattern in (("config", "*.yaml"), ("config/robots", "*.*"), ("config/budgets", "*.*"),
+for subdir, pattern in (("config", "*.yaml"), ("config", "*.rviz"), ("config/robots", "*.*"), ("config/budgets", "*.*"),
                         ("config/campaigns", "*.*"), ("config/data", "*.*"), ("launch", "*.py"),
                         ("schemas", "*.json")):
     entry = share(subdir, pattern)

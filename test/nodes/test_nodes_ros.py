@@ -304,3 +304,59 @@ def test_two_namespaced_suites_do_not_cross(graph, ns):
     ids = {arm: {json.loads(m.data)["id"] for m in heard[arm]} for arm in heard}
     assert ids[left] and ids[right] and all(i.startswith(left + "-") for i in ids[left])
     assert all(i.startswith(right + "-") for i in ids[right])
+
+
+def test_the_error_model_node_serves_a_calibration_file(graph, ns, tmp_path):
+    """The node's 'calibration' parameter: 'model': 'calibrated' and 'compensate' answer with it."""
+    from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
+    from tolerance_ros.core.calibration.calibrate import calibrate
+    from tolerance_ros.core.calibration.writers import save_calibration
+    from tolerance_ros.core.geometry import transform
+    from tolerance_ros.nodes.error_model_server import ErrorModelServer
+    gao = load_robot("gao2023_7dof")
+    delta = load_budget("gao2023_delta2", gao).vector_for(gao)
+    q = np.tile(gao.sample_joints(20, 5), (2, 1))
+    cal = calibrate(gao, q, measure(gao, q, as_built_errors(delta, 1), 1e-5, 0.0, transform([1, 0, 0], [0, 0, 0.3]),
+                                    seed=2), folds=3)
+    path = save_calibration(cal, tmp_path / "calibration.yaml")
+    graph.start(ErrorModelServer, ns, calibration=str(path))
+    client = graph.client(ns)
+    assert client.wait_for_server("compute_error_jacobian", 20)
+    targets = gao.sample_joints(3, 7)
+    calibrated = client.compute_error_jacobian(targets.tolist(), model="calibrated", include_jacobian=False)
+    np.testing.assert_allclose(np.array(calibrated["poses"]), cal.fk(gao, targets), atol=1e-12)
+    fixed = client.request("compute_error_jacobian", {"command": "compensate", "joints": targets.tolist()})
+    np.testing.assert_allclose(cal.fk(gao, np.array(fixed["joints"])), gao.fk(targets), atol=1e-8)
+    assert fixed["model"] == "calibrated" and fixed["out_of_reach"] == []
+
+
+def test_the_monitor_takes_its_robot_from_robot_description(graph, ns, tmp_path):
+    """A UR5 from robot_description: the monitor starts when it arrives and draws in the URDF's base frame."""
+    from sensor_msgs.msg import JointState
+    from visualization_msgs.msg import MarkerArray
+    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
+    ur5 = load_robot(str(example_urdf("ur5_robot.urdf")), tip_link="tool0")
+    budget = {"robot": "ur5", "budget": {"tolerances": {n: 1e-4 if k == "length" else 5e-4
+                                                        for n, k in zip(ur5.param_names, ur5.param_kinds)},
+                                         "limit": {"position": 2e-3}}}
+    feeder = graph.node("robot_state_publisher", ns)
+    feeder.create_publisher(String, "robot_description", LATCHED_QOS).publish(
+        String(data=example_urdf("ur5_robot.urdf").read_text()))
+    feeder.create_publisher(String, "tolerance_budget", LATCHED_QOS).publish(String(data=json.dumps(budget)))
+    graph.start(AccuracyMonitor, ns, robot="robot_description", tip_link="tool0", log_dir=str(tmp_path),
+                marker_period=0.1)
+    markers = collect(graph, feeder, MarkerArray, "tolerance/markers")
+    js = feeder.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+
+    def drawn():
+        msg = JointState(name=list(ur5.joint_names), position=[0.1, -0.5, 0.4, 0.2, 0.3, 0.1])
+        msg.header.stamp = feeder.get_clock().now().to_msg()
+        js.publish(msg)
+        return any(m.ns == "bound" for a in markers for m in a.markers)
+
+    assert wait_for(drawn, 30, 0.2)
+    sphere = next(m for a in markers for m in a.markers if m.ns == "bound" and m.id == 0)
+    assert sphere.header.frame_id == "world"           # the URDF's root link, where its FK is expressed
+    p = ur5.fk(np.array([[0.1, -0.5, 0.4, 0.2, 0.3, 0.1]]))[0, :3, 3]
+    assert [sphere.pose.position.x, sphere.pose.position.y, sphere.pose.position.z] == pytest.approx(p.tolist())
+    assert list(tmp_path.glob("ur5_*.jsonl"))

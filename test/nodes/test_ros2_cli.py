@@ -44,7 +44,8 @@ def test_colcon_install_layout(workspace):
                 "simulated_tracker"):
         assert f"tolerance_ros {exe}" in out
     share = Path(workspace["WS"]) / "install" / "tolerance_ros" / "share" / "tolerance_ros"
-    for rel in ("package.xml", "launch/accuracy_suite.launch.py", "config/accuracy_suite.yaml",
+    for rel in ("package.xml", "launch/accuracy_suite.launch.py", "launch/two_arms.launch.py",
+                "config/accuracy_suite.yaml", "config/two_arms.yaml", "config/tolerance.rviz",
                 "config/robots/gao2023_7dof.yaml", "schemas/compute_error_jacobian.request.json"):
         assert (share / rel).exists(), rel
 

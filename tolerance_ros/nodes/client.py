@@ -62,7 +62,8 @@ class ToleranceClient:
         self._progress = {}
         self._ids = itertools.count(1)
         self._pubs, self._topics = {}, {}
-        prefix = PREFIX if namespace is None else f"/{namespace.strip('/')}/{PREFIX}".replace("//", "/")
+        ns = (namespace or "").strip("/")
+        prefix = PREFIX if namespace is None else (f"/{ns}/{PREFIX}" if ns else f"/{PREFIX}")
         for s in SERVICES:
             base = f"{prefix}/{s}"
             self._topics[s] = base

@@ -96,6 +96,7 @@ def test_offset_columns_are_pinocchio_joint_jacobian():
 
 def test_names_units_and_limits():
     chain = URDFChain(example_urdf("ur5_robot.urdf"), tip_link="tool0")
+    assert (chain.base_link, chain.tip_link) == ("world", "tool0")   # the URDF's root link: where FK is expressed
     assert chain.param_names[:7] == tuple(f"shoulder_pan_joint.{f}" for f in
                                           ("x", "y", "z", "roll", "pitch", "yaw", "offset"))
     assert chain.param_units[:7] == ("m", "m", "m", "rad", "rad", "rad", "rad")

@@ -132,7 +132,7 @@ class URDFChain(Mechanism):
         self._revolute = np.array([t == REVOLUTE for t in types])
         self.joint_limits = np.array(limits, dtype=float)
         self.tip_link = tip_link
-        self.base_link = base_link or model.frames[0].name
+        self.base_link = base_link or root_link(root) or model.frames[0].name
         self._axes = np.array(axes)
         self._fixed = np.array(fixed)
         self._fixed[0] = base_T @ self._fixed[0]
@@ -238,6 +238,13 @@ class URDFChain(Mechanism):
             else:
                 cfg[iq] = q[k]
         return cfg
+
+
+def root_link(root):
+    """Name of the URDF's root link (the child of no joint), or None when there is not exactly one."""
+    children = {j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None}
+    roots = [link.get("name") for link in root.findall("link") if link.get("name") not in children]
+    return roots[0] if len(roots) == 1 else None
 
 
 def moving_leaves(model, root) -> list:

@@ -1,0 +1,36 @@
+"""The launch and RViz files (ROS-free checks; the launches themselves run in test_ros2_cli.py)."""
+import ast
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_the_rviz_layout_shows_the_robot_and_the_markers_on_relative_topics():
+    doc = yaml.safe_load((ROOT / "config" / "tolerance.rviz").read_text())
+    displays = {d["Class"]: d for d in doc["Visualization Manager"]["Displays"]}
+    assert displays["rviz_default_plugins/RobotModel"]["Description Topic"]["Value"] == "robot_description"
+    assert displays["rviz_default_plugins/RobotModel"]["Description Topic"]["Durability Policy"] == "Transient Local"
+    assert displays["rviz_default_plugins/MarkerArray"]["Topic"]["Value"] == "tolerance/markers"
+
+
+def test_every_topic_name_in_the_nodes_is_relative_but_diagnostics():
+    """A namespace must move the whole suite: no absolute topic literal in the nodes or services."""
+    for path in list((ROOT / "tolerance_ros" / "nodes").glob("*.py")) + list((ROOT / "tolerance_ros" / "services")
+                                                                            .glob("*.py")):
+        tree = ast.parse(path.read_text())
+        inner = {id(n) for j in ast.walk(tree) if isinstance(j, ast.JoinedStr) for v in j.values[1:]
+                 for n in ast.walk(v)}  # pieces after the start of an f-string continue a name
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in inner \
+                    and node.value.startswith("/") and " " not in node.value and len(node.value) > 1:
+                assert node.value == "/diagnostics", f"{path.name}: absolute name {node.value!r}"
+
+
+def test_the_two_arm_parameters_give_each_arm_its_own_budget():
+    doc = yaml.safe_load((ROOT / "config" / "two_arms.yaml").read_text())
+    left = doc["/arm_left/tolerance_accuracy_monitor"]["ros__parameters"]
+    right = doc["/arm_right/tolerance_accuracy_monitor"]["ros__parameters"]
+    assert (left["budget"], right["budget"]) == ("gao2023_delta1", "gao2023_delta2")
+    assert {k.split("/")[1] for k in doc} == {"arm_left", "arm_right"}
