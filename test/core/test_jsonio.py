@@ -29,3 +29,25 @@ def test_compact_arrays_round_trip_with_and_without_the_compiled_kernel(monkeypa
     np.testing.assert_array_equal(back["b"], [1, 0])
     np.testing.assert_array_equal(back["nested"][0]["x"], np.eye(2))
     assert back["names"] == ["a", "b"] and jsonio.warm_up_base64() >= 0.0
+
+
+@pytest.mark.parametrize("size", [0, 1, 2, 3, 3072, 3073, 3074, 3075, 100_000])
+def test_b64decode_reads_what_b64encode_writes(size):
+    data = np.random.default_rng(size).integers(0, 256, size).astype(np.uint8)
+    text = jsonio.b64encode(data)
+    assert jsonio.b64decode(text).tobytes() == data.tobytes()
+    assert jsonio.b64decode(text.encode()).tobytes() == data.tobytes()
+
+
+def test_b64decode_reads_malformed_text_as_base64_does():
+    """A character outside the alphabet, padding inside, too much padding, a line break, non-ASCII text."""
+    good = base64.b64encode(bytes(range(256)) * 20).decode()
+    for text in (good[:100] + "!" + good[101:], good[:100] + "=" + good[101:], good + "====", good[:-4] + "A===",
+                 good[:2000] + "\n" + good[2000:], good[:-4] + "\u00e9AAA"):
+        try:
+            expected = base64.b64decode(text)
+        except ValueError as exc:
+            with pytest.raises(type(exc)):
+                jsonio.b64decode(text)
+        else:
+            assert jsonio.b64decode(text).tobytes() == expected
