@@ -42,7 +42,7 @@ from machine import load_average, machine, verdicts as print_verdicts  # noqa: E
 SIZES = (1, 100, 10_000)
 TARGETS_US = {1: 20.0, 100: 60.0, 10_000: 4000.0}  # compiled fk_and_jacobian, per call
 AGREE = 1e-12
-URDFS = (("ur5_robot.urdf", None), ("panda.urdf", "panda_hand"))
+URDFS = (("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand"))
 
 
 def pin_blas_threads():
