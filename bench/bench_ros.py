@@ -149,6 +149,7 @@ def bound_load(rclpy, context, ns, model, bound_rate, seconds, results, judge):
             elif delay < -0.05:  # far behind: do not burst
                 t_next = time.perf_counter()
 
+    streamer = None
     try:
         deadline = time.monotonic() + 60
         while not bounds and time.monotonic() < deadline:  # up, subscribed, budget received
@@ -170,8 +171,11 @@ def bound_load(rclpy, context, ns, model, bound_rate, seconds, results, judge):
         window = bounds[b0:b1]
     finally:
         stop.set()
+        if streamer is not None:
+            streamer.join(timeout=5.0)
         server.stop()
         executor.shutdown(timeout_sec=2.0)
+        spin.join(timeout=5.0)
         node.destroy_node()
     cpu = (c1 - c0) / (t1 - t0)
     rate_in, rate_out = (s1 - s0) / (t1 - t0), (b1 - b0) / (t1 - t0)
@@ -217,13 +221,15 @@ def main():
             node = rclpy.create_node(f"bench_client_{os.getpid()}", context=context)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
-            threading.Thread(target=executor.spin, daemon=True).start()
+            spin = threading.Thread(target=executor.spin, daemon=True)
+            spin.start()
             client = ToleranceClient(node=node, namespace=ns)
             if not client.wait_for_server("compute_error_jacobian", 60):
                 raise RuntimeError(f"server not up within 60 s: {server.proc.stderr.read()[-2000:]}")
             client.compute_error_jacobian([0.0] * model.dof, timeout=60)
             round_trips(client, model, args, results)
             executor.shutdown(timeout_sec=2.0)
+            spin.join(timeout=5.0)
             node.destroy_node()
         finally:
             server.stop()
