@@ -36,11 +36,13 @@ import pinocchio as pin  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 from tolerance_ros.core.models import URDFChain, load_robot  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from machine import load_average, machine, verdicts as print_verdicts  # noqa: E402
 
 SIZES = (1, 100, 10_000)
 TARGETS_US = {1: 20.0, 100: 60.0, 10_000: 4000.0}  # compiled fk_and_jacobian, per call
 AGREE = 1e-12
-URDFS = (("ur5_robot.urdf", None), ("panda.urdf", "panda_hand"))
+URDFS = (("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand"))
 
 
 def pin_blas_threads():
@@ -51,23 +53,6 @@ def pin_blas_threads():
         return "OMP/OPENBLAS/MKL_NUM_THREADS=1"
     threadpool_limits(1)
     return "threadpoolctl (1 thread) and OMP/OPENBLAS/MKL_NUM_THREADS=1"
-
-
-def machine():
-    cpu = "unknown CPU"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return f"{cpu}, {os.cpu_count()} cores ({usable} usable)"
-
-
-def load_average():
-    return "load average {:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
 
 
 def best_time(fn, repeat, clock):
@@ -265,12 +250,7 @@ def main():
     if not args.skip_warm_up:
         run_warm_up()
     print(f"\n{load_average()} (after)")
-    print("verdict:")
-    for ok, text in verdicts:
-        print(f"  {'ok    ' if ok else 'MISSED'} {text}")
-    missed = [text for ok, text in verdicts if not ok]
-    print(f"{len(verdicts) - len(missed)} met, {len(missed)} missed")
-    return 1 if missed else 0
+    return print_verdicts(verdicts)
 
 
 def _example_urdf(name):

@@ -35,6 +35,15 @@ def test_depth_is_found_without_parsing_and_brackets_in_strings_do_not_count():
     assert nesting_depth("[" * 100_000) == 100_000
 
 
+def test_depth_of_long_texts_with_escapes_and_non_ascii_strings():
+    """Past MAX_DEPTH brackets the strings are dropped, then every byte but the brackets."""
+    many = "[" + ",".join(["[1.5, 2]"] * 50) + "]"
+    assert nesting_depth(many) == 2
+    assert nesting_depth('{"\u00e9[\\"[": ' + many + ', "\U0001f600{{": [[["x]"]]]}') == 4
+    assert nesting_depth('{"a\\\\": ' + "[" * 20 + "]" * 20 + "}") == 21
+    assert nesting_depth("[" * 17 + '"\ud800"' + "]" * 17) == 17
+
+
 @pytest.mark.parametrize("text, rid", [
     ('{"id": "abc", "joints": [NaN]}', "abc"), ('{"id": 42, x', 42), ('{"id": "a\\"b", x', 'a"b'),
     ('{"id": 18446744073709551616, x}', None), ('{"id": ' + "9" * 4301 + ", x}", None), ("no id", None),

@@ -56,6 +56,11 @@ def test_bounds_with_tolerances(service, gao):
     ('{"id": 1, "joints": [0, 0]}', "invalid_request", "joints[0]: expected 7 values"),
     ('{"id": 1, "joints": [[0,0,0,0,0,0,0], [0,0]]}', "invalid_request", "joints[1]: expected 7 values"),
     ('{"id": 1, "joints": [0,0,0,"x",0,0,0]}', "invalid_request", "joints[0][3]: expected a number"),
+    ('{"id": 1, "joints": [[0,0,0,0,0,0,0], 5, [0,0]]}', "invalid_request", "joints[1]: expected 7 values"),
+    ('{"id": 1, "joints": [[0,0,0,0,0,0,0], [0,0,0,0,0,null,0]]}', "invalid_request",
+     "joints[1][5]: expected a number, got NoneType"),
+    ('{"id": 1, "joints": [[0,0,0,0,0,0,0], [0,0,-4,0,0,0,4], [0,0,0,0,0,0,4]]}', "out_of_limits",
+     "joints[1][2] (joint3) = -4 is outside [-3.14159, 3.14159] (2 configuration(s) affected)"),
     ('{"id": 1, "joints": [0,0,0,true,0,0,0]}', "invalid_request", "joints[0][3]: expected a number"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,1e999]}', "invalid_json", "infinity"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,4]}', "out_of_limits", "joints[0][6] (joint7) = 4"),
@@ -84,6 +89,30 @@ def test_id_is_echoed_even_when_the_json_is_broken(service):
 def test_out_of_limits_can_be_allowed_and_is_reported(service):
     r = ask(service, {"id": 2, "joints": [Q, [0, 0, 0, 0, 0, 0, 4]], "allow_out_of_limits": True})
     assert r["ok"] and r["out_of_limits"] == [1]
+    r = ask(service, {"id": 3, "joints": [[0, 0, 0, 0, 0, 0, 4], Q, [-4, 0, 0, 0, 0, 0, 0]],
+                      "allow_out_of_limits": True})
+    assert r["ok"] and r["out_of_limits"] == [0, 2]
+    assert ask(service, {"id": 4, "joints": [Q, Q]})["out_of_limits"] == []
+
+
+def test_parse_joints_refuses_what_a_parser_may_let_through(gao):
+    """Python's json module reads 1e999 as inf and keeps huge integers; orjson refuses both."""
+    from tolerance_ros.services.contracts import ContractError
+    from tolerance_ros.services.error_model import parse_joints
+    for value, needle in (([0] * 6 + [10 ** 400], "joints: a value is too large for a float"),
+                          ([[0.0] * 7, [0.0] * 3 + [float("inf")] + [0.0] * 3], "joints[1][3]: not a finite number"),
+                          ([[0.0] * 7, [float("nan")] * 7], "joints[1][0]: not a finite number")):
+        with pytest.raises(ContractError, match=needle.replace("[", r"\[").replace("]", r"\]")):
+            parse_joints(value, gao, Limits(), True)
+
+
+def test_the_service_follows_a_replaced_model(gao):
+    """What it keeps per model is keyed by the model object: a replaced model (or its limits) is seen."""
+    svc = ErrorModelService({"gao2023_7dof": gao}, "gao2023_7dof")
+    assert ask(svc, {"id": 1, "joints": [0, 0, 0, 0, 0, 0, 3]})["ok"]
+    svc.robots.models["gao2023_7dof"] = gao.with_joint_limits([[-1.0, 1.0]] * 7)
+    r = ask(svc, {"id": 2, "joints": [0, 0, 0, 0, 0, 0, 3]})
+    assert r["error"]["code"] == "out_of_limits" and "[-1, 1]" in r["error"]["message"]
 
 
 def test_bound_at_a_joint_state_uses_the_current_budget(gao):

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from fuzz_corpus import ENCODINGS, allocate_request, encode, jacobian_request
 from schemas_helpers import schema
+from tolerance_ros.core import interrupt
 from tolerance_ros.core.jsonio import loads_strict
 from tolerance_ros.services.allocation import AllocatorService, Command, parse_allocate_request, run_allocation
 from tolerance_ros.services.contracts import CODES, ContractError, Limits, error_code, error_response, request_id_of
@@ -70,8 +71,11 @@ def test_an_accepted_allocation_is_served(robots, request, seed):
         job = parse_allocate_request(json.dumps(request, default=str), robots, Limits())
     except ContractError:
         return
-    try:
-        doc = run_allocation(job)
+    try:  # under the request's time_limit, as the allocator service runs it
+        with interrupt.watching(interrupt.StopToken(job.time_limit_s)):
+            doc = run_allocation(job)
+    except interrupt.Interrupted as exc:
+        doc = error_response(job.id, ContractError("timeout", str(exc)))
     except Exception as exc:
         doc = error_response(job.id, exc)
     jsonschema.validate(json.loads(json.dumps(doc)), ALLOCATED)

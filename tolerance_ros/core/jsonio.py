@@ -8,8 +8,10 @@ Compact arrays (opt-in for large answers): ``encode_arrays`` replaces every nump
 from __future__ import annotations
 
 import base64
+import binascii
 import json
 import math
+import time
 
 import numpy as np
 
@@ -74,6 +76,60 @@ def loads_strict(text):
 
 
 _ARRAY_KEYS = {"dtype", "shape", "data"}
+COMPILED_B64_BYTES = 3072  # from this size on, b64encode runs the compiled kernel (when numba is there)
+
+
+def b64encode(data) -> str:
+    """Standard base64 (with padding) of the bytes of a C-contiguous array or bytes-like object, as str;
+    large inputs go through the compiled kernel ``kernels.base64_triples`` (about 4x faster than
+    ``base64.b64encode``), the same text."""
+    raw = np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray) else data.reshape(-1).view(np.uint8)
+    if raw.size < COMPILED_B64_BYTES:
+        return base64.b64encode(raw).decode("ascii")
+    from .models.base import compiled_kernels
+    kernels = compiled_kernels()
+    if kernels is None:
+        return base64.b64encode(raw).decode("ascii")
+    whole = raw.size // 3
+    out = np.empty(4 * whole + (4 if raw.size % 3 else 0), dtype=np.uint8)
+    kernels.base64_triples(raw, kernels.B64_PAIRS, out[:4 * whole].view(np.uint16))
+    out[4 * whole:] = np.frombuffer(base64.b64encode(raw[3 * whole:]), dtype=np.uint8)
+    return str(out, "ascii")
+
+
+def b64decode(text) -> np.ndarray:
+    """The bytes (a uint8 array) of base64 text, as ``base64.b64decode`` reads it; large, well-formed texts
+    go through the compiled kernel ``kernels.base64_quads``, anything else through ``base64.b64decode``."""
+    kernels = None
+    if len(text) >= COMPILED_B64_BYTES and len(text) % 4 == 0:
+        from .models.base import compiled_kernels
+        kernels = compiled_kernels()
+    if kernels is not None:
+        raw = text.encode("ascii", "replace") if isinstance(text, str) else bytes(text)
+        whole = len(raw) // 4 - (1 if raw.endswith(b"=") else 0)
+        out = np.empty(3 * whole + 3, dtype=np.uint8)
+        if kernels.base64_quads(np.frombuffer(raw, dtype=np.uint8, count=4 * whole), kernels.B64_VALUES, out) < 0:
+            try:
+                tail = base64.b64decode(raw[4 * whole:], validate=True)
+            except binascii.Error:
+                tail = None
+            if tail is not None:
+                out[3 * whole:3 * whole + len(tail)] = np.frombuffer(tail, dtype=np.uint8)
+                return out[:3 * whole + len(tail)]
+    return np.frombuffer(base64.b64decode(text), dtype=np.uint8)
+
+
+def warm_up_base64() -> float:
+    """Compile, or load from the cache, the kernels of ``b64encode`` and ``b64decode``; returns seconds."""
+    t0 = time.perf_counter()
+    b64decode(b64encode(np.zeros(COMPILED_B64_BYTES, dtype=np.uint8)))
+    return time.perf_counter() - t0
+
+
+def compact_array(arr: np.ndarray) -> dict:
+    """The compact base64 object of one numpy array (as float64, or int64 for integers and booleans)."""
+    arr = np.ascontiguousarray(arr, dtype="<i8" if arr.dtype.kind in "iub" else "<f8")
+    return {"dtype": arr.dtype.str, "shape": list(arr.shape), "data": b64encode(arr)}
 
 
 def encode_arrays(obj):
@@ -83,8 +139,7 @@ def encode_arrays(obj):
     if isinstance(obj, (list, tuple)):
         return [encode_arrays(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        arr = np.ascontiguousarray(obj, dtype="<i8" if obj.dtype.kind in "iub" else "<f8")
-        return {"dtype": arr.dtype.str, "shape": list(arr.shape), "data": base64.b64encode(arr.tobytes()).decode()}
+        return compact_array(obj)
     return obj
 
 
@@ -92,7 +147,7 @@ def decode_arrays(obj):
     """``obj`` with every compact array object turned back into a numpy array (see ``encode_arrays``)."""
     if isinstance(obj, dict):
         if obj.keys() == _ARRAY_KEYS and obj["dtype"] in ("<f8", "<i8"):
-            return np.frombuffer(base64.b64decode(obj["data"]), dtype=obj["dtype"]).reshape(obj["shape"])
+            return b64decode(obj["data"]).view(obj["dtype"]).reshape(obj["shape"])
         return {k: decode_arrays(v) for k, v in obj.items()}
     if isinstance(obj, list):
         return [decode_arrays(v) for v in obj]

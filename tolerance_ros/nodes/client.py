@@ -12,7 +12,6 @@ Answers with ``"arrays": "base64"`` come back with numpy arrays in place of the 
 from __future__ import annotations
 
 import itertools
-import json
 import os
 import threading
 import time
@@ -21,7 +20,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import String
 
-from ..core.jsonio import decode_arrays, loads_strict
+from ..core.jsonio import decode_arrays, dumps_fast, loads_strict
 from .common import PREFIX, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS
 
 SERVICES = ("compute_error_jacobian", "allocate_tolerances")
@@ -116,7 +115,7 @@ class ToleranceClient:
         with self._lock:
             self._events[rid] = ev
         try:
-            self._pubs[service].publish(String(data=json.dumps(payload)))
+            self._pubs[service].publish(String(data=dumps_fast(payload)))
             deadline = time.monotonic() + timeout
             while True:
                 left = deadline - time.monotonic()

@@ -1,14 +1,27 @@
 """Error-model server (node ``tolerance_error_model``): the JSON service ``compute_error_jacobian`` on
 ``tolerance/compute_error_jacobian/request`` -> ``.../response`` (std_msgs/String, relative to the
 namespace), and the predicted error bound of the current budget at the current joint state on
-``tolerance/predicted_bound``. Robots: shipped names, robot files or ``robot_description``."""
+``tolerance/predicted_bound``. Robots: shipped names, robot files or ``robot_description``.
+
+The predicted bound is computed on a timer, ``bound_rate`` times a second (default 20 Hz), from the latest
+joint state received since the last bound (none when no new state came). Joint states are not delivered
+one by one: the subscription (``joint_states``, resolved with this node's namespace and remappings, keep
+the last 1) belongs to a helper node, ``<name>_joint_states``, that no executor spins, and the timer takes
+the latest state from it, still serialized, and decodes only that one. A 1 kHz stream thus costs the
+middleware's receipt of each message and ``bound_rate`` bounds a second, not one Python callback per state.
+"""
 from __future__ import annotations
 
+import math
+
+import rclpy
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from ..core.jsonio import dumps_fast
+from ..core.jsonio import dumps_fast, warm_up_base64
 from ..services.contracts import ContractError, Limits, budget_from_message
 from ..services.compensation import load_calibrations
 from ..services.error_model import ErrorModelService
@@ -30,13 +43,24 @@ class ErrorModelServer(Node):
                                  "(paper | worst-case | rss); empty takes the budget's")
         self.calibration = declare(self, "calibration", "", "calibration file (tolerance-ros calibrate) of a served robot: "
                                    "requests with \"model\": \"calibrated\" and \"command\": \"compensate\" use it")
+        rate = declare(self, "bound_rate", 20.0, "predicted bound: computed and published at most this many times "
+                                                 "a second (Hz), from the latest joint state")
+        if not (isinstance(rate, (int, float)) and math.isfinite(rate) and 0.0 < rate <= 10_000.0):
+            raise ValueError(f"bound_rate: expected a rate in (0, 10000] Hz, got {rate!r}")
         self.service = ErrorModelService(robot_set(self, specs, default), limits=Limits(max_bytes, max_poses, max_worst))
+        warm_up_base64()
         self.load_calibration()
         self.responses = self.create_publisher(String, f"{JACOBIAN_TOPIC}/response", SERVICE_RESPONSE_QOS)
         self.bound_pub = self.create_publisher(String, f"{PREFIX}/predicted_bound", STATUS_QOS)
         self.create_subscription(String, f"{JACOBIAN_TOPIC}/request", guarded(self, self.on_request),
                                  SERVICE_REQUEST_QOS)
-        self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_state), MEASUREMENT_QOS)
+        self.joint_state_node = rclpy.create_node(f"{self.get_name()}_joint_states", namespace=self.get_namespace(),
+                                                  context=self.context, use_global_arguments=False,
+                                                  enable_rosout=False, start_parameter_services=False)
+        qos = QoSProfile(depth=1, reliability=MEASUREMENT_QOS.reliability, history=MEASUREMENT_QOS.history)
+        self.joint_states = self.joint_state_node.create_subscription(
+            JointState, self.resolve_topic_name("joint_states"), lambda msg: None, qos, raw=True)
+        self.create_timer(1.0 / rate, guarded(self, self.publish_bound))
         self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
         follow_robot_description(self, self.service.robots, self.load_calibration)
         self.get_logger().info(f"serving {sorted(self.service.models) or 'robot_description'} on "
@@ -64,10 +88,26 @@ class ErrorModelServer(Node):
         except ContractError as exc:
             self.get_logger().error(f"budget message ignored: {exc.message}")
 
-    def on_joint_state(self, msg):
-        bound = self.service.bound_at_message(msg, self.criterion or None)
+    def latest_joint_state(self):
+        """The newest joint state waiting on the helper node's subscription (serialized), or None."""
+        raw = None
+        sub = self.joint_states
+        with sub.handle:
+            while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
+                raw = taken[0]
+        return raw
+
+    def publish_bound(self):
+        """The predicted bound at the latest joint state, when one came since the last bound."""
+        raw = self.latest_joint_state()
+        if raw is None or self.service.current_budget is None:
+            return
+        bound = self.service.bound_at_message(deserialize_message(raw, JointState), self.criterion or None)
         if bound is not None:
             self.bound_pub.publish(String(data=dumps_fast(bound)))
+
+    def close(self):
+        self.joint_state_node.destroy_node()
 
 
 def main(args=None):

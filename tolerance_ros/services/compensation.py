@@ -29,7 +29,6 @@ from ..core.calibration.writers import load_calibration
 from ..core.geometry import quat_to_matrices
 from ..core.models.base import ModelError
 from .contracts import ContractError, Limits
-from .error_model import parse_joints
 
 COMPENSATE_ONLY = ("poses", "seed", "match")
 JACOBIAN_ONLY = ("outputs", "tolerances", "criteria", "include_jacobian")
@@ -129,6 +128,7 @@ def compensate_request(req: dict, robots, calibrations: dict, limits: Limits) ->
     if ("joints" in req) == ("poses" in req):
         raise ContractError("invalid_request", "joints, poses: give exactly one (nominal joint configurations or "
                                                "tool poses)")
+    from .error_model import parse_joints  # here: error_model imports this module
     allow = req.get("allow_out_of_limits", False)
     try:
         if "joints" in req:

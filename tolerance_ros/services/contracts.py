@@ -124,19 +124,20 @@ def _utf8_size(text: str) -> int:
 
 
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.S)
-_NOT_BRACKET = re.compile(r"[^\[\]{}]+")
+_NOT_BRACKET = bytes(sorted(set(range(256)) - set(b"[]{}")))
 
 
 def nesting_depth(text: str) -> int:
     """Deepest nesting of arrays and objects in JSON text (brackets inside strings do not count), found
-    without parsing, in C-speed passes (regular expressions, then a cumulative sum)."""
+    without parsing, in C-speed passes (a regular expression drops the strings, ``bytes.translate`` all
+    but the brackets, then a cumulative sum)."""
     opening = text.count("[") + text.count("{")
     if opening <= MAX_DEPTH:
         return opening
-    brackets = _NOT_BRACKET.sub("", "".join(_STRING.split(text)))
+    brackets = "".join(_STRING.split(text)).encode("utf-8", "surrogatepass").translate(None, _NOT_BRACKET)
     if not brackets:
         return 0
-    codes = np.frombuffer(brackets.encode("ascii"), dtype=np.uint8)
+    codes = np.frombuffer(brackets, dtype=np.uint8)
     return int(np.cumsum(np.where((codes == 91) | (codes == 123), 1, -1)).max())
 
 

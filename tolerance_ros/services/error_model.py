@@ -11,13 +11,16 @@ once, tolerances within physical ranges.
 """
 from __future__ import annotations
 
+from itertools import chain
+
 import numpy as np
 
 from ..core.budget import BudgetError, budget_from_dict
 from ..core.errors import CRITERIA, criterion_bound
 from ..core.ingest import IngestError, JointOrder, stamp_seconds
-from ..core.jsonio import dumps_fast, encode_arrays
+from ..core.jsonio import compact_array, dumps_fast, encode_arrays
 from ..core.models.base import ModelError
+from .compensation import compensate_request, jacobian_model
 from .contracts import ContractError, Limits, error_response, number, parse_request, request_id_of
 from .robots import RobotSet
 
@@ -33,37 +36,48 @@ ARRAYS = ("json", "base64")
 
 def parse_joints(value, model, limits: Limits, allow_out_of_limits: bool) -> np.ndarray:
     """(n, dof) joints from one configuration (list of numbers) or many (list of lists)."""
+    return _parse_joints(value, model, limits, allow_out_of_limits)[0]
+
+
+def _parse_joints(value, model, limits: Limits, allow_out_of_limits: bool, bounds=None) -> tuple:
+    """``parse_joints`` and the (n, dof) mask of joints outside their limits (None when there are none).
+    ``bounds``: the model's (lower - 1e-12, upper + 1e-12), when the caller keeps them. The checks run over
+    whole rows and arrays in C (``map``, numpy); the loops that name the offending entry run only on a failure."""
     if not isinstance(value, list) or not value:
         raise ContractError("invalid_request", "joints: expected a non-empty list (one configuration) or a list of lists")
     rows = value if isinstance(value[0], list) else [value]
     if len(rows) > limits.max_poses:
         raise ContractError("too_large", f"joints: {len(rows)} configurations exceed the cap of {limits.max_poses}")
     dof = model.dof
-    for i, r in enumerate(rows):
-        if not isinstance(r, list) or len(r) != dof:
-            got = len(r) if isinstance(r, list) else type(r).__name__
-            raise ContractError("invalid_request", f"joints[{i}]: expected {dof} values ({', '.join(model.joint_names)}), "
-                                                   f"got {got}")
-    kinds = {type(v) for r in rows for v in r}
+    if set(map(type, rows)) != {list} or set(map(len, rows)) != {dof}:
+        for i, r in enumerate(rows):
+            if not isinstance(r, list) or len(r) != dof:
+                got = len(r) if isinstance(r, list) else type(r).__name__
+                raise ContractError("invalid_request", f"joints[{i}]: expected {dof} values "
+                                                       f"({', '.join(model.joint_names)}), got {got}")
+    kinds = set(map(type, chain.from_iterable(rows)))
     if not kinds <= {int, float}:
         i, j = next((i, j) for i, r in enumerate(rows) for j, v in enumerate(r) if type(v) not in (int, float))
         raise ContractError("invalid_request", f"joints[{i}][{j}]: expected a number, got {type(rows[i][j]).__name__}")
     try:
-        q = np.array(rows, dtype=float)
+        q = np.fromiter(chain.from_iterable(rows), dtype=float, count=len(rows) * dof).reshape(len(rows), dof)
     except OverflowError:
         raise ContractError("invalid_request", "joints: a value is too large for a float") from None
-    bad = np.argwhere(~np.isfinite(q))
-    if bad.size:
-        i, j = bad[0]
+    lo, hi = bounds if bounds is not None else (model.joint_limits[:, 0] - 1e-12, model.joint_limits[:, 1] + 1e-12)
+    within = (q >= lo) & (q <= hi)  # False for NaN too: all True means finite and within the limits
+    if within.all():
+        return q, None
+    if not np.isfinite(q).all():
+        i, j = np.argwhere(~np.isfinite(q))[0]
         raise ContractError("invalid_request", f"joints[{i}][{j}]: not a finite number")
-    out = model.out_of_limits(q)
-    if out.any() and not allow_out_of_limits:
+    out = ~within
+    if not allow_out_of_limits:
         i, j = np.argwhere(out)[0]
         lo, hi = model.joint_limits[j]
         raise ContractError("out_of_limits", f"joints[{i}][{j}] ({model.joint_names[j]}) = {q[i, j]:.6g} is outside "
                                              f"[{lo:.6g}, {hi:.6g}] ({int(out.any(axis=1).sum())} configuration(s) "
                                              f"affected); set allow_out_of_limits to accept")
-    return q
+    return q, out
 
 
 def parse_tolerances(value, model, current_budget=None) -> tuple:
@@ -140,6 +154,7 @@ class ErrorModelService:
         self.limits = limits or Limits()
         self.current_budget = None
         self.joint_orders = {}
+        self._per_model = {}
 
     @property
     def models(self) -> dict:
@@ -186,7 +201,6 @@ class ErrorModelService:
         return self.bound_at(msg.name, msg.position, criterion, msg.header.stamp)
 
     def _serve(self, req) -> dict:
-        from .compensation import compensate_request, jacobian_model
         arrays = req.get("arrays", "json")
         if arrays not in ARRAYS:
             raise ContractError("invalid_request", f"arrays: expected one of {list(ARRAYS)}, got {arrays[:40]!r}")
@@ -197,7 +211,9 @@ class ErrorModelService:
         outputs = req.get("outputs", "pose")
         if outputs not in ("position", "pose"):
             raise ContractError("invalid_request", f"outputs: expected 'position' or 'pose', got {outputs[:40]!r}")
-        q = parse_joints(req["joints"], model, self.limits, req.get("allow_out_of_limits", False))
+        static = self._static(model)
+        q, out = _parse_joints(req["joints"], model, self.limits, req.get("allow_out_of_limits", False),
+                               static["bounds"])
         criteria = None
         if "tolerances" in req:
             delta, default_criterion = parse_tolerances(req["tolerances"], model, self.current_budget)
@@ -208,21 +224,40 @@ class ErrorModelService:
             raise ContractError("invalid_request", f"joints: {str(exc)[:300]}") from None
         rows = 3 if outputs == "position" else 6
         J = EJ.J[:, :rows]
-        sens = np.sqrt(np.einsum("nkp,nkp->np", J[:, :3], J[:, :3]))
+        P = J[:, :3]
+        sens = np.sqrt((P * P).sum(axis=1))
         if not (np.isfinite(T).all() and np.isfinite(J).all()):
             raise ContractError("invalid_request", "joints: the configurations give non-finite poses (values too "
                                                    "large for this robot)")
-        resp = {"id": req["id"], "ok": True, "robot": name, "n": int(len(q)), "joint_names": list(model.joint_names),
+        resp = {"id": req["id"], "ok": True, "robot": name, "n": len(q), "joint_names": list(static["joint_names"]),
                 "parameters": list(EJ.names), "units": list(EJ.units), "rows": list(ROWS[:rows]), "poses": T,
-                "sensitivity": sens, "out_of_limits": np.flatnonzero(model.out_of_limits(q).any(axis=1)).tolist()}
+                "sensitivity": sens, "out_of_limits": [] if out is None else np.flatnonzero(out.any(axis=1)).tolist()}
         if req.get("include_jacobian", True):
-            resp["jacobian"] = np.ascontiguousarray(J)
+            resp["jacobian"] = J if rows == 6 else np.ascontiguousarray(J)
         if criteria is not None:
             resp["bounds"] = {"position": {c: criterion_bound(EJ.position, delta, c) for c in criteria}}
             if outputs == "pose":
                 resp["bounds"]["orientation"] = {c: criterion_bound(EJ.orientation, delta, c) for c in criteria}
             resp["bounds"]["budget_criterion"] = default_criterion
-        if arrays == "base64":
-            resp = encode_arrays(resp)
+        if arrays == "base64":  # the arrays only: the lists of names need no walk
+            for key in ("poses", "sensitivity", "jacobian"):
+                if key in resp:
+                    resp[key] = compact_array(resp[key])
+            for side in ("position", "orientation"):
+                if side in resp.get("bounds", ()):
+                    resp["bounds"][side] = {c: compact_array(v) for c, v in resp["bounds"][side].items()}
         resp["arrays"] = arrays
         return resp
+
+    def _static(self, model) -> dict:
+        """What every request to ``model`` shares, computed once per model object: the joint names and
+        the limits widened by 1e-12 (as ``Mechanism.out_of_limits``)."""
+        entry = self._per_model.get(id(model))
+        if entry is None or entry[0] is not model or entry[1] is not model.joint_limits:
+            if len(self._per_model) > 32:  # models replaced over time (robot_description) are dropped
+                self._per_model.clear()
+            lim = model.joint_limits
+            entry = (model, lim, {"joint_names": tuple(model.joint_names),
+                                  "bounds": (lim[:, 0] - 1e-12, lim[:, 1] + 1e-12)})
+            self._per_model[id(model)] = entry
+        return entry[2]

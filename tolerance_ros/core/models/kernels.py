@@ -9,6 +9,9 @@ columns pose by pose in one compiled loop. Shared arguments:
   ``jacobian``); J's rows 0-2 are position (m per unit), rows 3-5 a small rotation in the base frame;
 - the return value is -1, or the flat index of the first non-finite joint value (nothing computed then).
 
+``base64_triples`` and ``base64_quads`` are the bulk of ``jsonio.b64encode`` and ``b64decode`` (the compact
+arrays of large answers).
+
 Compiled code is cached on disk: in ``NUMBA_CACHE_DIR`` when set, else beside this file when its
 directory is writable, else in numba's per-user cache directory (``~/.cache/numba``). When none of these
 is writable (numba then refuses to cache), a private directory ``<tmp>/tolerance_ros-numba-<uid>`` is
@@ -416,9 +419,45 @@ def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, k, r
                 _length_column(J, k, c + 6, lines[j, 15], lines[j, 16], lines[j, 17])
 
 
+_B64 = np.frombuffer(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/", dtype=np.uint8)
+# The two base64 characters of every 12-bit value, as one native-order uint16 (their bytes in order).
+B64_PAIRS = np.stack([_B64[np.arange(4096) >> 6], _B64[np.arange(4096) & 63]], axis=1).copy().view(np.uint16)[:, 0]
+
+
+@njit
+def base64_triples(src, pairs, out):
+    """out[2i], out[2i + 1] = the base64 characters of the bytes src[3i:3i + 3], for every whole triple
+    (``out`` a uint16 array of 2 (len(src) // 3) entries; ``pairs`` is B64_PAIRS)."""
+    for i in range(src.size // 3):
+        w = (np.uint32(src[3 * i]) << 16) | (np.uint32(src[3 * i + 1]) << 8) | np.uint32(src[3 * i + 2])
+        out[2 * i] = pairs[w >> 12]
+        out[2 * i + 1] = pairs[w & 4095]
+
+
+B64_VALUES = np.full(256, 255, dtype=np.uint8)  # the 6-bit value of each base64 character, 255 for any other byte
+B64_VALUES[_B64] = np.arange(64)
+
+
+@njit
+def base64_quads(src, values, out):
+    """out[3i:3i + 3] = the bytes of the base64 characters src[4i:4i + 4], for every whole quad (``values`` is
+    B64_VALUES); returns -1, or the index of the first byte that is not a base64 character (padding included)."""
+    for i in range(src.size // 4):
+        a, b, c, d = values[src[4 * i]], values[src[4 * i + 1]], values[src[4 * i + 2]], values[src[4 * i + 3]]
+        if (a | b | c | d) & 128:
+            return 4 * i
+        w = (np.uint32(a) << 18) | (np.uint32(b) << 12) | (np.uint32(c) << 6) | np.uint32(d)
+        out[3 * i] = (w >> 16) & 255
+        out[3 * i + 1] = (w >> 8) & 255
+        out[3 * i + 2] = w & 255
+    return -1
+
+
 def warm_up() -> float:
     """Compile, or load from the on-disk cache, every kernel signature the models call; returns seconds."""
     t0 = time.perf_counter()
+    base64_triples(np.zeros(3, np.uint8), B64_PAIRS, np.empty(2, np.uint16))
+    base64_quads(np.frombuffer(b"AAAA", np.uint8), B64_VALUES, np.empty(3, np.uint8))
     q = np.zeros((1, 1))
     T = np.empty((1, 4, 4))
     eye = np.eye(4)
