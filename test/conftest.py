@@ -1,9 +1,17 @@
-"""Shared fixtures: the shipped paper arm and a planar 2R arm."""
+"""Shared fixtures: the shipped paper arm and a planar 2R arm. The numerical libraries run on one thread,
+as in the command line and the nodes (``tolerance_ros.core.threads``)."""
 from __future__ import annotations
 
-import pytest
+from tolerance_ros.core.threads import cap_environment
 
-from tolerance_ros.core.models import DHChain, load_robot
+cap_environment()  # before numpy loads where it has not yet; threadpoolctl covers the rest below
+
+import pytest  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+from tolerance_ros.core.models import DHChain, load_robot  # noqa: E402
+
+threadpool_limits(limits=1)
 
 
 @pytest.fixture(scope="session")

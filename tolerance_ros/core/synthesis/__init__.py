@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import analysis
+from .. import analysis, threads
 from ..budget import Budget
 from ..iso286 import coarsest_grade
 from .active_set import solve_active_set
@@ -198,7 +198,16 @@ def _warnings(problem, delta, ver) -> list:
 def allocate(model, limit, model_type="min-cost", solver="active-set", criterion="paper", orientation_limit=None,
              floors=None, k_sigma=3.0, seed=0, n_mc=10000, problem=None, progress=None, ga_options=None,
              verify=True) -> Allocation:
-    """Allocate tolerances (see the module docstring). ``limit`` in m, ``orientation_limit`` in rad."""
+    """Allocate tolerances (see the module docstring). ``limit`` in m, ``orientation_limit`` in rad. The
+    numerical libraries run on one thread meanwhile: their pools only slow these small problems down,
+    by a factor of 5 on a loaded machine."""
+    with threads.limited(1):
+        return _allocate(model, limit, model_type, solver, criterion, orientation_limit, floors, k_sigma, seed, n_mc,
+                         problem, progress, ga_options, verify)
+
+
+def _allocate(model, limit, model_type, solver, criterion, orientation_limit, floors, k_sigma, seed, n_mc, problem,
+              progress, ga_options, verify) -> Allocation:
     if model_type not in MODELS:
         raise SynthesisError(f"model: expected one of {MODELS}, got {model_type!r}")
     if solver not in SOLVERS:
