@@ -14,6 +14,17 @@ def run(capsys, *argv):
     return code, out.out, out.err
 
 
+@pytest.fixture
+def small_arm(tmp_path_factory):
+    """A 3-DOF arm file (mm, deg): allocations in a second, where a test needs one but not the paper's arm."""
+    path = tmp_path_factory.mktemp("robots") / "small_arm.yaml"
+    path.write_text("name: small_arm\nkind: dh\nunits: {length: mm, angle: deg}\njoints:\n"
+                    "  - {name: j1, type: revolute, a: 0, alpha: 90, d: 300, theta: 0, limits: [-170, 170]}\n"
+                    "  - {name: j2, type: revolute, a: 400, alpha: 0, d: 0, theta: 0, limits: [-120, 120]}\n"
+                    "  - {name: j3, type: revolute, a: 300, alpha: 0, d: 0, theta: 0, limits: [-150, 150]}\n")
+    return str(path)
+
+
 def test_jacobian_json_is_si_and_complete(capsys):
     code, out, _ = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0,0.1,0.2,0.3,0.4,0.5,0.6", "--json")
     assert code == 0
@@ -329,9 +340,9 @@ def test_report_names_the_bound_that_failed_and_plots_both(capsys, tmp_path, fig
     assert sum(r.endswith(",orientation bound") or ",orientation bound," in r for r in rows[1:]) == 5
 
 
-def test_every_plot_axis_says_what_and_its_unit(capsys, tmp_path, figures):
+def test_every_plot_axis_says_what_and_its_unit(capsys, tmp_path, figures, small_arm):
     run(capsys, "sensitivity", "--robot", "gao2023_7dof", "--samples", "200", "--quiet", "--plot", str(tmp_path))
-    run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--quiet", "--plot", str(tmp_path),
+    run(capsys, "allocate", "--robot", small_arm, "--limit", "1.4mm", "--quiet", "--plot", str(tmp_path),
         "--mc-poses", "500")
     run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--samples", "500", "--quiet",
         "--plot", str(tmp_path))
@@ -351,19 +362,19 @@ def ax_shares_x(axes):
     return len(axes) > 1 and bool(axes[-1][0])
 
 
-def test_plots_of_two_commands_in_one_folder_do_not_replace_each_other(capsys, tmp_path):
+def test_plots_of_two_commands_in_one_folder_do_not_replace_each_other(capsys, tmp_path, small_arm):
     run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--samples", "300", "--quiet",
         "--plot", str(tmp_path))
     first = (tmp_path / "verify_error_histogram.png").read_bytes()
-    run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--quiet", "--plot", str(tmp_path),
+    run(capsys, "allocate", "--robot", small_arm, "--limit", "1.4mm", "--quiet", "--plot", str(tmp_path),
         "--mc-poses", "300")
     assert (tmp_path / "verify_error_histogram.png").read_bytes() == first
     assert (tmp_path / "allocate_error_histogram.png").exists()
 
 
-def test_allocate_writes_a_budget_only_where_asked(capsys, tmp_path, monkeypatch):
+def test_allocate_writes_a_budget_only_where_asked(capsys, tmp_path, monkeypatch, small_arm):
     monkeypatch.chdir(tmp_path)
-    code, out, _ = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--quiet", "--mc-poses", "300")
+    code, out, _ = run(capsys, "allocate", "--robot", small_arm, "--limit", "1.4mm", "--quiet", "--mc-poses", "300")
     assert code == 0 and "budget not saved (give --out FILE.yaml to save it)" in out
     assert list(tmp_path.iterdir()) == []
 

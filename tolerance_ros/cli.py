@@ -269,7 +269,7 @@ def cmd_allocate(args):
     ga = {"tol_runs": args.ga_tol, "max_rounds": args.ga_rounds}
     res = synthesis.allocate(model, limit, args.model, args.solver, args.criterion, olimit, _floors(args, model),
                              k_sigma, seed=args.seed, n_mc=args.mc_poses, progress=prog,
-                             ga_options=ga if args.solver == "ga" else None)
+                             solver_options=ga if args.solver == "ga" else None)
     doc = res.to_dict()
     doc["robot"] = model.name
     if args.out and args.out != "-":

@@ -83,6 +83,12 @@ def test_synthesis_study_beats_both_published_sets(gao):
     best = sets["active-set min-cost"]
     assert best["success"] and best["cost"] < sets["published delta1"]["cost"] < sets["published delta2"]["cost"]
     assert best["verification"]["supremum"]["paper"]["position"]["value"] <= 1.4e-3
+    assert best["verification"]["monte_carlo"]["poses"] == 3000
+    assert best["verification"]["monte_carlo"]["position_m"]["pass_rate"] == 1.0
+    # It exploits cancellation of errors of opposite effect, and says so.
+    assert best["verification"]["supremum"]["worst-case"]["position"]["value"] > 1.4e-3
+    assert any("cancel" in w for w in best["warnings"])
+    assert set(syn["free"]) == {"alpha7", "theta7"}
     # The published sets are checked with the same search: neither stays within 1.4 mm everywhere.
     for key in ("published delta1", "published delta2"):
         assert sets[key]["verification"]["supremum"]["paper"]["position"]["value"] > 1.4e-3

@@ -211,7 +211,7 @@ def synthesis_study(seed: int = 2023, n_mc: int = 10000, ga_options=None, progre
             progress(done, total)
     for solver, kind in SYNTHESIS_RUNS:
         res = allocate(model, problem.limit, kind, solver, problem=problem, seed=seed, n_mc=n_mc,
-                       ga_options=ga_options if solver == "ga" else None)
+                       solver_options=ga_options if solver == "ga" else None)
         out["sets"][f"{solver} {kind}"] = {"delta": res.delta, "cost": res.cost, "index_I_m": res.index_I,
                                            "time_s": res.time_s, "status": res.status, "success": res.success,
                                            "verification": res.verification, "warnings": res.warnings}

@@ -237,7 +237,7 @@ def paper_tolerances(model=None) -> np.ndarray:
 
 def grades(model=None, limit_position: float = LIMIT_POSITION, limit_orientation: float = LIMIT_ORIENTATION,
            criterion: str = "rss", model_type: str = "min-cost", floor: float = 1e-6, samples: int = 5000,
-           seed: int = 0, verify: bool = False, n_mc: int = 2000) -> dict:
+           seed: int = 0, verify: bool = False, n_mc: int = 2000, solver_options=None) -> dict:
     """Allocate tolerances to the 27 sources and map them to ISO 286 grades of the Table 1 fits.
 
     Limits: 0.04 mm and 0.045 deg, the accuracy the paper claims for its prototype; criterion 'rss'
@@ -250,13 +250,15 @@ def grades(model=None, limit_position: float = LIMIT_POSITION, limit_orientation
     IT grade whose zone fits ``2 * tolerance`` at the fit's nominal diameter. ``li.x`` has no
     first-order effect (the passive U-joint takes it up), so it is free and sets nothing.
     The reverse mapping (``paper_tolerances``) turns the paper's grades into source tolerances, whose
-    errors over the workspace are reported under ``paper_set``.
+    errors over the workspace are reported under ``paper_set``. ``solver_options`` go to the active-set
+    solver (its workspace search: ``n_check``, ``n_starts``).
     """
     model = load_robot(model or ROBOT)
     problem = build_problem(model, limit_position, limit_orientation, criterion, floors={"length": floor},
                             samples=samples, seed=seed)
     res = allocate(model, limit_position, model_type=model_type, criterion=criterion,
-                   orientation_limit=limit_orientation, problem=problem, seed=seed, verify=verify, n_mc=n_mc)
+                   orientation_limit=limit_orientation, problem=problem, seed=seed, verify=verify, n_mc=n_mc,
+                   solver_options=solver_options)
     delta = np.where(problem.active, res.delta, np.inf)
     idx = _source_index(model)
     nfits = {s: sum(s in f["sources"] for f in FITS) for s in idx}

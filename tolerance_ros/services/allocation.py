@@ -127,7 +127,7 @@ def run_allocation(job: AllocationJob, progress=None) -> dict:
     k = k_for_confidence(job.confidence) if job.confidence is not None else 3.0
     res = allocate(job.mechanism, job.limit, job.cost_model, job.solver, job.criterion, job.orientation_limit,
                    job.floors, k, seed=job.seed, n_mc=job.mc_poses, progress=progress,
-                   ga_options={"tol_runs": job.ga_tol, "max_rounds": job.ga_rounds} if job.solver == "ga" else None)
+                   solver_options={"tol_runs": job.ga_tol, "max_rounds": job.ga_rounds} if job.solver == "ga" else None)
     budget = res.budget(source=f"allocate_tolerances request {job.id}")
     ver = res.verification
     return {"id": job.id, "ok": True, "status": "done", "success": res.success, "shortfalls": res.shortfalls(),

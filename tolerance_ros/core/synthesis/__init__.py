@@ -196,18 +196,19 @@ def _warnings(problem, delta, ver) -> list:
 
 
 def allocate(model, limit, model_type="min-cost", solver="active-set", criterion="paper", orientation_limit=None,
-             floors=None, k_sigma=3.0, seed=0, n_mc=10000, problem=None, progress=None, ga_options=None,
+             floors=None, k_sigma=3.0, seed=0, n_mc=10000, problem=None, progress=None, solver_options=None,
              verify=True) -> Allocation:
-    """Allocate tolerances (see the module docstring). ``limit`` in m, ``orientation_limit`` in rad. The
+    """Allocate tolerances (see the module docstring). ``limit`` in m, ``orientation_limit`` in rad;
+    ``solver_options`` go to the solver (``solve_active_set``: n_check, n_starts, ...; ``solve_ga``). The
     numerical libraries run on one thread meanwhile: their pools only slow these small problems down,
     by a factor of 5 on a loaded machine."""
     with threads.limited(1):
         return _allocate(model, limit, model_type, solver, criterion, orientation_limit, floors, k_sigma, seed, n_mc,
-                         problem, progress, ga_options, verify)
+                         problem, progress, solver_options, verify)
 
 
 def _allocate(model, limit, model_type, solver, criterion, orientation_limit, floors, k_sigma, seed, n_mc, problem,
-              progress, ga_options, verify) -> Allocation:
+              progress, solver_options, verify) -> Allocation:
     if model_type not in MODELS:
         raise SynthesisError(f"model: expected one of {MODELS}, got {model_type!r}")
     if solver not in SOLVERS:
@@ -216,9 +217,9 @@ def _allocate(model, limit, model_type, solver, criterion, orientation_limit, fl
     if problem is None:
         problem = build_problem(model, limit, orientation_limit, criterion, floors, k_sigma, seed=seed)
     if solver == "active-set":
-        raw = solve_active_set(problem, model_type, seed=seed, progress=progress)
+        raw = solve_active_set(problem, model_type, seed=seed, progress=progress, **(solver_options or {}))
     else:
-        raw = solve_ga(problem, model_type, seed=seed, progress=progress, **(ga_options or {}))
+        raw = solve_ga(problem, model_type, seed=seed, progress=progress, **(solver_options or {}))
     delta = raw["delta"]
     solve_time = time.perf_counter() - t0
     ver, mc = _verify(problem, delta, n_mc, seed) if verify else ({}, None)
