@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.ingest import IngestError, JointOrder, StateBuffer, pose_from_values, stamp_seconds
-from ..core.jsonio import dumps
+from ..core.jsonio import dumps_fast
 from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
 
@@ -72,7 +72,7 @@ class MonitorLogic:
     def _write(self, rec):
         """Append one event to the campaign log (strict JSON: non-finite numbers become null)."""
         if self.log:
-            self.log.write(dumps(rec) + "\n")
+            self.log.write(dumps_fast(rec) + "\n")
 
     def close(self):
         if self.log:
