@@ -11,7 +11,7 @@ from sensor_msgs.msg import JointState
 from ..core.budget import load_budget
 from ..core.geometry import transform
 from ..core.ingest import IngestError
-from ..services.tracker import SimulatedTracker, stamp_fields
+from ..services.tracker import SimulatedTracker
 from .common import MEASUREMENT_QOS, declare, follow_robot_description, guarded, robot_set, run
 
 
@@ -51,12 +51,12 @@ class SimulatedTrackerNode(Node):
         if self.sim is None or (self.count - 1) % self.every:
             return
         try:
-            stamp, p, q = self.sim.on_joint_state_msg(msg)
+            _, p, q = self.sim.on_joint_state_msg(msg)
         except IngestError as exc:
             self.get_logger().warning(f"joint state ignored: {exc}", throttle_duration_sec=1.0)
             return
         out = PoseStamped()
-        out.header.stamp.sec, out.header.stamp.nanosec = stamp_fields(stamp)
+        out.header.stamp.sec, out.header.stamp.nanosec = msg.header.stamp.sec, msg.header.stamp.nanosec
         out.header.frame_id = self.frame_id
         out.pose.position.x, out.pose.position.y, out.pose.position.z = (float(v) for v in p)
         o = out.pose.orientation
