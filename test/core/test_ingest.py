@@ -12,7 +12,9 @@ from tolerance_ros.core.ingest import (IngestError, JointOrder, StateBuffer, nea
 def test_stamps():
     assert stamp_seconds(SimpleNamespace(sec=12, nanosec=500_000_000)) == 12.5
     assert stamp_seconds(3) == 3.0
-    for bad in (SimpleNamespace(sec="x", nanosec=0), object(), float("nan"), SimpleNamespace(sec=10 ** 400, nanosec=0)):
+    for bad in (SimpleNamespace(sec="x", nanosec=0), object(), float("nan"), SimpleNamespace(sec=10 ** 400, nanosec=0),
+                SimpleNamespace(sec=1, nanosec=1_000_000_000), SimpleNamespace(sec=1, nanosec=2 ** 32 - 1),
+                SimpleNamespace(sec=1, nanosec=-1), SimpleNamespace(sec=1, nanosec=float("nan"))):
         with pytest.raises(IngestError, match="stamp"):
             stamp_seconds(bad)
 
@@ -40,6 +42,7 @@ def test_poses_from_position_and_quaternion():
     np.testing.assert_array_equal(T[:3, 3], [1, 2, 3])
     for pos, quat, needle in [([0, 0, 0], [0, 0, 0, 0], "zero quaternion"),
                               ([0, 0, np.nan], [0, 0, 0, 1], "non-finite"),
+                              ([0, 0, 1e154], [0, 0, 0, 1], "beyond 1e\\+06 m"),
                               ([0, 0], [0, 0, 0, 1], "3 position and 4 quaternion"),
                               ([0, 0, 0], [0, 0, 1], "3 position and 4 quaternion"),
                               (["x", 0, 0], [0, 0, 0, 1], "expected numbers")]:
