@@ -32,6 +32,14 @@ def test_the_robot_on_robot_description_arrives_is_replaced_and_survives_a_bad_o
     for bad in ("<robot name='x'><link name='a'/>", "not xml at all"):
         with pytest.raises(ModelError):
             robots.on_description(bad)
+    for path in (str(example_urdf("panda.urdf")), "x" * 5000):   # a path is never read, however long
+        with pytest.raises(ModelError, match="not URDF XML text"):
+            robots.on_description(path)
+    entities = ('<!DOCTYPE r [<!ENTITY a "aaaaaaaaaa">' + "".join(
+        f'<!ENTITY {c} "{("&" + p + ";") * 10}">' for p, c in zip("abcdefgh", "bcdefghi")) + ']><robot name="&i;"/>')
+    for bad in (entities, example_urdf("ur5_robot.urdf").read_text() + "<extra/>"):
+        with pytest.raises(ModelError, match="not well-formed XML"):
+            robots.on_description(bad)
     assert robots.select()[0] == "ur5" and robots.version == 1                      # the previous robot stays
     with pytest.raises(ContractError, match="empty"):
         robots.on_description("   ")

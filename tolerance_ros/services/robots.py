@@ -5,11 +5,12 @@ come late and may be replaced.
 A node configured with ``robot_description`` (as its robot, or among its robots) serves that robot
 under the URDF's ``<robot name>`` once the text has arrived; the chain runs from ``base_link`` to
 ``tip_link`` (default: the one leaf link the joints move; a branching URDF needs ``tip_link``). A new
-description replaces the model; a malformed one raises ModelError and the previous model stays.
+description replaces the model; a malformed one raises ModelError and the previous model stays. The
+message is URDF text: a path in it is not read.
 """
 from __future__ import annotations
 
-from ..core.models import URDFChain, load_robot
+from ..core.models import ModelError, URDFChain, load_robot
 from .contracts import ContractError
 
 DESCRIPTION = "robot_description"
@@ -50,6 +51,8 @@ class RobotSet:
             raise ContractError("invalid_request", "this node does not take its robot from robot_description")
         if not isinstance(text, str) or not text.strip():
             raise ContractError("invalid_request", "robot_description: empty message")
+        if not text.lstrip().startswith("<"):
+            raise ModelError(f"robot_description: not URDF XML text (never a path): {text.strip()[:40]!r}")
         model = URDFChain(text, tip_link=self.tip_link, base_link=self.base_link)
         previous = self.description_name
         if previous is not None and previous != model.name:
