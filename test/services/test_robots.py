@@ -2,6 +2,7 @@
 import pytest
 
 from helpers import example_urdf
+from tolerance_ros.core.budget import BudgetError
 from tolerance_ros.core.models import ModelError
 from tolerance_ros.services.contracts import ContractError
 from tolerance_ros.services.robots import RobotSet
@@ -54,3 +55,16 @@ def test_a_branching_description_without_tip_link_names_the_leaves():
     with pytest.raises(ModelError, match=r"chains end in the links \['ee_link', 'tool0'\]"):
         robots.on_description(example_urdf("ur5_robot.urdf").read_text())
     assert robots.waiting
+
+
+def test_a_description_the_node_cannot_use_is_refused_and_the_previous_robot_stays():
+    robots = RobotSet(["robot_description"], "robot_description", tip_link="tool0")
+    robots.on_description(example_urdf("ur5_robot.urdf").read_text())
+
+    def check(model):
+        raise BudgetError(f"budget is for robot 'ur5', not {model.name!r}")
+
+    robots.tip_link = "panda_hand"
+    with pytest.raises(BudgetError, match="not 'panda'"):
+        robots.on_description(example_urdf("panda.urdf").read_text(), check)
+    assert robots.select()[0] == "ur5" and sorted(robots.models) == ["ur5"] and robots.version == 1

@@ -34,16 +34,19 @@ class SimulatedTrackerNode(Node):
         self.pub = self.create_publisher(PoseStamped, "measured_pose", MEASUREMENT_QOS)
         self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_state), MEASUREMENT_QOS)
         self.count = 0
-        follow_robot_description(self, self.robots, self.start)
+        follow_robot_description(self, self.robots, self.start, check=self.tolerances)
         self.start()
+
+    def tolerances(self, model):
+        """The budget's tolerances for ``model`` (BudgetError when the budget does not fit it)."""
+        return load_budget(self.budget_spec, model).vector_for(model)
 
     def start(self):
         """Draw the as-built robot of the current model (again, when robot_description changes)."""
         model = self.robots.single()
         if model is None:
             return
-        delta = load_budget(self.budget_spec, model).vector_for(model)
-        self.sim = SimulatedTracker(model, delta, self.seed, *self.noise, self.T_tracker_base)
+        self.sim = SimulatedTracker(model, self.tolerances(model), self.seed, *self.noise, self.T_tracker_base)
         self.get_logger().info(f"simulating {model.name} built within {self.budget_spec} (seed {self.seed})")
 
     def on_joint_state(self, msg):

@@ -42,10 +42,11 @@ class RobotSet:
         """Name of the default robot (None while it waits for robot_description)."""
         return self.description_name if self._default == DESCRIPTION else self._default
 
-    def on_description(self, text) -> str:
+    def on_description(self, text, check=None) -> str:
         """Build (or replace) the robot of a ``robot_description`` message; returns what to log.
 
-        Raises ModelError for a malformed or unusable URDF; the previous model is then kept.
+        Raises ModelError for a malformed or unusable URDF, and whatever ``check(model)`` raises for a
+        robot the node cannot use (e.g. its budget file does not fit); the previous model is then kept.
         """
         if not self.from_description:
             raise ContractError("invalid_request", "this node does not take its robot from robot_description")
@@ -54,6 +55,8 @@ class RobotSet:
         if not text.lstrip().startswith("<"):
             raise ModelError(f"robot_description: not URDF XML text (never a path): {text.strip()[:40]!r}")
         model = URDFChain(text, tip_link=self.tip_link, base_link=self.base_link)
+        if check is not None:
+            check(model)
         previous = self.description_name
         if previous is not None and previous != model.name:
             del self.models[previous]
