@@ -26,6 +26,9 @@ def test_joint_order_reorders_ignores_extras_and_names_what_is_missing():
     assert order.index(("gripper", "j3", "j1", "j2")) is first          # the same names reuse the index
     with pytest.raises(IngestError, match=r"no value for joint\(s\) \['j3'\]"):
         order(["j1", "j2"], [1.0, 2.0])
+    with pytest.raises(IngestError, match="and 990 more") as exc:               # hostile names, a bounded message
+        order(["x" * 5000] * 1000, [0.0] * 1000)
+    assert len(str(exc.value)) < 1000
     with pytest.raises(IngestError, match="2 values for 3 joint names"):
         order(["j1", "j2", "j3"], [1.0, 2.0])
     with pytest.raises(IngestError, match="'j2': not a finite number"):

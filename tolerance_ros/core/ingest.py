@@ -55,7 +55,7 @@ class JointOrder:
             lookup = {n: i for i, n in enumerate(names)}
             missing = [n for n in self.joint_names if n not in lookup]
             if missing:
-                raise IngestError(f"no value for joint(s) {missing} (have {list(names)})")
+                raise IngestError(f"no value for joint(s) {missing} (have {_shown(names)})")
             self._index = np.array([lookup[n] for n in self.joint_names], dtype=int)
             self._names = names
         return self._index
@@ -78,6 +78,12 @@ class JointOrder:
     def rows(self, names, values) -> np.ndarray:
         """(n, dof) joint values in the model's order from a table with one column per name in ``names``."""
         return np.asarray(values, dtype=float)[:, self.index(names)]
+
+
+def _shown(names, count=10, chars=40) -> str:
+    """The first names of a joint state, each cut short: a message says what it got in bounded space."""
+    shown = [str(n)[:chars] + ("..." if len(str(n)) > chars else "") for n in list(names[:count])]
+    return f"{shown}" + (f" and {len(names) - count} more" if len(names) > count else "")
 
 
 def pose_from_values(position, quaternion) -> np.ndarray:
