@@ -124,6 +124,7 @@ stamps = st.one_of(st.tuples(st.integers(0, 3), st.integers(0, 999_999_999)),
                    st.tuples(st.sampled_from([-2 ** 31, -1, 0, 1_700_000_000, 2 ** 31 - 1]),
                              st.sampled_from([0, 999_999_999, 1_000_000_000, 2 ** 32 - 1])))
 texts = st.text(max_size=30)
+frames = st.one_of(texts, st.just("f" * 100_000))
 
 
 def stamped(msg, stamp, frame=""):
@@ -137,13 +138,13 @@ def joint_states(draw, joint_names=GAO.joint_names):
     names = list(joint_names)
     name = draw(st.one_of(st.just(names), st.permutations(names), st.lists(st.sampled_from(names + ["x", ""]),
                                                                            max_size=12),
-                          st.lists(texts, max_size=12), st.just(names * 3), st.just([])))
+                          st.lists(texts, max_size=12), st.just(names * 3), st.just([]), st.just(["x" * 2000] * 200)))
     position = draw(st.one_of(st.lists(floats, min_size=len(name), max_size=len(name)), st.lists(floats, max_size=14),
                               st.lists(st.floats(-3.0, 3.0), min_size=len(names), max_size=len(names)),
                               st.integers(0, 3000).map(lambda n: [0.1] * n)))
     msg = JointState(name=name, position=position, velocity=draw(st.lists(floats, max_size=3)),
                      effort=draw(st.lists(floats, max_size=3)))
-    return stamped(msg, draw(stamps), draw(texts))
+    return stamped(msg, draw(stamps), draw(frames))
 
 
 @st.composite
@@ -157,7 +158,7 @@ def poses(draw):
     p, o = msg.pose.position, msg.pose.orientation
     p.x, p.y, p.z = position
     o.x, o.y, o.z, o.w = quaternion
-    return stamped(msg, draw(stamps), draw(texts))
+    return stamped(msg, draw(stamps), draw(frames))
 
 
 NUMBER_STRINGS = ["pi/2", "1e-5", "1+" * 30000 + "1", "-" * 100000 + "1", "(" * 99 + "1" + ")" * 99, "1" + "0" * 400,
@@ -387,10 +388,12 @@ def test_allocator_serves_after_the_fuzz(allocator):
 
 # Accuracy monitor.
 def monitor_outputs(monitor):
-    """Run the timers and check what they publish: a strict-JSON report, diagnostics, finite markers."""
+    """Run the timers and check what they publish: a strict-JSON report of bounded size, diagnostics, finite
+    markers."""
     monitor.tick()
     for msg in monitor.take("tolerance/accuracy_report"):
         loads_strict(msg.data)
+        assert len(msg.data) < 100_000
     assert monitor.take("/diagnostics")
     for array in monitor.take("tolerance/markers"):
         for m in array.markers:
@@ -443,6 +446,8 @@ def test_monitor_serves_after_the_fuzz(monitor):
     assert logic.counts["paired"] == paired + 3
     logged = read_log(logic.log.name)
     assert len(logged) >= 3
+    with open(logic.log.name) as log:
+        assert max(len(line) for line in log) < 2000
 
 
 # Simulated tracker.
