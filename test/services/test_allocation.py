@@ -45,6 +45,7 @@ def test_allocate_request_parsing(robots, gao):
     ('{"id": 1, "limit": 0.001, "floors": {"wheel": 1e-5}}', "invalid_request", "floors.wheel"),
     ('{"id": 1, "limit": 0.001, "robot": "x"}', "unknown_robot", "'x'"),
     ('{"id": 1, "limit": 0.001, "mc_poses": 10000000}', "too_large", "mc_poses"),
+    ('{"id": 1, "limit": 0.001, "mc_poses": 0}', "invalid_request", "mc_poses: 0 is outside [1, inf)"),
     ('{"id": 1, "limit": 0.001, "confidence": 0.5}', "invalid_request", "confidence"),
     ('{"id": 1, "limit": 0.001, "command": "cancel"}', "invalid_request", "target: required"),
     ('{"id": 1, "limit": 0.001, "command": "pause"}', "invalid_request", "command"),

@@ -210,7 +210,8 @@ def number(value, field: str, lo: float | None = None, hi: float | None = None, 
     if isinstance(value, float) and not math.isfinite(value):
         raise ContractError("invalid_request", f"{field}: not a finite number")
     if (lo is not None and value < lo) or (hi is not None and value > hi):
-        raise ContractError("invalid_request", f"{field}: {value:.6g} is outside [{lo:g}, {hi:g}]")
+        bounds = f"{'(-inf' if lo is None else f'[{lo:g}'}, {'inf)' if hi is None else f'{hi:g}]'}"
+        raise ContractError("invalid_request", f"{field}: {value:.6g} is outside {bounds}")
     return value
 
 
