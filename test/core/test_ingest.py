@@ -12,7 +12,9 @@ from tolerance_ros.core.ingest import (IngestError, JointOrder, StateBuffer, nea
 def test_stamps():
     assert stamp_seconds(SimpleNamespace(sec=12, nanosec=500_000_000)) == 12.5
     assert stamp_seconds(3) == 3.0
-    for bad in (SimpleNamespace(sec="x", nanosec=0), object(), float("nan"), SimpleNamespace(sec=10 ** 400, nanosec=0)):
+    for bad in (SimpleNamespace(sec="x", nanosec=0), object(), float("nan"), SimpleNamespace(sec=10 ** 400, nanosec=0),
+                SimpleNamespace(sec=1, nanosec=1_000_000_000), SimpleNamespace(sec=1, nanosec=2 ** 32 - 1),
+                SimpleNamespace(sec=1, nanosec=-1), SimpleNamespace(sec=1, nanosec=float("nan"))):
         with pytest.raises(IngestError, match="stamp"):
             stamp_seconds(bad)
 
@@ -24,6 +26,9 @@ def test_joint_order_reorders_ignores_extras_and_names_what_is_missing():
     assert order.index(("gripper", "j3", "j1", "j2")) is first          # the same names reuse the index
     with pytest.raises(IngestError, match=r"no value for joint\(s\) \['j3'\]"):
         order(["j1", "j2"], [1.0, 2.0])
+    with pytest.raises(IngestError, match="and 990 more") as exc:               # hostile names, a bounded message
+        order(["x" * 5000] * 1000, [0.0] * 1000)
+    assert len(str(exc.value)) < 1000
     with pytest.raises(IngestError, match="2 values for 3 joint names"):
         order(["j1", "j2", "j3"], [1.0, 2.0])
     with pytest.raises(IngestError, match="'j2': not a finite number"):
@@ -40,6 +45,7 @@ def test_poses_from_position_and_quaternion():
     np.testing.assert_array_equal(T[:3, 3], [1, 2, 3])
     for pos, quat, needle in [([0, 0, 0], [0, 0, 0, 0], "zero quaternion"),
                               ([0, 0, np.nan], [0, 0, 0, 1], "non-finite"),
+                              ([0, 0, 1e154], [0, 0, 0, 1], "beyond 1e\\+06 m"),
                               ([0, 0], [0, 0, 0, 1], "3 position and 4 quaternion"),
                               ([0, 0, 0], [0, 0, 1], "3 position and 4 quaternion"),
                               (["x", 0, 0], [0, 0, 0, 1], "expected numbers")]:

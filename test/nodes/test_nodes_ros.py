@@ -16,55 +16,17 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy", reason="ROS 2 Jazzy is not sourced (rclpy not importable)")
 
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from helpers import example_urdf  # noqa: E402
+from ros_graph import Graph  # noqa: E402
 from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.jsonio import dumps_fast  # noqa: E402
 from tolerance_ros.core.models import load_robot  # noqa: E402
-from tolerance_ros.nodes.client import ServiceError, ToleranceClient  # noqa: E402
+from tolerance_ros.nodes.client import ServiceError  # noqa: E402
 from tolerance_ros.nodes.common import LATCHED_QOS, MEASUREMENT_QOS  # noqa: E402
 
 Q = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
-
-
-class Graph:
-    """A private rclpy context with an executor spinning in a thread; nodes are started in it."""
-
-    def __init__(self):
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=100 + os.getpid() % 100)
-        self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
-        self.nodes = []
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def start(self, cls, namespace=None, **params):
-        node = cls(context=self.context, namespace=namespace,
-                   parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
-        self.executor.add_node(node)
-        self.nodes.append(node)
-        return node
-
-    def node(self, name, namespace=None):
-        node = rclpy.create_node(name, context=self.context, namespace=namespace)
-        self.executor.add_node(node)
-        self.nodes.append(node)
-        return node
-
-    def client(self, namespace=None):
-        return ToleranceClient(node=self.node(f"client_{uuid.uuid4().hex[:8]}"), namespace=namespace)
-
-    def close(self):
-        self.executor.shutdown(timeout_sec=5.0)
-        self.thread.join(timeout=5.0)
-        for n in self.nodes:
-            if hasattr(n, "close"):
-                n.close()
-            n.destroy_node()
-        rclpy.shutdown(context=self.context)
 
 
 @pytest.fixture

@@ -28,6 +28,7 @@ def test_allocate_request_parsing(robots, gao):
     assert isinstance(job, AllocationJob) and job.mechanism is gao and job.robot == "gao2023_7dof"
     assert job.cost_model == "min-cost" and job.solver == "active-set" and job.limit == 0.0014
     assert job.time_limit_s == 300.0
+    assert parse_allocate_request('{"id": "x", "limit": 0.0014}', robots, Limits(), 5.0).time_limit_s == 5.0
     jsonschema.validate({"id": "x", "limit": 0.0014}, schema("allocate_tolerances.request"))
     assert parse('{"id": 3, "command": "status"}', robots) == Command(3, "status")
     assert parse('{"id": 4, "command": "cancel", "target": "x"}', robots) == Command(4, "cancel", "x")
@@ -44,6 +45,7 @@ def test_allocate_request_parsing(robots, gao):
     ('{"id": 1, "limit": 0.001, "floors": {"wheel": 1e-5}}', "invalid_request", "floors.wheel"),
     ('{"id": 1, "limit": 0.001, "robot": "x"}', "unknown_robot", "'x'"),
     ('{"id": 1, "limit": 0.001, "mc_poses": 10000000}', "too_large", "mc_poses"),
+    ('{"id": 1, "limit": 0.001, "mc_poses": 0}', "invalid_request", "mc_poses: 0 is outside [1, inf)"),
     ('{"id": 1, "limit": 0.001, "confidence": 0.5}', "invalid_request", "confidence"),
     ('{"id": 1, "limit": 0.001, "command": "cancel"}', "invalid_request", "target: required"),
     ('{"id": 1, "limit": 0.001, "command": "pause"}', "invalid_request", "command"),

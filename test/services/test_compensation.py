@@ -51,6 +51,8 @@ def test_joint_targets_are_compensated_on_the_calibrated_model(service, gao, cal
     assert 0 < np.abs(r["correction"]).max() < 0.05
     same = ask(service, {"id": "c2", "command": "compensate", "joints": q.tolist(), "model": "nominal"})
     np.testing.assert_allclose(same["joints"], q, atol=1e-12)
+    compact = ask(service, {"id": "c3", "command": "compensate", "joints": q.tolist(), "arrays": "base64"})
+    assert compact["iterations"] == r["iterations"] and compact["joints"]["shape"] == [5, 7]  # flags stay lists
 
 
 def test_pose_targets_as_matrices_or_quaternions(service, gao, calibrated):

@@ -1,5 +1,6 @@
 """The JSON envelope: safe parsing (size, UTF-8, depth), ids, error codes, and budget messages."""
 import json
+import re
 
 import pytest
 
@@ -75,6 +76,14 @@ def test_budget_messages(gao):
     only_a1 = json.dumps({"robot": "gao2023_7dof", "budget": {"tolerances": {"a1": 1e-4}}})
     with pytest.raises(ContractError, match="no tolerance for"):
         budget_from_message(only_a1, {"gao2023_7dof": gao})
+    for name, value, needle in (("a1", 1e308, "a1: 1e+308 is outside [0, 1]"), ("alpha1", 4.0, "alpha1: 4 is outside"),
+                                ("a1", "1+" * 30000 + "1", "more than 100 characters"),
+                                ("a1", "1" + "0" * 400, "more than 100 characters")):
+        doc = budget.to_dict()
+        doc["tolerances"][name] = value
+        with pytest.raises(ContractError, match=re.escape(needle)) as exc:
+            budget_from_message(json.dumps({"robot": "gao2023_7dof", "budget": doc}), {"gao2023_7dof": gao})
+        assert exc.value.code == "invalid_request"
     with pytest.raises(ContractError) as exc:
         budget_from_message('{"robot": "ur5", "budget": {}}', {"gao2023_7dof": gao})
     assert exc.value.code == "unknown_robot"

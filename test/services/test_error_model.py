@@ -69,6 +69,7 @@ def test_bounds_with_tolerances(service, gao):
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "outputs": "all"}', "invalid_request", "outputs"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"a1": -1, "default": 0}}', "invalid_request", "a1"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"bogus": 1e-4, "default": 0}}', "invalid_request", "bogus"),
+    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"bogus": -1}}', "invalid_request", "-1 is outside [0, inf)"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"a1": 1e-4}}', "invalid_request", "no tolerance for"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": "current"}', "invalid_request", "no budget"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"a1": 1e-4, "default": 0}, "criteria": ["max"]}',

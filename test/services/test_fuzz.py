@@ -4,13 +4,12 @@ bench/bench_fuzz.py runs the same corpus longer and prints the table of the robu
 import json
 import time
 
-import jsonschema
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fuzz_corpus import ENCODINGS, allocate_request, encode, jacobian_request
-from schemas_helpers import schema
+from schemas_helpers import validator
 from tolerance_ros.core import interrupt
 from tolerance_ros.core.jsonio import loads_strict
 from tolerance_ros.services.allocation import AllocatorService, Command, parse_allocate_request, run_allocation
@@ -18,8 +17,8 @@ from tolerance_ros.services.contracts import CODES, ContractError, Limits, error
 from tolerance_ros.services.error_model import ErrorModelService
 from tolerance_ros.services.robots import RobotSet
 
-RESPONSE = schema("compute_error_jacobian.response")
-ALLOCATED = schema("allocate_tolerances.response")
+RESPONSE = validator("compute_error_jacobian.response")
+ALLOCATED = validator("allocate_tolerances.response")
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +39,7 @@ def test_compute_error_jacobian_answers_everything(service, request, how):
     answer = service.handle_text(text)
     assert time.perf_counter() - t0 < 1.0
     doc = loads_strict(answer)
-    jsonschema.validate(doc, RESPONSE)
+    RESPONSE.validate(doc)
     if not doc["ok"]:
         assert doc["error"]["code"] in CODES and doc["error"]["code"] != "internal", doc
 
@@ -54,7 +53,7 @@ def test_allocate_requests_are_parsed_or_refused_with_a_code(robots, request, ho
     except ContractError as exc:
         doc = error_response(request_id_of(text), exc)
         json.loads(json.dumps(doc))
-        jsonschema.validate(doc, ALLOCATED)
+        ALLOCATED.validate(doc)
         assert doc["error"]["code"] != "internal"
         return
     assert isinstance(job, Command) or job.limit > 0
@@ -78,7 +77,7 @@ def test_an_accepted_allocation_is_served(robots, request, seed):
         doc = error_response(job.id, ContractError("timeout", str(exc)))
     except Exception as exc:
         doc = error_response(job.id, exc)
-    jsonschema.validate(json.loads(json.dumps(doc)), ALLOCATED)
+    ALLOCATED.validate(json.loads(json.dumps(doc)))
     assert doc["ok"] or error_code_of(doc) in ("infeasible", "invalid_request", "timeout"), doc
 
 

@@ -101,6 +101,18 @@ def test_joint_state_with_other_names_is_rejected_not_crashing(gao, setup):
     assert mon.counts["joint_states_rejected"] == 1
 
 
+def test_hostile_names_and_frames_take_bounded_space(gao, setup):
+    """A joint state with 1,000 long names and a measurement with a 100 kB frame_id: the report and the
+    campaign log stay small."""
+    mon, _, _, _, log = setup
+    for _ in range(20):
+        mon.on_joint_state(1.0, ["x" * 5000] * 1000, [0.0] * 1000)
+        mon.on_pose(1.0, "f" * 100_000, [1, 2, 3], [0, 0, 0, 1])
+    assert len(dumps_fast(mon.report())) < 50_000
+    mon.close()
+    assert max(len(line) for line in log.read_text().splitlines()) < 1000
+
+
 def test_diagnostic_levels(gao, setup):
     mon, sim, qk, clock, log = setup
     assert mon.diagnostic()["level"] == OK

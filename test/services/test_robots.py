@@ -2,6 +2,7 @@
 import pytest
 
 from helpers import example_urdf
+from tolerance_ros.core.budget import BudgetError
 from tolerance_ros.core.models import ModelError
 from tolerance_ros.services.contracts import ContractError
 from tolerance_ros.services.robots import RobotSet
@@ -32,6 +33,14 @@ def test_the_robot_on_robot_description_arrives_is_replaced_and_survives_a_bad_o
     for bad in ("<robot name='x'><link name='a'/>", "not xml at all"):
         with pytest.raises(ModelError):
             robots.on_description(bad)
+    for path in (str(example_urdf("panda.urdf")), "x" * 5000):   # a path is never read, however long
+        with pytest.raises(ModelError, match="not URDF XML text"):
+            robots.on_description(path)
+    entities = ('<!DOCTYPE r [<!ENTITY a "aaaaaaaaaa">' + "".join(
+        f'<!ENTITY {c} "{("&" + p + ";") * 10}">' for p, c in zip("abcdefgh", "bcdefghi")) + ']><robot name="&i;"/>')
+    for bad in (entities, example_urdf("ur5_robot.urdf").read_text() + "<extra/>"):
+        with pytest.raises(ModelError, match="not well-formed XML"):
+            robots.on_description(bad)
     assert robots.select()[0] == "ur5" and robots.version == 1                      # the previous robot stays
     with pytest.raises(ContractError, match="empty"):
         robots.on_description("   ")
@@ -46,3 +55,16 @@ def test_a_branching_description_without_tip_link_names_the_leaves():
     with pytest.raises(ModelError, match=r"chains end in the links \['ee_link', 'tool0'\]"):
         robots.on_description(example_urdf("ur5_robot.urdf").read_text())
     assert robots.waiting
+
+
+def test_a_description_the_node_cannot_use_is_refused_and_the_previous_robot_stays():
+    robots = RobotSet(["robot_description"], "robot_description", tip_link="tool0")
+    robots.on_description(example_urdf("ur5_robot.urdf").read_text())
+
+    def check(model):
+        raise BudgetError(f"budget is for robot 'ur5', not {model.name!r}")
+
+    robots.tip_link = "panda_hand"
+    with pytest.raises(BudgetError, match="not 'panda'"):
+        robots.on_description(example_urdf("panda.urdf").read_text(), check)
+    assert robots.select()[0] == "ur5" and sorted(robots.models) == ["ur5"] and robots.version == 1

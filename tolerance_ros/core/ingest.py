@@ -15,19 +15,25 @@ import numpy as np
 from .geometry import quat_to_matrices
 
 
+MAX_POSITION_M = 1e6  # no measured tool point is 1000 km away; squares of larger errors would overflow statistics
+
+
 class IngestError(ValueError):
     """A joint state, pose or stamp that cannot be used; the message says why."""
 
 
 def stamp_seconds(stamp) -> float:
-    """Seconds of a ``builtin_interfaces/Time`` (``sec``, ``nanosec``), or of a plain number (s)."""
+    """Seconds of a ``builtin_interfaces/Time`` (``sec``, ``nanosec`` in [0, 1e9)), or of a plain number (s)."""
     if isinstance(stamp, (int, float)) and not isinstance(stamp, bool):
         t = float(stamp)
     else:
         try:
-            t = float(stamp.sec) + float(stamp.nanosec) * 1e-9
+            nanosec = float(stamp.nanosec)
+            t = float(stamp.sec) + nanosec * 1e-9
         except (AttributeError, TypeError, ValueError, OverflowError):
             raise IngestError(f"stamp: expected sec and nanosec, got {type(stamp).__name__}") from None
+        if not 0 <= nanosec < 1e9:
+            raise IngestError(f"stamp: nanosec {nanosec:.10g} is outside [0, 1e9)")
     if not math.isfinite(t):
         raise IngestError(f"stamp: not a finite time ({t})")
     return t
@@ -49,7 +55,7 @@ class JointOrder:
             lookup = {n: i for i, n in enumerate(names)}
             missing = [n for n in self.joint_names if n not in lookup]
             if missing:
-                raise IngestError(f"no value for joint(s) {missing} (have {list(names)})")
+                raise IngestError(f"no value for joint(s) {missing} (have {_shown(names)})")
             self._index = np.array([lookup[n] for n in self.joint_names], dtype=int)
             self._names = names
         return self._index
@@ -74,8 +80,15 @@ class JointOrder:
         return np.asarray(values, dtype=float)[:, self.index(names)]
 
 
+def _shown(names, count=10, chars=40) -> str:
+    """The first names of a joint state, each cut short: a message says what it got in bounded space."""
+    shown = [str(n)[:chars] + ("..." if len(str(n)) > chars else "") for n in list(names[:count])]
+    return f"{shown}" + (f" and {len(names) - count} more" if len(names) > count else "")
+
+
 def pose_from_values(position, quaternion) -> np.ndarray:
-    """4x4 pose (m) from a position (3,) and a quaternion (x, y, z, w), normalised; raises IngestError."""
+    """4x4 pose (m) from a position (3,) within ``MAX_POSITION_M`` of the origin and a quaternion (x, y, z, w),
+    normalised; raises IngestError."""
     try:
         p = np.asarray(position, dtype=float).reshape(-1)
         o = np.asarray(quaternion, dtype=float).reshape(-1)
@@ -85,6 +98,8 @@ def pose_from_values(position, quaternion) -> np.ndarray:
         raise IngestError(f"pose: expected 3 position and 4 quaternion values, got {p.size} and {o.size}")
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(o))):
         raise IngestError("pose: non-finite position or quaternion")
+    if np.abs(p).max() > MAX_POSITION_M:
+        raise IngestError(f"pose: position {np.abs(p).max():.3g} m from the origin is beyond {MAX_POSITION_M:g} m")
     try:
         R = quat_to_matrices(o)[0]
     except ValueError:

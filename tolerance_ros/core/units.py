@@ -14,6 +14,7 @@ LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "um": 1e-6, "µm": 1e-6, "in":
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3, "urad": 1e-6, "µrad": 1e-6,
                "arcsec": math.pi / 648000.0}
 
+MAX_EXPRESSION_CHARS = 100  # a number written as a small arithmetic string, e.g. '-pi/2'
 _OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
         ast.USub: operator.neg, ast.UAdd: operator.pos}
 
@@ -62,15 +63,22 @@ def _eval_node(node, field):
 
 
 def parse_number(value, field: str) -> float:
-    """A finite float from a number or a small arithmetic string such as ``'-pi/2'``."""
+    """A finite float from a number or a small arithmetic string (at most ``MAX_EXPRESSION_CHARS``) such as
+    ``'-pi/2'``."""
     if isinstance(value, bool):
         raise UnitError(f"{field}: expected a number, got {value!r}")
     if isinstance(value, (int, float)):
-        out = float(value)
+        try:
+            out = float(value)
+        except OverflowError:
+            raise UnitError(f"{field}: value must be finite, got an integer of {value.bit_length()} bits") from None
     elif isinstance(value, str):
+        if len(value) > MAX_EXPRESSION_CHARS:
+            raise UnitError(f"{field}: a number written in more than {MAX_EXPRESSION_CHARS} characters: "
+                            f"{value[:40]!r}...")
         try:
             tree = ast.parse(value.strip(), mode="eval")
-        except SyntaxError:
+        except (SyntaxError, ValueError):
             raise UnitError(f"{field}: cannot parse {value!r} as a number") from None
         try:
             out = _eval_node(tree, field)

@@ -62,18 +62,27 @@ class AccuracyMonitor(Node):
         self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
         self.create_timer(period, guarded(self, self.publish_status))
         self.create_timer(marker_period, guarded(self, self.publish_markers))
-        follow_robot_description(self, self.robots, self.start)
+        follow_robot_description(self, self.robots, self.start, check=self.files_for)
         self.start()
+
+    def files_for(self, model):
+        """(campaign, budget) of the configured files for ``model``; raises when they do not fit it."""
+        camp = load_campaign(self.campaign_spec, model) if self.campaign_spec else None
+        budget = load_budget(self.budget_spec, model) if self.budget_spec else None
+        if camp is not None:
+            camp.joints_for(model)
+        if budget is not None:
+            budget.vector_for(model)
+        return camp, budget
 
     def start(self):
         """(Re)build the monitor for the current robot: budget, campaign and a new campaign log."""
         model = self.robots.single()
         if model is None:
             return
+        camp, budget = self.files_for(model)
         if self.logic is not None:
             self.logic.close()
-        camp = load_campaign(self.campaign_spec, model) if self.campaign_spec else None
-        budget = load_budget(self.budget_spec, model) if self.budget_spec else None
         log_path = self.log_dir / f"{model.name}_{time.strftime('%Y%m%d_%H%M%S')}.jsonl"
         self.logic = MonitorLogic(model, budget, camp, self.slop, self.max_wait, self.T_tracker_base,
                                   self.tool_offset, log_path, self.pose_tolerance,

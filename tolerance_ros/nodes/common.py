@@ -19,6 +19,8 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
+from ..core.budget import BudgetError
+from ..core.campaign import CampaignError
 from ..core.models import ModelError
 from ..services.contracts import ContractError
 from ..services.robots import RobotSet
@@ -67,16 +69,17 @@ def robot_set(node, specs, default) -> RobotSet:
     return robots
 
 
-def follow_robot_description(node, robots: RobotSet, on_change=None):
+def follow_robot_description(node, robots: RobotSet, on_change=None, check=None):
     """Subscribe to ``robot_description`` (URDF text, latched) when the node takes its robot from it.
-    A new description replaces the model (logged); a malformed one is logged and the previous kept."""
+    A new description replaces the model (logged); a malformed one, or one that ``check(model)`` refuses
+    (BudgetError, CampaignError: the node's files do not fit it), is logged and the previous kept."""
     if not robots.from_description:
         return
 
     def on_robot_description(msg):
         try:
-            said = robots.on_description(msg.data)
-        except (ModelError, ContractError) as exc:
+            said = robots.on_description(msg.data, check)
+        except (ModelError, ContractError, BudgetError, CampaignError) as exc:
             node.get_logger().error(f"robot_description ignored, the previous robot stays: {exc}")
             return
         robots.models[robots.description_name].warm_up()

@@ -62,7 +62,7 @@ class ErrorModelServer(Node):
             JointState, self.resolve_topic_name("joint_states"), lambda msg: None, qos, raw=True)
         self.create_timer(1.0 / rate, guarded(self, self.publish_bound))
         self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
-        follow_robot_description(self, self.service.robots, self.load_calibration)
+        follow_robot_description(self, self.service.robots, self.on_robots_changed)
         self.get_logger().info(f"serving {sorted(self.service.models) or 'robot_description'} on "
                                f"{self.resolve_topic_name(JACOBIAN_TOPIC + '/request')}")
 
@@ -78,6 +78,15 @@ class ErrorModelServer(Node):
             self.get_logger().info(f"calibration waits for its robot: {exc}")
             return
         self.get_logger().info(f"calibrated model of {sorted(self.service.calibrations)} from {self.calibration}")
+
+    def on_robots_changed(self):
+        """robot_description brought a robot: load the calibration for it; one that no longer fits the robots
+        served is dropped (logged), and requests for the calibrated model are refused until it fits again."""
+        try:
+            self.load_calibration()
+        except ValueError as exc:
+            self.service.calibrations = {}
+            self.get_logger().error(f"calibration dropped, it does not fit the robots served now: {exc}")
 
     def on_request(self, msg):
         self.responses.publish(String(data=self.service.handle_text(msg.data)))

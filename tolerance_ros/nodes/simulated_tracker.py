@@ -11,7 +11,7 @@ from sensor_msgs.msg import JointState
 from ..core.budget import load_budget
 from ..core.geometry import transform
 from ..core.ingest import IngestError
-from ..services.tracker import SimulatedTracker, stamp_fields
+from ..services.tracker import SimulatedTracker
 from .common import MEASUREMENT_QOS, declare, follow_robot_description, guarded, robot_set, run
 
 
@@ -34,16 +34,19 @@ class SimulatedTrackerNode(Node):
         self.pub = self.create_publisher(PoseStamped, "measured_pose", MEASUREMENT_QOS)
         self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_state), MEASUREMENT_QOS)
         self.count = 0
-        follow_robot_description(self, self.robots, self.start)
+        follow_robot_description(self, self.robots, self.start, check=self.tolerances)
         self.start()
+
+    def tolerances(self, model):
+        """The budget's tolerances for ``model`` (BudgetError when the budget does not fit it)."""
+        return load_budget(self.budget_spec, model).vector_for(model)
 
     def start(self):
         """Draw the as-built robot of the current model (again, when robot_description changes)."""
         model = self.robots.single()
         if model is None:
             return
-        delta = load_budget(self.budget_spec, model).vector_for(model)
-        self.sim = SimulatedTracker(model, delta, self.seed, *self.noise, self.T_tracker_base)
+        self.sim = SimulatedTracker(model, self.tolerances(model), self.seed, *self.noise, self.T_tracker_base)
         self.get_logger().info(f"simulating {model.name} built within {self.budget_spec} (seed {self.seed})")
 
     def on_joint_state(self, msg):
@@ -51,12 +54,12 @@ class SimulatedTrackerNode(Node):
         if self.sim is None or (self.count - 1) % self.every:
             return
         try:
-            stamp, p, q = self.sim.on_joint_state_msg(msg)
+            _, p, q = self.sim.on_joint_state_msg(msg)
         except IngestError as exc:
             self.get_logger().warning(f"joint state ignored: {exc}", throttle_duration_sec=1.0)
             return
         out = PoseStamped()
-        out.header.stamp.sec, out.header.stamp.nanosec = stamp_fields(stamp)
+        out.header.stamp.sec, out.header.stamp.nanosec = msg.header.stamp.sec, msg.header.stamp.nanosec
         out.header.frame_id = self.frame_id
         out.pose.position.x, out.pose.position.y, out.pose.position.z = (float(v) for v in p)
         o = out.pose.orientation

@@ -31,7 +31,7 @@ class ToleranceAllocator(Node):
         max_queue = declare(self, "max_queue", 4, "allocation requests that may wait behind the running one")
         max_bytes = declare(self, "max_request_bytes", 100_000, "size cap of a request, bytes")
         max_time = declare(self, "max_time_limit", MAX_TIME_LIMIT_S, "largest wall-clock limit a request may ask "
-                                                                     "for, s (the default limit is 300 s)")
+                                                                     "for, s (also the default limit when below 300 s)")
         self.outbox = queue.Queue()
         self.service = AllocatorService(robot_set(self, specs, default), lambda kind, doc: self.outbox.put((kind, doc)),
                                         Limits(max_bytes, 10_000), max_queue, self.save, float(max_time))

@@ -67,7 +67,8 @@ class AllocationJob:
 
 
 def parse_allocate_request(text, robots, limits: Limits, max_time_limit_s: float = MAX_TIME_LIMIT_S):
-    """An AllocationJob or a Command; raises ContractError naming the field. ``robots`` is a RobotSet."""
+    """An AllocationJob or a Command; raises ContractError naming the field. ``robots`` is a RobotSet.
+    A request without ``time_limit`` gets the default, or ``max_time_limit_s`` when that is smaller."""
     req = parse_request(text, ALLOCATE_FIELDS, limits)
     command = req.get("command", "allocate")
     if command not in COMMANDS:
@@ -89,7 +90,8 @@ def parse_allocate_request(text, robots, limits: Limits, max_time_limit_s: float
                         number(req.get("mc_poses", 10000), "mc_poses", 1, None, integer=True),
                         number(req.get("ga_tol", 1000), "ga_tol", 1, MAX_GA_TOL, integer=True),
                         number(req.get("ga_rounds", 50), "ga_rounds", 1, MAX_GA_ROUNDS, integer=True),
-                        number(req.get("time_limit", DEFAULT_TIME_LIMIT_S), "time_limit", 0.0, max_time_limit_s))
+                        number(req.get("time_limit", min(DEFAULT_TIME_LIMIT_S, max_time_limit_s)), "time_limit", 0.0,
+                               max_time_limit_s))
     for field, value, allowed in (("model", job.cost_model, MODELS), ("solver", job.solver, SOLVERS),
                                   ("criterion", job.criterion, LIMIT_CRITERIA)):
         if value not in allowed:

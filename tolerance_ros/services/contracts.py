@@ -43,6 +43,7 @@ CODES = ("invalid_json", "invalid_request", "unknown_robot", "out_of_limits", "t
 MAX_DEPTH = 16          # nesting of arrays and objects in a request
 MAX_ID_CHARS = 256
 MAX_MESSAGE_CHARS = 500
+MAX_TOLERANCE = {"length": 1.0, "angle": math.pi}  # the largest tolerance that makes physical sense, m and rad
 _INT64 = 2 ** 63
 
 
@@ -210,7 +211,8 @@ def number(value, field: str, lo: float | None = None, hi: float | None = None, 
     if isinstance(value, float) and not math.isfinite(value):
         raise ContractError("invalid_request", f"{field}: not a finite number")
     if (lo is not None and value < lo) or (hi is not None and value > hi):
-        raise ContractError("invalid_request", f"{field}: {value:.6g} is outside [{lo:g}, {hi:g}]")
+        bounds = f"{'(-inf' if lo is None else f'[{lo:g}'}, {'inf)' if hi is None else f'{hi:g}]'}"
+        raise ContractError("invalid_request", f"{field}: {value:.6g} is outside {bounds}")
     return value
 
 
@@ -234,7 +236,7 @@ def request_id_of(text):
 
 def budget_from_message(text, models: dict):
     """(robot name, Budget) from a ``tolerance_budget`` message (JSON ``{"robot", "budget", ...}``, SI),
-    checked against its robot's parameters.
+    checked against its robot's parameters, each tolerance within ``MAX_TOLERANCE``.
 
     ``models`` maps robot names to models; a budget for another robot raises ContractError
     'unknown_robot', a malformed or incomplete one 'invalid_json' or 'invalid_request'.
@@ -249,7 +251,11 @@ def budget_from_message(text, models: dict):
     model = models[robot]
     try:
         budget = budget_from_dict(doc["budget"], dict(zip(model.param_names, model.param_kinds)), "budget.")
-        budget.vector_for(model)
+        delta = budget.vector_for(model)
     except BudgetError as exc:
         raise ContractError("invalid_request", str(exc)[:MAX_MESSAGE_CHARS]) from None
+    for name, kind, value in zip(model.param_names, model.param_kinds, delta):
+        if value > MAX_TOLERANCE[kind]:
+            raise ContractError("invalid_request", f"budget.tolerances.{name}: {value:.6g} is outside "
+                                                   f"[0, {MAX_TOLERANCE[kind]:g}]")
     return robot, budget

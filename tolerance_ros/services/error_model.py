@@ -21,10 +21,9 @@ from ..core.ingest import IngestError, JointOrder, stamp_seconds
 from ..core.jsonio import compact_array, dumps_fast, encode_arrays
 from ..core.models.base import ModelError
 from .compensation import compensate_request, jacobian_model
-from .contracts import ContractError, Limits, error_response, number, parse_request, request_id_of
+from .contracts import MAX_TOLERANCE, ContractError, Limits, error_response, number, parse_request, request_id_of
 from .robots import RobotSet
 
-MAX_TOLERANCE = {"length": 1.0, "angle": np.pi}  # the largest tolerance that makes physical sense, m and rad
 ROWS = ("dx", "dy", "dz", "drx", "dry", "drz")
 JACOBIAN_FIELDS = {"robot": ((str,), False), "joints": ((list,), False), "outputs": ((str,), False),
                    "tolerances": ((dict, str), False), "criteria": ((list,), False),

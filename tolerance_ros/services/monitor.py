@@ -22,6 +22,7 @@ from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
 
 OK, WARN, ERROR = 0, 1, 2
+MAX_FRAME_CHARS = 100  # of a measurement's frame_id in the campaign log
 
 
 class MonitorLogic:
@@ -97,7 +98,7 @@ class MonitorLogic:
         self.counts["received"] += 1
         seq = self.seq
         self.seq += 1
-        rec = {"event": "measurement", "seq": seq, "stamp": None, "frame": str(frame_id),
+        rec = {"event": "measurement", "seq": seq, "stamp": None, "frame": str(frame_id)[:MAX_FRAME_CHARS],
                "position": _numbers(position), "quaternion": _numbers(quaternion)}
         try:
             rec["stamp"] = t = stamp_seconds(stamp)

@@ -5,11 +5,12 @@ come late and may be replaced.
 A node configured with ``robot_description`` (as its robot, or among its robots) serves that robot
 under the URDF's ``<robot name>`` once the text has arrived; the chain runs from ``base_link`` to
 ``tip_link`` (default: the one leaf link the joints move; a branching URDF needs ``tip_link``). A new
-description replaces the model; a malformed one raises ModelError and the previous model stays.
+description replaces the model; a malformed one raises ModelError and the previous model stays. The
+message is URDF text: a path in it is not read.
 """
 from __future__ import annotations
 
-from ..core.models import URDFChain, load_robot
+from ..core.models import ModelError, URDFChain, load_robot
 from .contracts import ContractError
 
 DESCRIPTION = "robot_description"
@@ -41,16 +42,21 @@ class RobotSet:
         """Name of the default robot (None while it waits for robot_description)."""
         return self.description_name if self._default == DESCRIPTION else self._default
 
-    def on_description(self, text) -> str:
+    def on_description(self, text, check=None) -> str:
         """Build (or replace) the robot of a ``robot_description`` message; returns what to log.
 
-        Raises ModelError for a malformed or unusable URDF; the previous model is then kept.
+        Raises ModelError for a malformed or unusable URDF, and whatever ``check(model)`` raises for a
+        robot the node cannot use (e.g. its budget file does not fit); the previous model is then kept.
         """
         if not self.from_description:
             raise ContractError("invalid_request", "this node does not take its robot from robot_description")
         if not isinstance(text, str) or not text.strip():
             raise ContractError("invalid_request", "robot_description: empty message")
+        if not text.lstrip().startswith("<"):
+            raise ModelError(f"robot_description: not URDF XML text (never a path): {text.strip()[:40]!r}")
         model = URDFChain(text, tip_link=self.tip_link, base_link=self.base_link)
+        if check is not None:
+            check(model)
         previous = self.description_name
         if previous is not None and previous != model.name:
             del self.models[previous]

@@ -60,7 +60,7 @@ class Compensation:
                 "residual_position_m": self.residual_position, "residual_orientation_rad": self.residual_orientation,
                 "out_of_reach": np.flatnonzero(~self.reached).tolist(),
                 "near_singularity": np.flatnonzero(self.near_singularity).tolist(),
-                "out_of_limits": np.flatnonzero(self.out_of_limits).tolist(), "iterations": self.iterations}
+                "out_of_limits": np.flatnonzero(self.out_of_limits).tolist(), "iterations": self.iterations.tolist()}
 
 
 def joint_columns(model: Mechanism) -> np.ndarray:

@@ -58,8 +58,11 @@ class URDFChain(Mechanism):
 
     def __init__(self, urdf, tip_link=None, base_link=None, name=None):
         text, source = _read_urdf(urdf)
+        try:
+            root = ET.fromstring(text)
+        except ET.ParseError as exc:
+            raise ModelError(f"urdf ({source}): not well-formed XML: {exc}") from None
         model = _parse(text, source)
-        root = ET.fromstring(text)
         self.name = str(name or root.get("name") or "urdf_robot")
         self.pin_model = model
         self.source = source

@@ -1,0 +1,55 @@
+"""Nodes started in a private rclpy context, for the tests of the nodes (import it only once rclpy is
+known to be importable)."""
+import os
+import threading
+import uuid
+
+import rclpy
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.parameter import Parameter
+
+from tolerance_ros.nodes.client import ToleranceClient
+
+
+class Graph:
+    """A private rclpy context with an executor spinning in a thread; nodes are started in it. With
+    ``spin=False`` nothing spins: the test calls the nodes' callbacks itself."""
+
+    def __init__(self, spin=True):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=100 + os.getpid() % 100)
+        self.executor = MultiThreadedExecutor(num_threads=4, context=self.context) if spin else None
+        self.nodes = []
+        self.thread = None
+        if spin:
+            self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+            self.thread.start()
+
+    def start(self, cls, namespace=None, **params):
+        node = cls(context=self.context, namespace=namespace,
+                   parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+        self._add(node)
+        return node
+
+    def node(self, name, namespace=None):
+        node = rclpy.create_node(name, context=self.context, namespace=namespace)
+        self._add(node)
+        return node
+
+    def _add(self, node):
+        if self.executor is not None:
+            self.executor.add_node(node)
+        self.nodes.append(node)
+
+    def client(self, namespace=None):
+        return ToleranceClient(node=self.node(f"client_{uuid.uuid4().hex[:8]}"), namespace=namespace)
+
+    def close(self):
+        if self.executor is not None:
+            self.executor.shutdown(timeout_sec=5.0)
+            self.thread.join(timeout=5.0)
+        for n in self.nodes:
+            if hasattr(n, "close"):
+                n.close()
+            n.destroy_node()
+        rclpy.shutdown(context=self.context)
