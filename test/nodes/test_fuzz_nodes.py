@@ -76,14 +76,26 @@ class Harness:
 
     warning = warn = debug = info
 
+    def subscriptions(self):
+        """The node's subscriptions and those of its helper node (the error model's joint states, taken on
+        its timer rather than delivered one by one)."""
+        helper = getattr(self.node, "joint_state_node", None)
+        return list(self.node.subscriptions) + (list(helper.subscriptions) if helper is not None else [])
+
     def topics(self):
-        return sorted(s.topic_name[len(self.prefix):] for s in self.node.subscriptions)
+        return sorted(s.topic_name[len(self.prefix):] for s in self.subscriptions())
 
     def call(self, topic, msg):
-        """The subscription callback of ``topic`` (relative to the namespace) with ``msg`` as delivered."""
-        callback = next(s.callback for s in self.node.subscriptions if s.topic_name == self.prefix + topic)
-        callback(deserialize_message(serialize_message(msg), type(msg)))
-        self.check()
+        """The subscription callback of ``topic`` (relative to the namespace) with ``msg`` as delivered; a
+        subscription the node takes from on a timer gets ``msg`` as its only waiting message, then the timers run."""
+        sub = next(s for s in self.subscriptions() if s.topic_name == self.prefix + topic)
+        if sub in self.node.subscriptions:
+            sub.callback(deserialize_message(serialize_message(msg), type(msg)))
+            self.check()
+            return
+        waiting = [serialize_message(msg)]
+        self.node.latest_joint_state = lambda: waiting.pop() if waiting else None
+        self.tick()
 
     def tick(self):
         """Every timer callback once."""
@@ -333,6 +345,11 @@ def test_error_model_serves_after_the_fuzz(error_model):
     error_model.call("tolerance/compute_error_jacobian/request", String(data=json.dumps(request)))
     doc = answer(error_model.take("tolerance/compute_error_jacobian/response")[-1].data, JACOBIAN_RESPONSE)
     assert doc["ok"] and doc["id"] == "after" and doc["n"] == 2 and 0 < doc["bounds"]["position"]["paper"][0] < 1.4e-3
+    state = JointState(name=list(GAO.joint_names), position=list(Q))
+    state.header.stamp.sec = 12
+    error_model.call("joint_states", state)
+    bound = loads_strict(error_model.take("tolerance/predicted_bound")[-1].data)
+    assert bound["stamp"] == 12.0 and bound["position_bound_m"] == pytest.approx(doc["bounds"]["position"]["paper"][0])
 
 
 # Allocator.

@@ -1,4 +1,5 @@
 """URDF chains: our batched FK and Jacobian against pinocchio on real URDFs from example-robot-data."""
+import warnings
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -155,3 +156,16 @@ def test_yaml_robot_file_with_relative_urdf(tmp_path):
     cfg.write_text("name: ur5\nkind: urdf\nurdf: ur5.urdf\ntip_link: tool0\n")
     model = load_robot(cfg)
     assert model.name == "ur5" and model.dof == 6
+
+
+def test_an_axis_of_any_finite_length_is_normalised_without_overflow():
+    def two_links(axis):
+        return (f"<robot name='r'><link name='a'/><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
+                f"<child link='b'/><axis xyz='{axis}'/><limit lower='-1' upper='1' effort='1' velocity='1'/></joint>"
+                f"</robot>")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        chain = URDFChain(two_links("0 0 1e200"))
+    np.testing.assert_array_equal(chain._axes[0], [0.0, 0.0, 1.0])
+    with pytest.raises(ModelError, match="zero axis"):
+        URDFChain(two_links("0 0 0"))

@@ -104,7 +104,8 @@ class URDFChain(Mechanism):
             if xml.find("mimic") is not None:
                 raise ModelError(f"urdf: joint {jname!r} is a mimic joint; mimic joints are not supported")
             axis = _vector(xml.find("axis"), "xyz", (1.0, 0.0, 0.0), f"joint {jname!r} axis")
-            norm = np.linalg.norm(axis)
+            scale = np.abs(axis).max()  # scaled first: the norm of a huge axis must not overflow
+            norm = scale * np.linalg.norm(axis / scale) if scale > 0 else 0.0
             if norm < 1e-12:
                 raise ModelError(f"urdf: joint {jname!r} has a zero axis")
             axes.append(axis / norm)
