@@ -191,6 +191,42 @@ def test_predicted_bound_at_the_current_joint_state(graph, ns):
     assert b["criterion"] == "paper" and 0 < b["position_bound_m"] < 1.4e-3
 
 
+def test_predicted_bound_follows_a_fast_stream_at_bound_rate(graph, ns):
+    """Joint states at about 250 Hz, bound_rate 10 Hz: about 10 bounds a second, each from the newest state
+    that had arrived (its stamp is one of the states sent, late in the stream)."""
+    from sensor_msgs.msg import JointState
+    from tolerance_ros.nodes.error_model_server import ErrorModelServer
+    graph.start(ErrorModelServer, ns, bound_rate=10.0)
+    model = load_robot("gao2023_7dof")
+    node = graph.node("stream_test", ns)
+    got = collect(graph, node, String, "tolerance/predicted_bound", 100)
+    node.create_publisher(String, "tolerance_budget", LATCHED_QOS).publish(
+        String(data=dumps_fast({"robot": model.name, "budget": load_budget("gao2023_delta2", model).to_dict()})))
+    pub = node.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+    sent = 0
+
+    def send(count):
+        nonlocal sent
+        for _ in range(count):
+            sent += 1
+            msg = JointState(name=list(model.joint_names), position=Q)
+            msg.header.stamp.sec = sent
+            pub.publish(msg)
+            time.sleep(0.004)
+
+    assert wait_for(lambda: send(10) or bool(got), 20, 0.0)  # the server is up and has the budget
+    got.clear()
+    first = sent
+    t0 = time.monotonic()
+    send(500)
+    seconds = time.monotonic() - t0
+    time.sleep(0.3)
+    stamps = [json.loads(m.data)["stamp"] for m in got]
+    assert 0.5 * 10 * seconds <= len(stamps) <= 10 * seconds + 4, (len(stamps), seconds)
+    assert all(first < s <= sent for s in stamps) and stamps == sorted(stamps)
+    assert stamps[-1] >= sent - 150  # the last bound is of a state near the end of the stream
+
+
 @pytest.mark.parametrize("urdf, tip", [("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand")])
 def test_the_robot_from_robot_description(graph, ns, urdf, tip):
     """A URDF published as robot_state_publisher does (latched, before the node starts): the served
