@@ -22,7 +22,7 @@ from ..core.geometry import transform
 from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, budget_from_message
 from ..services.monitor import WARN, MonitorLogic
-from .common import (BUDGET_QOS, MEASUREMENT_QOS, PREFIX, STATUS_QOS, declare, follow_robot_description, guarded,
+from .common import (BUDGET_QOS, MEASUREMENT_QOS, PREFIX, STATUS_QOS, declare, follow_robot, guarded,
                      robot_set, run, status_name)
 
 MARKER_TYPES = {"sphere": Marker.SPHERE, "arrow": Marker.ARROW, "text": Marker.TEXT_VIEW_FACING}
@@ -62,8 +62,7 @@ class AccuracyMonitor(Node):
         self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
         self.create_timer(period, guarded(self, self.publish_status))
         self.create_timer(marker_period, guarded(self, self.publish_markers))
-        follow_robot_description(self, self.robots, self.start, check=self.files_for)
-        self.start()
+        follow_robot(self, self.robots, self.start, check=self.files_for)
 
     def files_for(self, model):
         """(campaign, budget) of the configured files for ``model``; raises when they do not fit it."""
@@ -75,11 +74,8 @@ class AccuracyMonitor(Node):
             budget.vector_for(model)
         return camp, budget
 
-    def start(self):
+    def start(self, model):
         """(Re)build the monitor for the current robot: budget, campaign and a new campaign log."""
-        model = self.robots.single()
-        if model is None:
-            return
         camp, budget = self.files_for(model)
         if self.logic is not None:
             self.logic.close()

@@ -91,6 +91,18 @@ def follow_robot_description(node, robots: RobotSet, on_change=None, check=None)
     node.get_logger().info(f"waiting for the robot on {node.resolve_topic_name('robot_description')}")
 
 
+def follow_robot(node, robots: RobotSet, start, check=None):
+    """For a node with one robot: ``start(model)`` now when the robot is known, and again with each new
+    robot_description that ``check`` accepts (see ``follow_robot_description``)."""
+    def restart():
+        model = robots.single()
+        if model is not None:
+            start(model)
+
+    follow_robot_description(node, robots, restart, check)
+    restart()
+
+
 def status_name(node, what: str) -> str:
     """DiagnosticStatus name with the node's namespace in it: '/arm_left/tolerance_ros: accuracy monitor'."""
     return f"{node.get_namespace().rstrip('/')}/tolerance_ros: {what}"

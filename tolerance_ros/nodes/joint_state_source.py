@@ -8,7 +8,7 @@ from sensor_msgs.msg import JointState
 
 from ..core.campaign import load_campaign
 from ..services.joint_source import JointStateSequence
-from .common import MEASUREMENT_QOS, declare, follow_robot_description, guarded, robot_set, run
+from .common import MEASUREMENT_QOS, declare, follow_robot, guarded, robot_set, run
 
 
 class JointStateSource(Node):
@@ -26,19 +26,15 @@ class JointStateSource(Node):
         self.sequence = None
         self.publisher = self.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
         self.timer = self.create_timer(1.0 / rate, guarded(self, self.publish_joint_state))
-        follow_robot_description(self, self.robots, self.start, check=self.sequence_for)
-        self.start()
+        follow_robot(self, self.robots, self.start, check=self.sequence_for)
 
     def sequence_for(self, model):
         """The configurations to publish for ``model`` (CampaignError when the campaign does not fit it)."""
         camp = load_campaign(self.campaign, model) if self.campaign else None
         return JointStateSequence(model, self.mode, camp, self.count, self.seed, self.dwell or None, self.loop)
 
-    def start(self):
+    def start(self, model):
         """The sequence of the current robot (again, when robot_description changes)."""
-        model = self.robots.single()
-        if model is None:
-            return
         self.sequence = self.sequence_for(model)
         self.names = list(model.joint_names)
         self.t0 = self.get_clock().now()

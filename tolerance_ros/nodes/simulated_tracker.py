@@ -12,7 +12,7 @@ from ..core.budget import load_budget
 from ..core.geometry import transform
 from ..core.ingest import IngestError
 from ..services.tracker import SimulatedTracker
-from .common import MEASUREMENT_QOS, declare, follow_robot_description, guarded, robot_set, run
+from .common import MEASUREMENT_QOS, declare, follow_robot, guarded, robot_set, run
 
 
 class SimulatedTrackerNode(Node):
@@ -34,18 +34,14 @@ class SimulatedTrackerNode(Node):
         self.pub = self.create_publisher(PoseStamped, "measured_pose", MEASUREMENT_QOS)
         self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_state), MEASUREMENT_QOS)
         self.count = 0
-        follow_robot_description(self, self.robots, self.start, check=self.tolerances)
-        self.start()
+        follow_robot(self, self.robots, self.start, check=self.tolerances)
 
     def tolerances(self, model):
         """The budget's tolerances for ``model`` (BudgetError when the budget does not fit it)."""
         return load_budget(self.budget_spec, model).vector_for(model)
 
-    def start(self):
+    def start(self, model):
         """Draw the as-built robot of the current model (again, when robot_description changes)."""
-        model = self.robots.single()
-        if model is None:
-            return
         self.sim = SimulatedTracker(model, self.tolerances(model), self.seed, *self.noise, self.T_tracker_base)
         self.get_logger().info(f"simulating {model.name} built within {self.budget_spec} (seed {self.seed})")
 
