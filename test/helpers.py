@@ -45,3 +45,24 @@ def random_dh(rng, dof=None, convention=None):
                    joint_limits=limits, convention=convention or ("standard" if rng.random() < 0.5 else "modified"),
                    base=transform(rng.uniform(-1, 1, 3), rng.uniform(-np.pi, np.pi, 3)),
                    tool=transform(rng.uniform(-0.2, 0.2, 3), rng.uniform(-np.pi, np.pi, 3)))
+
+
+def pin_fk(text, tip, chain, q):
+    """(n, 4, 4) pose of ``tip`` by pinocchio from the URDF text, at chain configurations q (n, dof)."""
+    import pinocchio as pin
+    model = pin.buildModelFromXML(text)
+    data = model.createData()
+    fid = model.getFrameId(tip)
+    out = []
+    for qk in q:
+        cfg = pin.neutral(model)
+        for k, name in enumerate(chain.joint_names):
+            jid = model.getJointId(name)
+            iq = model.idx_qs[jid]
+            if model.joints[jid].nq == 2:
+                cfg[iq:iq + 2] = (np.cos(qk[k]), np.sin(qk[k]))
+            else:
+                cfg[iq] = qk[k]
+        pin.framesForwardKinematics(model, data, cfg)
+        out.append(data.oMf[fid].homogeneous.copy())
+    return np.array(out)

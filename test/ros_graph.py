@@ -2,6 +2,7 @@
 known to be importable)."""
 import os
 import threading
+import time
 import uuid
 
 import rclpy
@@ -53,3 +54,13 @@ class Graph:
                 n.close()
             n.destroy_node()
         rclpy.shutdown(context=self.context)
+
+
+def wait_for(predicate, timeout=20.0, step=0.05):
+    """True as soon as ``predicate()`` is, False after ``timeout`` seconds."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(step)
+    return False

@@ -27,7 +27,7 @@ from std_msgs.msg import String  # noqa: E402
 
 from fuzz_corpus import ENCODINGS, Q, allocate_request, encode, jacobian_request, json_values  # noqa: E402
 from helpers import example_urdf  # noqa: E402
-from ros_graph import Graph  # noqa: E402
+from ros_graph import Graph, wait_for  # noqa: E402
 from schemas_helpers import validator  # noqa: E402
 from tolerance_ros.core.accuracy.io import read_log  # noqa: E402
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure  # noqa: E402
@@ -573,11 +573,3 @@ def test_the_robot_from_a_valid_description_after_the_fuzz(described):
         described.tick()
         assert list(described.take("joint_states")[-1].name) == list(robots.single().joint_names)
 
-
-def wait_for(predicate, timeout, step):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(step)
-    return False

@@ -19,7 +19,7 @@ rclpy = pytest.importorskip("rclpy", reason="ROS 2 Jazzy is not sourced (rclpy n
 from std_msgs.msg import String  # noqa: E402
 
 from helpers import example_urdf  # noqa: E402
-from ros_graph import Graph  # noqa: E402
+from ros_graph import Graph, wait_for  # noqa: E402
 from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.jsonio import dumps_fast  # noqa: E402
 from tolerance_ros.core.models import load_robot  # noqa: E402
@@ -41,14 +41,6 @@ def ns():
     """A namespace of this test's own: nothing it starts can meet another test's nodes."""
     return f"/t{uuid.uuid4().hex[:8]}"
 
-
-def wait_for(predicate, timeout=20.0, step=0.05):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(step)
-    return False
 
 
 def collect(graph, node, msg_type, topic, qos=10):

@@ -1,5 +1,6 @@
 """The package in a ROS 2 workspace: colcon build, ros2 launch, ros2 topic pub/echo, ros2 param
 (skipped unless ROS 2 Jazzy is sourced and colcon is installed)."""
+import contextlib
 import os
 import shutil
 import signal
@@ -20,6 +21,26 @@ def sh(cmd, env, timeout=120, check=True):
     if check and out.returncode != 0:
         raise AssertionError(f"{cmd}\n{out.stdout}\n{out.stderr}")
     return out
+
+
+@contextlib.contextmanager
+def launched(workspace, launch_file):
+    """``ros2 launch tolerance_ros <launch_file>`` for the duration of the block; stopped with Ctrl-C (then
+    killed if it hangs), and no node may have printed a traceback."""
+    launch = subprocess.Popen(["bash", "-c", f"source $WS/install/setup.bash && exec ros2 launch tolerance_ros "
+                               f"{launch_file}"], env=workspace, stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        yield launch
+    finally:
+        os.killpg(launch.pid, signal.SIGINT)
+        try:
+            out, _ = launch.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            os.killpg(launch.pid, signal.SIGKILL)
+            out, _ = launch.communicate()
+        sh("source $WS/install/setup.bash && ros2 daemon stop", workspace, check=False)
+    assert "Traceback" not in out, out
 
 
 @pytest.fixture(scope="module")
@@ -51,10 +72,7 @@ def test_colcon_install_layout(workspace):
 
 
 def test_launch_pub_echo_and_params(workspace, tmp_path):
-    launch = subprocess.Popen(["bash", "-c", "source $WS/install/setup.bash && exec ros2 launch tolerance_ros "
-                               "accuracy_suite.launch.py"], env=workspace, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True, start_new_session=True)
-    try:
+    with launched(workspace, "accuracy_suite.launch.py"):
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline:
             nodes = sh("source $WS/install/setup.bash && ros2 node list", workspace, check=False).stdout
@@ -81,23 +99,11 @@ def test_launch_pub_echo_and_params(workspace, tmp_path):
         desc = sh("source $WS/install/setup.bash && ros2 param describe /tolerance_accuracy_monitor slop",
                   workspace).stdout
         assert "joint state" in desc
-    finally:
-        os.killpg(launch.pid, signal.SIGINT)
-        try:
-            out, _ = launch.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            os.killpg(launch.pid, signal.SIGKILL)
-            out, _ = launch.communicate()
-        sh("source $WS/install/setup.bash && ros2 daemon stop", workspace, check=False)
-    assert "Traceback" not in out, out
 
 
 def test_two_arms_in_one_graph(workspace):
     """The two-arm launch example: each namespace has its own suite and parameters, and answers alone."""
-    launch = subprocess.Popen(["bash", "-c", "source $WS/install/setup.bash && exec ros2 launch tolerance_ros "
-                               "two_arms.launch.py"], env=workspace, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True, start_new_session=True)
-    try:
+    with launched(workspace, "two_arms.launch.py"):
         deadline = time.monotonic() + 40
         nodes = ""
         while time.monotonic() < deadline:
@@ -125,13 +131,4 @@ def test_two_arms_in_one_graph(workspace):
             assert pub.returncode == 0, pub.stderr
             out, _ = echo.communicate(timeout=30)
             assert f'"id":"{arm}","ok":true' in out
-    finally:
-        os.killpg(launch.pid, signal.SIGINT)
-        try:
-            out, _ = launch.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            os.killpg(launch.pid, signal.SIGKILL)
-            out, _ = launch.communicate()
-        sh("source $WS/install/setup.bash && ros2 daemon stop", workspace, check=False)
-    assert "Traceback" not in out, out
 

@@ -3,11 +3,10 @@ URDF keeps every byte but the corrected origins, and the calibration file round-
 import re
 
 import numpy as np
-import pinocchio as pin
 import pytest
 import yaml
 
-from helpers import example_urdf, random_dh
+from helpers import example_urdf, pin_fk, random_dh
 from tolerance_ros.core.accuracy.identification import base_matrix
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
 from tolerance_ros.core.budget import load_budget
@@ -21,25 +20,6 @@ from tolerance_ros.core.models import URDFChain, load_robot
 T_TRACKER_BASE = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
 BASE = np.array([2e-4, -1e-4, 3e-4, 1e-4, -2e-4, 5e-4])
 
-
-def pin_fk(text, tip, chain, q):
-    """Pose of ``tip`` by pinocchio from the URDF text, at chain configurations q (n, dof)."""
-    model = pin.buildModelFromXML(text)
-    data = model.createData()
-    fid = model.getFrameId(tip)
-    out = []
-    for qk in q:
-        cfg = pin.neutral(model)
-        for k, name in enumerate(chain.joint_names):
-            jid = model.getJointId(name)
-            iq = model.idx_qs[jid]
-            if model.joints[jid].nq == 2:
-                cfg[iq:iq + 2] = (np.cos(qk[k]), np.sin(qk[k]))
-            else:
-                cfg[iq] = qk[k]
-        pin.framesForwardKinematics(model, data, cfg)
-        out.append(data.oMf[fid].homogeneous.copy())
-    return np.array(out)
 
 
 @pytest.fixture(scope="module")

@@ -6,30 +6,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from helpers import example_urdf, pose_difference
+from helpers import example_urdf, pin_fk, pose_difference
 from tolerance_ros.core.models import ModelError, URDFChain, load_robot
 
 CASES = [("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand")]
 
-
-def _pin_fk(xml_text, tip, chain, q):
-    """Pose of ``tip`` from pinocchio for our chain configurations q (n, dof)."""
-    model = pin.buildModelFromXML(xml_text)
-    data = model.createData()
-    fid = model.getFrameId(tip)
-    out = []
-    for qk in q:
-        cfg = pin.neutral(model)
-        for k, jname in enumerate(chain.joint_names):
-            jid = model.getJointId(jname)
-            iq = model.idx_qs[jid]
-            if model.joints[jid].nq == 2:
-                cfg[iq:iq + 2] = (np.cos(qk[k]), np.sin(qk[k]))
-            else:
-                cfg[iq] = qk[k]
-        pin.framesForwardKinematics(model, data, cfg)
-        out.append(data.oMf[fid].homogeneous.copy())
-    return np.array(out)
 
 
 def _perturbed_xml(text, joint, field, h):
@@ -50,7 +31,7 @@ def test_fk_matches_pinocchio(name, tip):
     path = example_urdf(name)
     chain = URDFChain(path, tip_link=tip)
     q = chain.sample_joints(8, 1)
-    ref = _pin_fk(path.read_text(), chain.tip_link, chain, q)
+    ref = pin_fk(path.read_text(), chain.tip_link, chain, q)
     assert np.allclose(chain.fk(q), ref, atol=1e-12)
 
 
@@ -69,11 +50,11 @@ def test_jacobian_matches_differences_of_pinocchio_fk_on_edited_urdf(name, tip):
             k = chain.joint_names.index(joint)
             e = np.zeros(chain.dof)
             e[k] = h
-            Tp = _pin_fk(text, chain.tip_link, chain, q + e)
-            Tm = _pin_fk(text, chain.tip_link, chain, q - e)
+            Tp = pin_fk(text, chain.tip_link, chain, q + e)
+            Tm = pin_fk(text, chain.tip_link, chain, q - e)
         else:
-            Tp = _pin_fk(_perturbed_xml(text, joint, field, h), chain.tip_link, chain, q)
-            Tm = _pin_fk(_perturbed_xml(text, joint, field, -h), chain.tip_link, chain, q)
+            Tp = pin_fk(_perturbed_xml(text, joint, field, h), chain.tip_link, chain, q)
+            Tm = pin_fk(_perturbed_xml(text, joint, field, -h), chain.tip_link, chain, q)
         ref = pose_difference(Tp, Tm) / (2 * h)
         assert np.allclose(J[:, :, c], ref, atol=1e-7), pname
 
