@@ -84,6 +84,14 @@ def test_quaternions_both_ways():
         G.quat_to_matrices([np.nan, 0.0, 0.0, 1.0])
 
 
+@pytest.mark.parametrize("scale", [1e-5, 1e200, 1e307])
+def test_quaternions_of_any_finite_length_give_their_direction_without_overflow(scale):
+    q = ROT.as_quat()[:20]
+    with np.errstate(all="raise"):
+        R = G.quat_to_matrices(q * scale)
+    np.testing.assert_allclose(R, ROT.as_matrix()[:20], atol=1e-14)
+
+
 def test_transforms_and_cross():
     T = G.transform([1.0, 2.0, 3.0], [0.1, 0.2, 0.3])
     np.testing.assert_allclose(T[:3, :3], Rotation.from_euler("xyz", [0.1, 0.2, 0.3]).as_matrix(), atol=1e-15)

@@ -110,8 +110,12 @@ def rotation_error(R_actual, R_nominal) -> np.ndarray:
 def quat_to_matrices(q) -> np.ndarray:
     """(n, 3, 3) rotations of (n, 4) quaternions (x, y, z, w), normalised; a zero quaternion raises ValueError."""
     q = np.asarray(q, dtype=float).reshape(-1, 4)
+    m = np.abs(q).max(axis=1, keepdims=True)  # scaled first, so that huge finite components do not overflow
+    if np.any(~np.isfinite(m)) or np.any(m == 0):
+        raise ValueError("quaternion with zero (or non-finite) norm")
+    q = q / m
     n = np.linalg.norm(q, axis=1)
-    if np.any(~(n >= 1e-9)):
+    if np.any(~(n * m[:, 0] >= 1e-9)):
         raise ValueError("quaternion with zero (or non-finite) norm")
     x, y, z, w = (q / n[:, None]).T
     return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
