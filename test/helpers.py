@@ -1,7 +1,9 @@
-"""Reference computations shared by the tests: finite differences, random chains, example URDFs."""
+"""Reference computations shared by the tests: finite differences, random chains, example URDFs; and a
+private ROS domain for each test process."""
 from __future__ import annotations
 
 import importlib.metadata
+import os
 from pathlib import Path
 
 import numpy as np
@@ -66,3 +68,12 @@ def pin_fk(text, tip, chain, q):
         pin.framesForwardKinematics(model, data, cfg)
         out.append(data.oMf[fid].homogeneous.copy())
     return np.array(out)
+
+
+def private_domain_id(first: int, span: int) -> int:
+    """A ROS_DOMAIN_ID in [first, first + span) for this test process: the pytest-xdist workers of one run
+    never share one (the worker index is the residue), other runs are told apart by the process id."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")[2:]
+    index = int(worker) if worker.isdigit() else 0
+    workers = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+    return first + (os.getpid() % max(1, span // workers)) * workers + index % workers

@@ -1,6 +1,5 @@
 """Nodes started in a private rclpy context, for the tests of the nodes (import it only once rclpy is
 known to be importable)."""
-import os
 import threading
 import time
 import uuid
@@ -9,6 +8,7 @@ import rclpy
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.parameter import Parameter
 
+from helpers import private_domain_id
 from tolerance_ros.nodes.client import ToleranceClient
 
 
@@ -18,7 +18,7 @@ class Graph:
 
     def __init__(self, spin=True):
         self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=100 + os.getpid() % 100)
+        rclpy.init(context=self.context, domain_id=private_domain_id(100, 80))
         self.executor = MultiThreadedExecutor(num_threads=4, context=self.context) if spin else None
         self.nodes = []
         self.thread = None

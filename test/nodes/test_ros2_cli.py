@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from helpers import private_domain_id
+
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.skipif(not (os.environ.get("ROS_DISTRO") and shutil.which("ros2") and shutil.which("colcon")),
                                 reason="ROS 2 Jazzy is not sourced or colcon is not installed")
@@ -49,7 +51,7 @@ def workspace(tmp_path_factory):
     shutil.copytree(ROOT, ws / "src" / "tolerance_ros",
                     ignore=shutil.ignore_patterns(".git", ".venv", "build", "install", "log", "__pycache__",
                                                   ".pytest_cache", ".hypothesis", "*.egg-info"))
-    env = dict(os.environ, ROS_DOMAIN_ID=str(150 + os.getpid() % 50), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    env = dict(os.environ, ROS_DOMAIN_ID=str(private_domain_id(180, 50)), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     # The nodes run on the system python3 that colcon builds for; they find the Python dependencies where
     # this test run has them (the environment pip installed them into, as rosdep would for a ROS user).
     env["PYTHONPATH"] = os.pathsep.join([p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
