@@ -32,7 +32,7 @@ def _check(J, delta):
         raise ValueError(f"J: expected shape (n, k, p), got {J.shape}")
     if delta.shape != (J.shape[2],):
         raise ValueError(f"delta: expected shape ({J.shape[2]},), got {delta.shape}")
-    if not np.all(np.isfinite(delta)) or np.any(delta < 0):
+    if not (np.isfinite(delta).all() and (delta >= 0).all()):
         raise ValueError("delta: tolerances must be finite and >= 0")
     return J, delta
 

@@ -12,6 +12,17 @@ from __future__ import annotations
 
 import numpy as np
 
+# R(q) |q|^2 as quadratic forms of a quaternion (x, y, z, w): row-major R entry -> {(a, b): coefficient of q_a q_b}.
+_QUAT_TERMS = ({(0, 0): 1, (1, 1): -1, (2, 2): -1, (3, 3): 1}, {(0, 1): 2, (2, 3): -2}, {(0, 2): 2, (1, 3): 2},
+               {(0, 1): 2, (2, 3): 2}, {(0, 0): -1, (1, 1): 1, (2, 2): -1, (3, 3): 1}, {(1, 2): 2, (0, 3): -2},
+               {(0, 2): 2, (1, 3): -2}, {(1, 2): 2, (0, 3): 2}, {(0, 0): -1, (1, 1): -1, (2, 2): 1, (3, 3): 1})
+_QUAT_FORM = np.zeros((16, 9))
+for _entry, _terms in enumerate(_QUAT_TERMS):
+    for (_a, _b), _c in _terms.items():
+        _QUAT_FORM[4 * _a + _b, _entry] = _c
+# The vee map of a skew-symmetric part reads R[_VEE_I, _VEE_J] - R[_VEE_J, _VEE_I].
+_VEE_I, _VEE_J = np.array([2, 0, 1]), np.array([1, 2, 0])
+
 
 def rpy_matrix(roll, pitch, yaw) -> np.ndarray:
     """(3, 3, ...) rotations ``Rz(yaw) Ry(pitch) Rx(roll)`` of broadcastable angle arrays (rad)."""
@@ -79,15 +90,16 @@ def exp_so3(w) -> np.ndarray:
 def matrix_log_vec(R) -> np.ndarray:
     """(n, 3) rotation vectors of (n, 3, 3) rotation matrices (robust near 0 and pi)."""
     R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
-    cos = (np.trace(R, axis1=1, axis2=2) - 1.0) / 2.0
-    w = np.stack((R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]), axis=1)
-    sin2 = np.linalg.norm(w, axis=1)  # 2 sin(angle)
+    cos = (np.einsum("nii->n", R) - 1.0) / 2.0
+    w = R[:, _VEE_I, _VEE_J] - R[:, _VEE_J, _VEE_I]
+    sin2 = np.sqrt(np.einsum("ni,ni->n", w, w))  # 2 sin(angle)
     angle = np.arctan2(sin2 / 2.0, cos)  # accurate at every angle, unlike arccos near 0 and pi
     small = angle < 1e-6
     scale = np.where(small, 0.5 + angle ** 2 / 12.0, angle / np.where(small, 1.0, sin2))
     out = w * scale[:, None]
-    near_pi = np.flatnonzero(angle > np.pi - 1e-4)
-    if near_pi.size:
+    near = angle > np.pi - 1e-4
+    if near.any():
+        near_pi = np.flatnonzero(near)
         # The symmetric part is cos I + (1 - cos) u u^T: the axis up to its sign, which w gives.
         S = (R[near_pi] + R[near_pi].transpose(0, 2, 1)) / 2.0
         c = cos[near_pi, None, None]
@@ -110,17 +122,12 @@ def rotation_error(R_actual, R_nominal) -> np.ndarray:
 def quat_to_matrices(q) -> np.ndarray:
     """(n, 3, 3) rotations of (n, 4) quaternions (x, y, z, w), normalised; a zero quaternion raises ValueError."""
     q = np.asarray(q, dtype=float).reshape(-1, 4)
-    m = np.abs(q).max(axis=1, keepdims=True)  # scaled first, so that huge finite components do not overflow
-    if np.any(~np.isfinite(m)) or np.any(m == 0):
+    m = np.abs(q).max(axis=1)
+    if not (np.all(m >= 1e-9) and np.all(m < np.inf)):  # 1 <= |q| / max|q_i| <= 2
         raise ValueError("quaternion with zero (or non-finite) norm")
-    q = q / m
-    n = np.linalg.norm(q, axis=1)
-    if np.any(~(n * m[:, 0] >= 1e-9)):
-        raise ValueError("quaternion with zero (or non-finite) norm")
-    x, y, z, w = (q / n[:, None]).T
-    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-                     np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-                     np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], 1)
+    q = q / m[:, None]  # scaled first, so that huge finite components do not overflow
+    outer = (q[:, :, None] * q[:, None, :]).reshape(-1, 16)
+    return (outer @ _QUAT_FORM / outer[:, ::5].sum(axis=1)[:, None]).reshape(-1, 3, 3)
 
 
 def matrices_to_quat(R) -> np.ndarray:

@@ -96,10 +96,11 @@ def pose_from_values(position, quaternion) -> np.ndarray:
         raise IngestError("pose: expected numbers") from None
     if p.size != 3 or o.size != 4:
         raise IngestError(f"pose: expected 3 position and 4 quaternion values, got {p.size} and {o.size}")
-    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(o))):
+    if not (np.isfinite(p).all() and np.isfinite(o).all()):
         raise IngestError("pose: non-finite position or quaternion")
-    if np.abs(p).max() > MAX_POSITION_M:
-        raise IngestError(f"pose: position {np.abs(p).max():.3g} m from the origin is beyond {MAX_POSITION_M:g} m")
+    far = float(np.abs(p).max())
+    if far > MAX_POSITION_M:
+        raise IngestError(f"pose: position {far:.3g} m from the origin is beyond {MAX_POSITION_M:g} m")
     try:
         R = quat_to_matrices(o)[0]
     except ValueError:

@@ -23,11 +23,13 @@ class _Running:
         self.n, self.mean, self.m2, self.max = 0, 0.0, 0.0, -np.inf
 
     def update(self, x):
-        x = np.asarray(x, float)
+        x = np.asarray(x, float).reshape(-1)
         if x.size == 0:
             return
-        n_b, mean_b = x.size, float(x.mean())
-        m2_b = float(np.sum((x - mean_b) ** 2))
+        n_b = x.size
+        mean_b = float(x.sum()) / n_b
+        d_b = x - mean_b
+        m2_b = float(d_b @ d_b)
         n = self.n + n_b
         d = mean_b - self.mean
         self.mean += d * n_b / n
@@ -113,7 +115,7 @@ class AccuracyAccumulator:
         T_meas = self.to_base(np.asarray(T_tracker, float).reshape(-1, 4, 4))
         T_nom, EJ = self.model.fk_and_jacobian(q)
         dp, dphi = pose_errors(T_nom, T_meas)
-        e_pos, e_ori = np.linalg.norm(dp, axis=1), np.linalg.norm(dphi, axis=1)
+        e_pos, e_ori = np.sqrt(np.einsum("ni,ni->n", dp, dp)), np.sqrt(np.einsum("ni,ni->n", dphi, dphi))
         b_pos = b_ori = None
         if self.delta is not None:
             b_pos, b_ori = predicted_bounds(self.model, q, self.delta, self.criterion, self.k_sigma, EJ)
