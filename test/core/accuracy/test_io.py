@@ -139,6 +139,9 @@ BAD_ROWS = [
     ("missing column", "1,P1,0,1,2,3,0,0,0\n", "expected 10 columns, got 9"),
     ("decreasing stamp", "-1,P1,0,1,2,3,0,0,0,1\n", "stamp -1 s is earlier than the previous row's 0 s"),
     ("unclosed quote", '1,"P1,0,1,2,3,0,0,0,1\n', "expected 10 columns, got 2"),
+    ("the same record twice", ROW.format(t=0), "the same record as line 2 (a measurement written twice)"),
+    ("the same record with other spacing", ROW.format(t=0).replace(",", " , "),
+     "the same record as line 2 (a measurement written twice)"),
 ]
 
 
@@ -202,6 +205,12 @@ def test_a_clean_file_takes_the_fast_path(tmp_path, monkeypatch):
     monkeypatch.setattr(io, "_convert_slow", lambda *a: pytest.fail("a clean file was read row by row"))
     back = read_csv(p)
     assert len(back) == 3000 and np.allclose(back.T, m.T, atol=1e-8)
+
+
+def test_equal_stamps_or_equal_values_alone_are_two_measurements(tmp_path):
+    rows = [ROW.format(t=0), ROW.format(t=0).replace(",1,2,3,", ",1,2,3.001,"), ROW.format(t=1)]
+    m = read_csv(_write(tmp_path / "m.csv", H + "".join(rows)))
+    assert m.stamps.tolist() == [0.0, 0.0, 1.0] and not m.skipped
 
 
 def test_odd_but_valid_csv_files_are_read(tmp_path):

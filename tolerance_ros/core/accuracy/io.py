@@ -11,7 +11,8 @@ Rx(roll)``; optional, or ``qx qy qz qw`` quaternion columns instead), ``pose`` t
 (rad or deg for revolute, m or mm for prismatic). Lengths: m, mm, um; angles: rad, deg, mrad.
 The orientation columns come all three or all four, never some of them. A number is what ``float()``
 reads from ASCII digits, sign, point and exponent (no ``1_000``, no other digits, no nan or inf), and
-must be finite; stamps must not decrease. Files are UTF-8.
+must be finite; stamps must not decrease. Files are UTF-8. A row that repeats an earlier row field for
+field (the same stamp, pose and values: a measurement written twice) is an error naming both lines.
 
 Every problem is a ``MeasurementError`` naming the file, the line and the column or field. With
 ``skip_bad`` a bad row or line is skipped instead and listed in ``skipped`` with its reason (a bad
@@ -260,6 +261,8 @@ def _read_csv_chunks(path, skip_bad, chunk_rows):
                 if not line.strip() or line.lstrip().startswith("#"):
                     continue
                 row = _csv_row(line, spec)
+                if spec is not None:
+                    copies.check(row, lineno)
             except MeasurementError as exc:
                 before_header = header is None and (line is None or not line.lstrip().startswith("#"))
                 if not skip_bad or before_header:
@@ -272,6 +275,7 @@ def _read_csv_chunks(path, skip_bad, chunk_rows):
                     spec = _spec_from_header(header, "header")
                 except MeasurementError as exc:
                     raise MeasurementError(f"{source}, line {lineno}: {exc}") from None
+                copies = _Copies(spec.num_cols[0])
                 continue
             raw.append((lineno, row))
             if chunk_rows and len(raw) >= chunk_rows:
@@ -283,6 +287,26 @@ def _read_csv_chunks(path, skip_bad, chunk_rows):
         if raw or skipped:
             block, bad_rows, last = _convert(raw, spec, last, skip_bad, source)
             yield _pack(block, spec, source, sorted(skipped + bad_rows, key=lambda s: s["line"]))
+
+
+class _Copies:
+    """Refuses a row equal, field for field, to an earlier one. Stamps do not decrease, so a copy comes
+    among the rows of its original's stamp: only those are kept (at most ``keep`` of them)."""
+
+    def __init__(self, stamp_col: int, keep: int = 10000):
+        self.stamp_col, self.keep = stamp_col, keep
+        self.stamp, self.seen = None, {}
+
+    def check(self, row, lineno):
+        stamp = row[self.stamp_col].strip() if len(row) > self.stamp_col else None
+        if stamp != self.stamp:
+            self.stamp, self.seen = stamp, {}
+        key = tuple(f.strip() for f in row)
+        first = self.seen.get(key)
+        if first is not None:
+            raise MeasurementError(f"the same record as line {first} (a measurement written twice)")
+        if len(self.seen) < self.keep:
+            self.seen[key] = lineno
 
 
 def _convert(raw, spec, last, skip_bad, source):
