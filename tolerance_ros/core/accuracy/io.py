@@ -249,7 +249,7 @@ def _read_csv_chunks(path, skip_bad, chunk_rows):
     if not path.is_file():
         raise MeasurementError(f"{source}: file not found")
     with path.open(encoding="utf-8", errors="surrogateescape", newline="") as fh:
-        header, spec = None, None
+        header, spec, copies = None, None, None
         raw, skipped, last = [], [], -np.inf
         for lineno, line in _lines(fh):
             try:
@@ -261,7 +261,7 @@ def _read_csv_chunks(path, skip_bad, chunk_rows):
                 if not line.strip() or line.lstrip().startswith("#"):
                     continue
                 row = _csv_row(line, spec)
-                if spec is not None:
+                if copies is not None:
                     copies.check(row, lineno)
             except MeasurementError as exc:
                 before_header = header is None and (line is None or not line.lstrip().startswith("#"))

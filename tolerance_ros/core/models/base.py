@@ -273,3 +273,31 @@ class Mechanism(ABC):
             "parameters": [{"name": n, "unit": u, "nominal": float(v)}
                            for n, u, v in zip(self.param_names, self.param_units, self.nominal)],
         }
+
+
+class CompiledChain(Mechanism):
+    """A serial chain whose ``fk_and_jacobian`` runs a compiled kernel (numba) unless ``backend`` is
+    'numpy', when its reference ``_fk_and_jacobian_numpy`` runs instead. Subclasses implement both."""
+
+    compiled = True
+
+    def fk_and_jacobian(self, q, dx=None, jacobian: bool = True):
+        kernels = self._kernels()
+        if kernels is None:
+            return self._fk_and_jacobian_numpy(q, dx, jacobian)
+        q = self._joints_for_kernel(q)
+        n = q.shape[0]
+        dx = self._dx_for_kernel(dx, n)
+        T = np.empty((n, 4, 4))
+        J = np.empty((n, 6, self.n_params)) if jacobian else kernels.NO_J
+        if self._run_kernel(kernels, q, kernels.NO_DX if dx is None else dx, T, J, bool(jacobian)) >= 0:
+            self.check_joints(q)  # a joint out of its limits or not finite: raises, naming it
+        return T, (ErrorJacobian(J, self.param_names, self.param_units) if jacobian else None)
+
+    @abstractmethod
+    def _run_kernel(self, kernels, q, dx, T, J, jacobian: bool) -> int:
+        """Fill ``T`` (n, 4, 4) and ``J`` (n, 6, p) from the compiled kernel; >= 0 names a bad pose, else -1."""
+
+    @abstractmethod
+    def _fk_and_jacobian_numpy(self, q, dx=None, jacobian: bool = True):
+        """The numpy reference implementation of ``fk_and_jacobian``."""

@@ -17,14 +17,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import cross3
-from .base import PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError
+from .base import PRISMATIC, REVOLUTE, CompiledChain, ErrorJacobian, ModelError
 
 CONVENTIONS = ("standard", "modified")
 SMALL_BATCH = 64  # up to this many poses the Jacobian columns are built all at once
 KINDS = ("a", "d", "alpha", "theta")
 
 
-class DHChain(Mechanism):
+class DHChain(CompiledChain):
     """Serial chain from a D-H table (SI units).
 
     a, alpha, d, theta : (dof,) link lengths (m), twists (rad), offsets (m) and joint-angle offsets (rad).
@@ -32,8 +32,6 @@ class DHChain(Mechanism):
     base, tool : 4x4 transforms (m).  convention : 'standard' or 'modified'.
     ``fk_and_jacobian`` runs the compiled kernel (``kernels.dh_chain``) unless ``backend`` is 'numpy'.
     """
-
-    compiled = True
 
     def __init__(self, name, a, alpha, d, theta, joint_types=None, joint_limits=None, joint_names=None,
                  convention="standard", base=None, tool=None):
@@ -87,19 +85,9 @@ class DHChain(Mechanism):
         self.nominal = np.concatenate([self.a, self.d, self.alpha, self.theta])
         self._revolute = np.array([t == REVOLUTE for t in types])
 
-    def fk_and_jacobian(self, q, dx=None, jacobian=True):
-        kernels = self._kernels()
-        if kernels is None:
-            return self._fk_and_jacobian_numpy(q, dx, jacobian)
-        q = self._joints_for_kernel(q)
-        n = q.shape[0]
-        dx = self._dx_for_kernel(dx, n)
-        T = np.empty((n, 4, 4))
-        J = np.empty((n, 6, self.n_params)) if jacobian else kernels.NO_J
-        if kernels.dh_chain(q, self.nominal, kernels.NO_DX if dx is None else dx, self._revolute,
-                            self.convention == "standard", self.base, self.tool, T, J, bool(jacobian)) >= 0:
-            self.check_joints(q)
-        return T, (ErrorJacobian(J, self.param_names, self.param_units) if jacobian else None)
+    def _run_kernel(self, kernels, q, dx, T, J, jacobian):
+        return kernels.dh_chain(q, self.nominal, dx, self._revolute, self.convention == "standard", self.base,
+                                self.tool, T, J, jacobian)
 
     def _fk_and_jacobian_numpy(self, q, dx=None, jacobian=True):
         """The numpy reference implementation of ``fk_and_jacobian``."""

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import axis_angle_matrix, cross3, rpy_matrix, rpy_to_matrix
-from .base import PRISMATIC, REVOLUTE, ErrorJacobian, Mechanism, ModelError
+from .base import PRISMATIC, REVOLUTE, CompiledChain, ErrorJacobian, ModelError
 
 ORIGIN_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -48,13 +48,11 @@ def _apply(R, v):
     return np.einsum("ikn,kn->in", R, v)
 
 
-class URDFChain(Mechanism):
+class URDFChain(CompiledChain):
     """Serial chain from ``base_link`` to ``tip_link`` of a URDF (see the module docstring).
 
     ``fk_and_jacobian`` runs the compiled kernel (``kernels.urdf_chain``) unless ``backend`` is 'numpy'.
     """
-
-    compiled = True
 
     def __init__(self, urdf, tip_link=None, base_link=None, name=None):
         text, source = _read_urdf(urdf)
@@ -167,19 +165,9 @@ class URDFChain(Mechanism):
                 raise ModelError(f"urdf: joint {model.names[jid]!r} has {nq} configuration variables; "
                                  f"a serial chain needs 1-DOF joints")
 
-    def fk_and_jacobian(self, q, dx=None, jacobian=True):
-        kernels = self._kernels()
-        if kernels is None:
-            return self._fk_and_jacobian_numpy(q, dx, jacobian)
-        q = self._joints_for_kernel(q)
-        n = q.shape[0]
-        dx = self._dx_for_kernel(dx, n)
-        T = np.empty((n, 4, 4))
-        J = np.empty((n, 6, self.n_params)) if jacobian else kernels.NO_J
-        if kernels.urdf_chain(q, self.nominal, kernels.NO_DX if dx is None else dx, self._revolute, self._fixed,
-                              self._axes, self._tool, T, J, bool(jacobian)) >= 0:
-            self.check_joints(q)
-        return T, (ErrorJacobian(J, self.param_names, self.param_units) if jacobian else None)
+    def _run_kernel(self, kernels, q, dx, T, J, jacobian):
+        return kernels.urdf_chain(q, self.nominal, dx, self._revolute, self._fixed, self._axes, self._tool, T, J,
+                                  jacobian)
 
     def _fk_and_jacobian_numpy(self, q, dx=None, jacobian=True):
         """The numpy reference implementation of ``fk_and_jacobian``."""
