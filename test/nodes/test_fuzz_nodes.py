@@ -10,7 +10,6 @@ finite and well-formed, and the node still serves a valid request afterwards.
 """
 import json
 import math
-import time
 from collections import defaultdict
 
 import numpy as np
@@ -572,4 +571,3 @@ def test_the_robot_from_a_valid_description_after_the_fuzz(described):
     else:
         described.tick()
         assert list(described.take("joint_states")[-1].name) == list(robots.single().joint_names)
-

@@ -42,7 +42,6 @@ def ns():
     return f"/t{uuid.uuid4().hex[:8]}"
 
 
-
 def collect(graph, node, msg_type, topic, qos=10):
     got = []
     node.create_subscription(msg_type, topic, got.append, qos)

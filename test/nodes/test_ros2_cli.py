@@ -133,4 +133,3 @@ def test_two_arms_in_one_graph(workspace):
             assert pub.returncode == 0, pub.stderr
             out, _ = echo.communicate(timeout=30)
             assert f'"id":"{arm}","ok":true' in out
-

@@ -93,3 +93,10 @@ def test_synthesis_study_beats_both_published_sets(gao):
     for key in ("published delta1", "published delta2"):
         assert sets[key]["verification"]["supremum"]["paper"]["position"]["value"] > 1.4e-3
     assert sets["active-set optimal-precision"]["index_I_m"] < sets["published delta2"]["index_I_m"]
+    # The README's table is this study printed as Markdown: one row per set, with the figures above.
+    md = gao2023.synthesis_markdown(syn).splitlines()
+    assert len(md) == 2 + len(sets)
+    row = next(line for line in md if line.startswith("| active-set, min-cost |")).split(" | ")
+    assert row[2] == f"{best['cost']:.0f}" and row[-1] == "100.00 % |"
+    delta1 = next(line for line in md if line.startswith("| published delta_1"))
+    assert "(34459 printed)" in delta1

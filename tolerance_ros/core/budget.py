@@ -208,4 +208,3 @@ def load_budget(spec, model=None) -> Budget:
         raise BudgetError(f"{path}: budget is for robot {budget.robot!r}, not {model.name!r}")
     budget.path = str(path)
     return budget
-

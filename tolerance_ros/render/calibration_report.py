@@ -78,4 +78,3 @@ def parameter_rows(cal) -> list:
         rows.append([n, "mm" if k == "length" else "mrad", f"{e * 1e3:+.5f}", f"{s * 1e3:.5f}",
                      f"{abs(e) / s:.1f}" if s > 0 else "-", al])
     return rows
-

@@ -21,7 +21,6 @@ T_TRACKER_BASE = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
 BASE = np.array([2e-4, -1e-4, 3e-4, 1e-4, -2e-4, 5e-4])
 
 
-
 @pytest.fixture(scope="module")
 def gao_calibration(gao):
     delta = load_budget("gao2023_delta2", gao).vector_for(gao)

@@ -12,7 +12,6 @@ from tolerance_ros.core.models import ModelError, URDFChain, load_robot
 CASES = [("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand")]
 
 
-
 def _perturbed_xml(text, joint, field, h):
     root = ET.fromstring(text)
     j = next(e for e in root.findall("joint") if e.get("name") == joint)

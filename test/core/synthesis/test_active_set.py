@@ -5,7 +5,7 @@ import pytest
 from scipy.optimize import minimize
 
 from tolerance_ros.core.models import DHChain
-from tolerance_ros.core.synthesis import SynthesisError, allocate, build_problem
+from tolerance_ros.core.synthesis import SynthesisError, build_problem
 from tolerance_ros.core.synthesis.active_set import solve_active_set
 
 

@@ -64,5 +64,3 @@ def test_pose_selection_index(planar2r):
     poses = select_poses(planar2r, 3, n_samples=500)
     assert poses.shape == (3, 2)
     assert pose_index(planar2r, poses).min() >= np.sort(pose_index(planar2r, planar2r.sample_joints(500, 0)))[-50]
-
-
