@@ -25,6 +25,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout without installing
+from machine import load_average, machine, verdicts  # noqa: E402
 from tolerance_ros.core.accuracy.simulate import measure  # noqa: E402
 from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.calibration.calibrate import calibrate  # noqa: E402
@@ -85,17 +86,26 @@ def run(model, delta, draws):
     print(f"(identified - true) / std over all draws: standard deviation {Z.std():.3f} (per parameter "
           f"{Z.std(axis=0).min():.2f}-{Z.std(axis=0).max():.2f}), {np.mean(np.abs(Z) > 3) * 100:.2f} % beyond 3 "
           f"(0.27 % for a normal variable)")
+    band = 3 / np.sqrt(2 * Z.size)  # standard error of a normal sample's standard deviation: 1 / sqrt(2 N)
+    return [(imp.min() >= 0.9, f"{model.name}: held-out position RMS reduced by {imp.min() * 100:.1f} % or more "
+                               f"in every draw (target >= 90 %)"),
+            (abs(Z.std() - 1) <= band, f"{model.name}: (identified - true) / std spreads with standard deviation "
+                                       f"{Z.std():.3f} (target 1 +- {band:.2f}, three standard errors of a "
+                                       f"sample of {Z.size}: the stated uncertainties are the real ones)")]
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--draws", type=int, default=10)
     args = ap.parse_args()
+    print(f"machine: {machine()}; {load_average()} (before); one core")
     gao = load_robot("gao2023_7dof")
-    run(gao, load_budget("gao2023_delta2", gao).vector_for(gao), args.draws)
+    checks = run(gao, load_budget("gao2023_delta2", gao).vector_for(gao), args.draws)
     ur5 = URDFChain(ur5_urdf(), tip_link="tool0", name="ur5")
-    run(ur5, np.array([1e-4 if k == "length" else 5e-4 for k in ur5.param_kinds]), args.draws)
+    checks += run(ur5, np.array([1e-4 if k == "length" else 5e-4 for k in ur5.param_kinds]), args.draws)
+    print(f"\n{load_average()} (after)")
+    return verdicts(checks)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

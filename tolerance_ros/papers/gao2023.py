@@ -309,6 +309,31 @@ def print_report(res):
         print(f"plot: {p}")
 
 
+SYNTHESIS_LABELS = {"published delta1": "published delta_1 (min cost)",
+                    "published delta2": "published delta_2 (optimal precision)",
+                    "ga min-cost": "GA (this reproduction), min-cost",
+                    "ga optimal-precision": "GA (this reproduction), section 4.3",
+                    "active-set min-cost": "active-set, min-cost",
+                    "active-set optimal-precision": "active-set, optimal-precision"}
+
+
+def synthesis_markdown(syn) -> str:
+    """The synthesis study as the README's Markdown table (mm; solve time in s, Monte Carlo pass in %)."""
+    lines = ["| tolerance set | solve time | cost index | I (mm) | searched sup, paper | sup, all signs | MC pass |",
+             "|---|---|---|---|---|---|---|"]
+    for key, s in syn["sets"].items():
+        v = s["verification"]
+        sup = v["supremum"]
+        cost = f"{s['cost']:.0f}" + (f" ({s['published_cost']} printed)" if s.get("published_cost") not in
+                                      (None, round(s["cost"])) else "")
+        time_s = "-" if s["time_s"] is None else f"{s['time_s']:.1f} s"
+        lines.append(f"| {SYNTHESIS_LABELS.get(key, key)} | {time_s} | {cost} | {s['index_I_m'] * 1e3:.2f} | "
+                     f"{sup['paper']['position']['value'] * 1e3:.4f} mm | "
+                     f"{sup['worst-case']['position']['value'] * 1e3:.4f} mm | "
+                     f"{v['monte_carlo']['position_m']['pass_rate'] * 100:.2f} % |")
+    return "\n".join(lines)
+
+
 def print_synthesis(syn):
     sets = syn["sets"]
     keys = list(sets)
