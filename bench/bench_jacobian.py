@@ -183,6 +183,12 @@ def run_chain(label, model, error_model, args, verdicts):
         met = t_c * 1e6 <= target
         verdicts.append((met, f"{label} N={n}: compiled {t_c * 1e6:.1f} us "
                               f"{'<=' if met else '>'} target {target:g} us"))
+    q = np.ascontiguousarray(q_all)
+    chunks = [np.ascontiguousarray(q[i:i + 100]) for i in range(0, len(q), 100)]
+    t_fk = best_time(lambda: model.fk_and_jacobian(q, jacobian=False), args.repeat, args.clock)
+    t_chunks = best_time(lambda: [model.fk_and_jacobian(c) for c in chunks], args.repeat, args.clock)
+    print(f"  where the time goes at N={len(q)} (compiled): FK alone {t_fk * 1e3:.2f} ms; the same poses as "
+          f"{len(chunks)} calls of 100 {t_chunks * 1e3:.2f} ms (answer {q.shape[0] * 6 * model.n_params * 8 / 1e6:.1f} MB)")
 
 
 def run_pups(args):
