@@ -349,3 +349,38 @@ def test_the_monitor_takes_its_robot_from_robot_description(graph, ns, tmp_path)
     p = ur5.fk(np.array([[0.1, -0.5, 0.4, 0.2, 0.3, 0.1]]))[0, :3, 3]
     assert [sphere.pose.position.x, sphere.pose.position.y, sphere.pose.position.z] == pytest.approx(p.tolist())
     assert list(tmp_path.glob("ur5_*.jsonl"))
+
+
+RUN_WITH_SPIN = """
+import os, signal, sys, time
+from tolerance_ros.nodes import common
+
+class Node:
+    def destroy_node(self):
+        print("destroyed")
+
+def ctrl_c_inside_a_binding(node):
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(5)
+    except KeyboardInterrupt:  # as pybind11 reports a Python error raised while it converts arguments
+        raise RuntimeError("Unable to convert call argument to Python object") from None
+
+def bug(node):
+    raise RuntimeError("a real bug")
+
+common.rclpy.spin = {spin}
+common.run(Node, [])
+print("stopped cleanly")
+"""
+
+
+@pytest.mark.parametrize("spin, clean", [("ctrl_c_inside_a_binding", True), ("bug", False)])
+def test_a_ctrl_c_wrapped_by_a_binding_stops_cleanly_and_a_bug_still_shows(spin, clean):
+    out = subprocess.run([sys.executable, "-c", RUN_WITH_SPIN.format(spin=spin)], capture_output=True, text=True,
+                         timeout=60)
+    assert "destroyed" in out.stdout  # clean-up runs either way
+    if clean:
+        assert out.returncode == 0 and "stopped cleanly" in out.stdout and "Traceback" not in out.stderr, out.stderr
+    else:
+        assert out.returncode != 0 and "a real bug" in out.stderr

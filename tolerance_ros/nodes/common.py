@@ -12,6 +12,7 @@ robot_state_publisher publishes it); /diagnostics uses the default profile, as t
 from __future__ import annotations
 
 import signal
+import threading
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
@@ -108,9 +109,13 @@ def status_name(node, what: str) -> str:
     return f"{node.get_namespace().rstrip('/')}/tolerance_ros: {what}"
 
 
+_interrupted = threading.Event()
+
+
 def _interrupt_once(signum, frame):
     """The first Ctrl-C stops the node; later ones (``ros2 launch`` forwards one more) are ignored, so that
     clean-up is not interrupted."""
+    _interrupted.set()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     raise KeyboardInterrupt
 
@@ -125,6 +130,11 @@ def run(node_factory, args=None):
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RuntimeError:
+        # A Ctrl-C that lands while pybind11 converts the arguments of an rclpy call (take_message, say)
+        # reaches us as "Unable to convert call argument": it is still the Ctrl-C.
+        if not _interrupted.is_set():
+            raise
     finally:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         if node is not None:
