@@ -146,6 +146,10 @@ def test_an_axis_of_any_finite_length_is_normalised_without_overflow():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         chain = URDFChain(two_links("0 0 1e200"))
+        diagonal = URDFChain(two_links("0 1.2711736833351983e+308 1.2711736833351983e+308"))  # length > max float
+        tiny = URDFChain(two_links("3e-310 0 4e-310"))  # subnormal components, a length of 5e-310
     np.testing.assert_array_equal(chain._axes[0], [0.0, 0.0, 1.0])
+    np.testing.assert_allclose(diagonal._axes[0], [0.0, np.sqrt(0.5), np.sqrt(0.5)], rtol=1e-15)
+    np.testing.assert_allclose(tiny._axes[0], [0.6, 0.0, 0.8], rtol=1e-12)
     with pytest.raises(ModelError, match="zero axis"):
         URDFChain(two_links("0 0 0"))

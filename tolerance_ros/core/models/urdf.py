@@ -102,11 +102,11 @@ class URDFChain(CompiledChain):
             if xml.find("mimic") is not None:
                 raise ModelError(f"urdf: joint {jname!r} is a mimic joint; mimic joints are not supported")
             axis = _vector(xml.find("axis"), "xyz", (1.0, 0.0, 0.0), f"joint {jname!r} axis")
-            scale = np.abs(axis).max()  # scaled first: the norm of a huge axis must not overflow
-            norm = scale * np.linalg.norm(axis / scale) if scale > 0 else 0.0
-            if norm < 1e-12:
+            scale = np.abs(axis).max()  # scaled first: no length of a finite axis overflows or underflows
+            if not scale > 0:
                 raise ModelError(f"urdf: joint {jname!r} has a zero axis")
-            axes.append(axis / norm)
+            unit = axis / scale
+            axes.append(unit / np.linalg.norm(unit))
             org = xml.find("origin")
             xyz = _vector(org, "xyz", (0.0, 0.0, 0.0), f"joint {jname!r} origin")
             rpy = _vector(org, "rpy", (0.0, 0.0, 0.0), f"joint {jname!r} origin")
