@@ -116,7 +116,7 @@ def matrix_log_vec(R) -> np.ndarray:
 
 def rotation_error(R_actual, R_nominal) -> np.ndarray:
     """(n, 3) rotation vector dphi (base frame, rad) with ``R_actual = exp([dphi]x) R_nominal``."""
-    return matrix_log_vec(np.einsum("nij,nkj->nik", np.asarray(R_actual, float), np.asarray(R_nominal, float)))
+    return matrix_log_vec(np.matmul(np.asarray(R_actual, float), np.swapaxes(np.asarray(R_nominal, float), -1, -2)))
 
 
 def quat_to_matrices(q) -> np.ndarray:

@@ -27,15 +27,18 @@ class _Running:
         if x.size == 0:
             return
         n_b = x.size
-        mean_b = float(x.sum()) / n_b
-        d_b = x - mean_b
-        m2_b = float(d_b @ d_b)
+        if n_b == 1:  # one value (the live monitor): no array arithmetic
+            mean_b, m2_b, top = float(x[0]), 0.0, float(x[0])
+        else:
+            mean_b = float(x.sum()) / n_b
+            d_b = x - mean_b
+            m2_b, top = float(d_b @ d_b), float(x.max())
         n = self.n + n_b
         d = mean_b - self.mean
         self.mean += d * n_b / n
         self.m2 += m2_b + d * d * self.n * n_b / n
         self.n = n
-        self.max = max(self.max, float(x.max()))
+        self.max = max(self.max, top)
 
     def to_dict(self):
         if not self.n:

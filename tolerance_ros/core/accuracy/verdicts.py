@@ -26,6 +26,7 @@ def predicted_bounds(model, q, delta, criterion="paper", k_sigma=3.0, EJ=None):
 
 
 EXCEEDED = ("position bound", "orientation bound", "position limit", "orientation limit")
+_EXCEEDED_BITS = 1 << np.arange(len(EXCEEDED))
 _EXCEEDED_TEXT = np.array([", ".join(w for k, w in enumerate(EXCEEDED) if code >> k & 1) for code in range(16)],
                           dtype=object)
 
@@ -55,10 +56,12 @@ def budget_check(err_pos, bound_pos=None, limit=None, err_ori=None, bound_ori=No
     verdict = np.full(e.shape, "within" if bound_pos is not None else "no budget", dtype=object)
     verdict[over["position bound"] | over["orientation bound"]] = "over bound"
     verdict[over["position limit"] | over["orientation limit"]] = "over limit"
-    flags = np.stack([over[k] for k in EXCEEDED], axis=1)
+    flags = np.empty(e.shape + (len(EXCEEDED),), bool)
+    for k, what in enumerate(EXCEEDED):
+        flags[..., k] = over[what]
     out["verdict"] = verdict
     out["over"] = flags
-    out["exceeded"] = _EXCEEDED_TEXT[flags @ (1 << np.arange(len(EXCEEDED)))]
+    out["exceeded"] = _EXCEEDED_TEXT[flags @ _EXCEEDED_BITS]
     return out
 
 
