@@ -19,7 +19,7 @@ TOL = 1e-12
 URDF_CASES = [("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand"), ("panda.urdf", "panda_leftfinger")]
 # A chain with a fixed joint between movable ones, a tilted revolute axis and a prismatic joint.
 ODD_URDF = """<robot name="odd">
-  <link name="l0"/><link name="l1"/><link name="l1b"/><link name="l2"/><link name="l3"/>
+  <link name="l0"/><link name="l1"/><link name="l1b"/><link name="l2"/><link name="l3"/><link name="l4"/>
   <joint name="j1" type="revolute"><parent link="l0"/><child link="l1"/>
     <origin xyz="0.1 -0.2 0.3" rpy="0.3 -0.2 0.1"/><axis xyz="0.3 -0.5 0.8"/>
     <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
@@ -30,6 +30,8 @@ ODD_URDF = """<robot name="odd">
     <limit lower="-0.1" upper="0.3" effort="1" velocity="1"/></joint>
   <joint name="j3" type="continuous"><parent link="l2"/><child link="l3"/>
     <origin xyz="0 0 0.25" rpy="-0.7 0.1 1.2"/><axis xyz="1 0 0"/></joint>
+  <joint name="j4" type="continuous"><parent link="l3"/><child link="l4"/>
+    <origin xyz="0.1 0 0" rpy="0 0 0.9"/><axis xyz="0 0 -1"/></joint>
 </robot>"""
 
 
@@ -165,9 +167,12 @@ def urdf_chains():
 def test_urdf_cases_cover_prismatic_fixed_and_tilted_joints(urdf_chains):
     assert "prismatic" in urdf_chains[2].joint_types           # panda finger
     odd = urdf_chains[3]
-    assert odd.joint_types == ("revolute", "prismatic", "revolute")
+    assert odd.joint_types == ("revolute", "prismatic", "revolute", "revolute")
     assert not np.allclose(odd._fixed[1], np.eye(4))             # the fixed joint before j2
     assert np.count_nonzero(odd._axes[0]) == 3
+    # origin rotations of every kind the kernel tells apart: none, about x, y or z alone, any
+    kinds = {tuple(np.flatnonzero(c.nominal.reshape(-1, 7)[j, 3:6])) for c in urdf_chains for j in range(c.dof)}
+    assert {(), (0,), (1,), (2,), (0, 1, 2)} <= kinds
 
 
 @pytest.mark.parametrize("case", range(4))

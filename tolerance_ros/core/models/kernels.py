@@ -279,10 +279,24 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian):
     ang = np.empty(BLOCK * width)
     sn = np.empty(BLOCK * width)
     cs = np.empty(BLOCK * width)
+    # origin rotation of each joint: -2 none (roll = pitch = yaw = 0), 0, 1, 2 about x, y or z alone (cosine
+    # and sine in turn_cs), -1 any (rpy, and always when the parameters vary per pose)
+    turn = np.full(dof, -1, np.int64)
+    turn_cs = np.empty((dof, 2))
     if not per_pose:
         for j in range(dof):
-            _rpy(rpy, j, _param(nominal, dx, 0, 7 * j + 3), _param(nominal, dx, 0, 7 * j + 4),
-                 _param(nominal, dx, 0, 7 * j + 5))
+            roll, pitch, yaw = (_param(nominal, dx, 0, 7 * j + 3), _param(nominal, dx, 0, 7 * j + 4),
+                                _param(nominal, dx, 0, 7 * j + 5))
+            _rpy(rpy, j, roll, pitch, yaw)
+            if pitch == 0.0 and yaw == 0.0:
+                turn[j] = -2 if roll == 0.0 else 0
+                turn_cs[j, 0], turn_cs[j, 1] = math.cos(roll), math.sin(roll)
+            elif roll == 0.0 and yaw == 0.0:
+                turn[j] = 1
+                turn_cs[j, 0], turn_cs[j, 1] = math.cos(pitch), math.sin(pitch)
+            elif roll == 0.0 and pitch == 0.0:
+                turn[j] = 2
+                turn_cs[j, 0], turn_cs[j, 1] = math.cos(yaw), math.sin(yaw)
             pitch_axis[j, 0] = -math.sin(_param(nominal, dx, 0, 7 * j + 5))
             pitch_axis[j, 1] = math.cos(_param(nominal, dx, 0, 7 * j + 5))
     for k0 in range(0, n, BLOCK):
@@ -306,7 +320,7 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian):
                     pitch_axis[j, 0] = -sn[e + 2]
                     pitch_axis[j, 1] = cs[e + 2]
             _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, k, row, b * width, sn, cs,
-                       rpy, pitch_axis, plain, along, lines)
+                       rpy, pitch_axis, plain, turn, turn_cs, along, lines)
     return -1
 
 
@@ -325,8 +339,25 @@ def _mul3(a00, a01, a02, a10, a11, a12, a20, a21, a22, B, j):
 
 
 @njit
+def _turn(a, c, s, g00, g01, g02, g10, g11, g12, g20, g21, g22):
+    """G Rot(axis a, angle) for a base axis a = 0 (x), 1 (y), 2 (z) given the angle's cosine and sine: two
+    columns of G turn in their plane. Entries row-major, as ``_mul3``."""
+    if a == 0:
+        return (g00, c * g01 + s * g02, c * g02 - s * g01,
+                g10, c * g11 + s * g12, c * g12 - s * g11,
+                g20, c * g21 + s * g22, c * g22 - s * g21)
+    if a == 1:
+        return (c * g00 - s * g02, g01, c * g02 + s * g00,
+                c * g10 - s * g12, g11, c * g12 + s * g10,
+                c * g20 - s * g22, g21, c * g22 + s * g20)
+    return (c * g00 + s * g01, c * g01 - s * g00, g02,
+            c * g10 + s * g11, c * g11 - s * g10, g12,
+            c * g20 + s * g21, c * g21 - s * g20, g22)
+
+
+@njit
 def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, k, row, at, sn, cs,
-               rpy, pitch_axis, plain, along, lines):
+               rpy, pitch_axis, plain, turn, turn_cs, along, lines):
     """Pose k of urdf_chain: walks the chain, stores T[k] and J[k]; joint angles' sin/cos at sn, cs[at:]."""
     dof = q.shape[1]
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
@@ -341,7 +372,14 @@ def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, k, r
             o2 += r20 * fixed[j, 0, 3] + r21 * fixed[j, 1, 3] + r22 * fixed[j, 2, 3]
             w00, w01, w02, w10, w11, w12, w20, w21, w22 = _mul3(r00, r01, r02, r10, r11, r12, r20, r21, r22,
                                                                 fixed, j)
-        g00, g01, g02, g10, g11, g12, g20, g21, g22 = _mul3(w00, w01, w02, w10, w11, w12, w20, w21, w22, rpy, j)
+        t = turn[j]
+        if t == -1:
+            g00, g01, g02, g10, g11, g12, g20, g21, g22 = _mul3(w00, w01, w02, w10, w11, w12, w20, w21, w22, rpy, j)
+        elif t == -2:
+            g00, g01, g02, g10, g11, g12, g20, g21, g22 = w00, w01, w02, w10, w11, w12, w20, w21, w22
+        else:
+            g00, g01, g02, g10, g11, g12, g20, g21, g22 = _turn(t, turn_cs[j, 0], turn_cs[j, 1], w00, w01, w02,
+                                                                w10, w11, w12, w20, w21, w22)
         sx, sy, sz = _param(nominal, dx, row, 7 * j), _param(nominal, dx, row, 7 * j + 1), \
             _param(nominal, dx, row, 7 * j + 2)
         o0 += w00 * sx + w01 * sy + w02 * sz
@@ -375,21 +413,9 @@ def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, k, r
             o2 += v2 * s
             continue
         c, s = cs[at + j], sn[at + j]
-        if a >= 0:
-            # about +-x, +-y or +-z: two columns of G turn in their plane
-            s = s * axes[j, a]
-            if a == 0:
-                r00, r10, r20 = g00, g10, g20
-                r01, r11, r21 = c * g01 + s * g02, c * g11 + s * g12, c * g21 + s * g22
-                r02, r12, r22 = c * g02 - s * g01, c * g12 - s * g11, c * g22 - s * g21
-            elif a == 1:
-                r01, r11, r21 = g01, g11, g21
-                r02, r12, r22 = c * g02 + s * g00, c * g12 + s * g10, c * g22 + s * g20
-                r00, r10, r20 = c * g00 - s * g02, c * g10 - s * g12, c * g20 - s * g22
-            else:
-                r02, r12, r22 = g02, g12, g22
-                r00, r10, r20 = c * g00 + s * g01, c * g10 + s * g11, c * g20 + s * g21
-                r01, r11, r21 = c * g01 - s * g00, c * g11 - s * g10, c * g21 - s * g20
+        if a >= 0:  # about +-x, +-y or +-z
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = _turn(a, c, s * axes[j, a], g00, g01, g02, g10, g11, g12,
+                                                                g20, g21, g22)
         else:
             # R = G Rot(u, q + offset) (Rodrigues)
             v = 1.0 - c
