@@ -23,6 +23,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
+import resource  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -189,6 +190,17 @@ def run_chain(label, model, error_model, args, verdicts):
     t_chunks = best_time(lambda: [model.fk_and_jacobian(c) for c in chunks], args.repeat, args.clock)
     print(f"  where the time goes at N={len(q)} (compiled): FK alone {t_fk * 1e3:.2f} ms; the same poses as "
           f"{len(chunks)} calls of 100 {t_chunks * 1e3:.2f} ms (answer {q.shape[0] * 6 * model.n_params * 8 / 1e6:.1f} MB)")
+    calls = []
+    for _ in range(15):  # one call at a time: CPU time, and the minor page faults of its fresh answer
+        f0, t0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt, time.process_time()
+        model.fk_and_jacobian(q)
+        calls.append((time.process_time() - t0, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0))
+    faulted = [t for t, f in calls if f > 0]
+    clean = [t for t, f in calls if f == 0]
+    say = lambda ts: f"median {np.median(ts) * 1e3:.2f} ms" if ts else "none"  # noqa: E731
+    print(f"  {len(calls)} single calls at N={len(q)}: {len(faulted)} paid first-touch page faults for their answer "
+          f"({say(faulted)}, {max((f for _, f in calls), default=0)} faults at most), {len(clean)} reused memory "
+          f"({say(clean)})")
 
 
 def run_pups(args):
