@@ -152,6 +152,10 @@ def pinocchio_loop(pm, data, fid, cols, moving, q):
 
 # ---------------------------------------------------------------- runs
 
+def _median_ms(times) -> str:
+    return f"median {np.median(times) * 1e3:.2f} ms" if times else "none"
+
+
 def run_chain(label, model, error_model, args, verdicts):
     pm, fid, cols, moving = error_model
     data = pm.createData()
@@ -185,11 +189,7 @@ def run_chain(label, model, error_model, args, verdicts):
         verdicts.append((met, f"{label} N={n}: compiled {t_c * 1e6:.1f} us "
                               f"{'<=' if met else '>'} target {target:g} us"))
     q = np.ascontiguousarray(q_all)
-    chunks = [np.ascontiguousarray(q[i:i + 100]) for i in range(0, len(q), 100)]
     t_fk = best_time(lambda: model.fk_and_jacobian(q, jacobian=False), args.repeat, args.clock)
-    t_chunks = best_time(lambda: [model.fk_and_jacobian(c) for c in chunks], args.repeat, args.clock)
-    print(f"  where the time goes at N={len(q)} (compiled): FK alone {t_fk * 1e3:.2f} ms; the same poses as "
-          f"{len(chunks)} calls of 100 {t_chunks * 1e3:.2f} ms (answer {q.shape[0] * 6 * model.n_params * 8 / 1e6:.1f} MB)")
     calls = []
     for _ in range(15):  # one call at a time: CPU time, and the minor page faults of its fresh answer
         f0, t0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt, time.process_time()
@@ -197,10 +197,10 @@ def run_chain(label, model, error_model, args, verdicts):
         calls.append((time.process_time() - t0, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0))
     faulted = [t for t, f in calls if f > 0]
     clean = [t for t, f in calls if f == 0]
-    say = lambda ts: f"median {np.median(ts) * 1e3:.2f} ms" if ts else "none"  # noqa: E731
-    print(f"  {len(calls)} single calls at N={len(q)}: {len(faulted)} paid first-touch page faults for their answer "
-          f"({say(faulted)}, {max((f for _, f in calls), default=0)} faults at most), {len(clean)} reused memory "
-          f"({say(clean)})")
+    print(f"  at N={len(q)}: FK alone {t_fk * 1e3:.2f} ms; of {len(calls)} single calls, {len(faulted)} paid "
+          f"first-touch page faults for their {q.shape[0] * 6 * model.n_params * 8 / 1e6:.1f} MB answer "
+          f"({_median_ms(faulted)}, {max((f for _, f in calls), default=0)} faults at most), {len(clean)} reused "
+          f"memory ({_median_ms(clean)})")
 
 
 def run_pups(args):

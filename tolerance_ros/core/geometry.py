@@ -12,14 +12,21 @@ from __future__ import annotations
 
 import numpy as np
 
-# R(q) |q|^2 as quadratic forms of a quaternion (x, y, z, w): row-major R entry -> {(a, b): coefficient of q_a q_b}.
-_QUAT_TERMS = ({(0, 0): 1, (1, 1): -1, (2, 2): -1, (3, 3): 1}, {(0, 1): 2, (2, 3): -2}, {(0, 2): 2, (1, 3): 2},
-               {(0, 1): 2, (2, 3): 2}, {(0, 0): -1, (1, 1): 1, (2, 2): -1, (3, 3): 1}, {(1, 2): 2, (0, 3): -2},
-               {(0, 2): 2, (1, 3): -2}, {(1, 2): 2, (0, 3): 2}, {(0, 0): -1, (1, 1): -1, (2, 2): 1, (3, 3): 1})
-_QUAT_FORM = np.zeros((16, 9))
-for _entry, _terms in enumerate(_QUAT_TERMS):
-    for (_a, _b), _c in _terms.items():
-        _QUAT_FORM[4 * _a + _b, _entry] = _c
+
+def _quat_form() -> np.ndarray:
+    """(16, 9): the row-major entries of R(q) |q|^2 as quadratic forms of a quaternion q = (x, y, z, w),
+    acting on the flattened outer product q q^T."""
+    terms = ({(0, 0): 1, (1, 1): -1, (2, 2): -1, (3, 3): 1}, {(0, 1): 2, (2, 3): -2}, {(0, 2): 2, (1, 3): 2},
+             {(0, 1): 2, (2, 3): 2}, {(0, 0): -1, (1, 1): 1, (2, 2): -1, (3, 3): 1}, {(1, 2): 2, (0, 3): -2},
+             {(0, 2): 2, (1, 3): -2}, {(1, 2): 2, (0, 3): 2}, {(0, 0): -1, (1, 1): -1, (2, 2): 1, (3, 3): 1})
+    form = np.zeros((16, 9))
+    for entry, coefficients in enumerate(terms):
+        for (a, b), c in coefficients.items():
+            form[4 * a + b, entry] = c
+    return form
+
+
+_QUAT_FORM = _quat_form()
 # The vee map of a skew-symmetric part reads R[_VEE_I, _VEE_J] - R[_VEE_J, _VEE_I].
 _VEE_I, _VEE_J = np.array([2, 0, 1]), np.array([1, 2, 0])
 

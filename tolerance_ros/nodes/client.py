@@ -2,7 +2,7 @@
 id, time out. Hides rclpy like nav2's BasicNavigator does::
 
     from tolerance_ros.nodes.client import ToleranceClient
-    with ToleranceClient(namespace="/arm_left") as client:      # the suite of one arm
+    with ToleranceClient(namespace="arm_left") as client:      # the suite of one arm
         client.wait_for_server("compute_error_jacobian", timeout=10.0)
         resp = client.compute_error_jacobian([0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6], arrays="base64")
         print(resp["poses"][0], resp["parameters"][:3])
@@ -39,7 +39,7 @@ class ServiceError(RuntimeError):
 class ToleranceClient:
     """Client of the JSON services. Creates (and spins in a thread) its own node unless given one.
 
-    namespace : the suite's namespace (e.g. '/arm_left'); None uses the client node's own namespace.
+    namespace : the suite's namespace (e.g. 'arm_left'); None uses the client node's own namespace.
     """
 
     def __init__(self, node=None, namespace=None):

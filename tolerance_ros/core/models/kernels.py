@@ -299,8 +299,8 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian):
             elif roll == 0.0 and pitch == 0.0:
                 turn[j] = 2
                 turn_cs[j, 0], turn_cs[j, 1] = math.cos(yaw), math.sin(yaw)
-            pitch_axis[j, 0] = -math.sin(_param(nominal, dx, 0, 7 * j + 5))
-            pitch_axis[j, 1] = math.cos(_param(nominal, dx, 0, 7 * j + 5))
+            pitch_axis[j, 0] = -math.sin(yaw)
+            pitch_axis[j, 1] = math.cos(yaw)
     for k0 in range(0, n, BLOCK):
         m = min(BLOCK, n - k0)
         for b in range(m):
