@@ -195,6 +195,26 @@ def test_urdf_compiled_equals_numpy_reference_and_pinocchio(urdf_chains, case, n
     _assert_same(T_fk, T)
 
 
+@pytest.mark.parametrize("case", [1, 3])
+def test_urdf_streamed_answer_equals_the_one_written_in_place(urdf_chains, case):
+    """A J of STREAM_BYTES or more (streaming stores) holds the same bits as the same poses' J written in
+    place, and equals the numpy reference; for the Panda and the odd chain, without and with per-pose dx."""
+    chain = _with_backend(urdf_chains[case], "numba")
+    n = kernels.STREAM_BYTES // (6 * chain.n_params * 8) + 5
+    rng = np.random.default_rng(20 + case)
+    q = chain.sample_joints(n, rng)
+    for dx in (None, rng.normal(0, 1e-2, (n, chain.n_params))):
+        T, EJ = chain.fk_and_jacobian(q, dx)
+        assert EJ.J.nbytes >= kernels.STREAM_BYTES
+        for part in (slice(0, 40), slice(n - 40, n)):
+            T_part, EJ_part = chain.fk_and_jacobian(q[part], None if dx is None else dx[part])
+            assert EJ_part.J.nbytes < kernels.STREAM_BYTES
+            assert np.array_equal(EJ.J[part], EJ_part.J) and np.array_equal(T[part], T_part)
+        T_ref, EJ_ref = _with_backend(chain, "numpy").fk_and_jacobian(q, dx)
+        _assert_same(T, T_ref)
+        _assert_same(EJ.J, EJ_ref.J)
+
+
 def test_urdf_offset_columns_are_pinocchio_joint_jacobian(urdf_chains):
     chain = _with_backend(urdf_chains[1], "numba")
     pm, data = chain.pin_model, chain.pin_model.createData()
