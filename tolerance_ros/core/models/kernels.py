@@ -9,12 +9,14 @@ columns pose by pose in one compiled loop. Shared arguments:
   ``jacobian``); J's rows 0-2 are position (m per unit), rows 3-5 a small rotation in the base frame;
 - the return value is -1, or the flat index of the first non-finite joint value (nothing computed then).
 
-``urdf_chain`` writes J pose by pose and row by row, in memory order, and a J of ``STREAM_BYTES`` or more
-with non-temporal (streaming) stores: such an answer would not stay in the caches anyway, and a streaming
-store saves the read of each cache line before its write (a quarter of a 10,000-pose Panda Jacobian's
-time on a 2-core AMD EPYC VM). The stores must stay in memory order: the rows are written by loops whose
-bodies store a few adjacent values each (unrolled, the compiler interleaved rows, and streaming became 20x
-slower). ``dh_chain`` writes column by column: its J, 21 cache lines a pose, gained nothing from either.
+J is written column by column, in place, except that ``urdf_chain`` writes a J of ``STREAM_BYTES`` or more
+row by row in memory order, with non-temporal (streaming) stores: such an answer would not stay in the
+caches anyway, and a streaming store saves the read of each cache line before its write (a quarter of a
+10,000-pose Panda Jacobian's time on a 2-core AMD EPYC VM). Streaming is fast only while nothing flushes
+the partly written cache lines: no atomic instruction (numba's reference counting of an array passed to a
+helper) between the stores of one pose, and the stores in memory order. Variants of this code that broke
+either were 1.5x and 20x slower; ``bench/bench_jacobian.py`` shows it. Written in place, columns are faster
+(100 Panda poses: 29 us, rows 33 us); ``dh_chain``, 21 cache lines a pose, gained nothing from streaming.
 
 ``base64_triples`` and ``base64_quads`` are the bulk of ``jsonio.b64encode`` and ``b64decode`` (the compact
 arrays of large answers).
@@ -72,6 +74,7 @@ NO_DX = np.empty((0, 0))  # dx argument when there are no parameter errors
 NO_J = np.empty((0, 0, 0))  # J argument when only the poses are wanted
 BLOCK = 64  # poses per block: their joint angles' sines and cosines are computed together (SIMD)
 STREAM_BYTES = 8 << 20  # a J of this many bytes or more is written with streaming stores
+GROUP = 4  # poses whose J is streamed together (their chains' lines stay in the L1 cache)
 
 # sin and cos: reduction by pi/2 in three parts (Cody-Waite) and the fdlibm kernels' polynomials on
 # [-pi/4, pi/4]; within 1 ulp of libm for |x| <= SINCOS_LIMIT, libm beyond.
@@ -115,8 +118,8 @@ def _stream(typingctx, flat, i, value):
 
     def codegen(context, builder, sig, args):
         ary = context.make_array(sig.args[0])(context, builder, args[0])
-        store = builder.store(context.cast(builder, args[2], sig.args[2], types.float64),
-                              builder.gep(ary.data, [args[1]]))
+        bits = builder.bitcast(context.cast(builder, args[2], sig.args[2], types.float64), ir.IntType(64))
+        store = builder.store(bits, builder.bitcast(builder.gep(ary.data, [args[1]]), ir.IntType(64).as_pointer()))
         store.set_metadata("nontemporal", builder.module.add_metadata([ir.Constant(ir.IntType(32), 1)]))
         return context.get_dummy_value()
     return types.void(flat, types.intp, value), codegen
@@ -129,15 +132,6 @@ def _fence(typingctx):
         builder.fence("seq_cst")
         return context.get_dummy_value()
     return types.void(), codegen
-
-
-@njit
-def _put(flat, i, value, stream):
-    """flat[i] = value, with a streaming store when ``stream``."""
-    if stream:
-        _stream(flat, i, value)
-    else:
-        flat[i] = value
 
 
 @njit
@@ -309,7 +303,7 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian):
     per_pose = dx.shape[0] > 1
     rpy = np.empty((dof, 3, 3))      # origin rotation of each joint
     pitch_axis = np.empty((dof, 2))  # -sin(yaw), cos(yaw): the pitch axis Rz(yaw) y before the rotation
-    lines = np.empty((dof, 21))      # x, y, z axes before the origin rotation, roll, pitch, joint axes; origin
+    lines = np.empty((dof, 21))  # x, y, z axes before the origin rotation, roll, pitch, joint axes; origin
     plain = np.empty(dof, np.bool_)  # fixed[j] is exactly the identity
     along = np.empty(dof, np.int64)  # the joint axis is exactly +-x, +-y or +-z (0, 1, 2), else -1
     for j in range(dof):
@@ -368,8 +362,10 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian):
                     _rpy_of(rpy, j, cs[e], sn[e], cs[e + 1], sn[e + 1], cs[e + 2], sn[e + 2])
                     pitch_axis[j, 0] = -sn[e + 2]
                     pitch_axis[j, 1] = cs[e + 2]
-            _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, flat, jacobian, stream, k, row, b * width,
-                       sn, cs, rpy, pitch_axis, plain, turn, turn_cs, along, lines)
+            _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian and not stream, k, row,
+                       b * width, sn, cs, rpy, pitch_axis, plain, turn, turn_cs, along, lines)
+            if stream:
+                _urdf_rows(flat, k, dof, lines, revolute)
     if stream:
         _fence()
     return -1
@@ -407,10 +403,10 @@ def _turn(a, c, s, g00, g01, g02, g10, g11, g12, g20, g21, g22):
 
 
 @njit
-def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, flat, jacobian, stream, k, row, at, sn, cs,
+def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, columns, k, row, at, sn, cs,
                rpy, pitch_axis, plain, turn, turn_cs, along, lines):
-    """Pose k of urdf_chain: walks the chain, stores T[k] and J[k] (in ``flat``, J flattened); joint angles'
-    sin/cos at sn, cs[at:]."""
+    """Pose k of urdf_chain: walks the chain, stores T[k], its lines (with the tool point minus the origins)
+    and, when ``columns``, J[k]; joint angles' sin/cos at sn, cs[at:]."""
     dof = q.shape[1]
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
     o0, o1, o2 = 0.0, 0.0, 0.0
@@ -481,40 +477,55 @@ def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, flat, jacobian, s
             r20, r21, r22 = g20 * q00 + g21 * q10 + g22 * q20, g20 * q01 + g21 * q11 + g22 * q21, \
                 g20 * q02 + g21 * q12 + g22 * q22
     p0, p1, p2 = _store_pose(T, k, r00, r10, r20, r01, r11, r21, r02, r12, r22, o0, o1, o2, tool)
-    if jacobian:
-        for j in range(dof):  # the origins become the tool point minus the origin
-            lines[j, 18], lines[j, 19], lines[j, 20] = p0 - lines[j, 18], p1 - lines[j, 19], p2 - lines[j, 20]
-        _urdf_rows(flat, k * 42 * dof, dof, lines, revolute, stream)
+    for j in range(dof):  # the origins become the tool point minus the origin
+        lines[j, 18], lines[j, 19], lines[j, 20] = p0 - lines[j, 18], p1 - lines[j, 19], p2 - lines[j, 20]
+    if not columns:
+        return
+    for j in range(dof):
+        c = 7 * j
+        a0, a1, a2 = lines[j, 18], lines[j, 19], lines[j, 20]
+        _length_column(J, k, c, lines[j, 0], lines[j, 1], lines[j, 2])
+        _length_column(J, k, c + 1, lines[j, 3], lines[j, 4], lines[j, 5])
+        _length_column(J, k, c + 2, lines[j, 6], lines[j, 7], lines[j, 8])
+        _angle_column(J, k, c + 3, lines[j, 9], lines[j, 10], lines[j, 11], a0, a1, a2)
+        _angle_column(J, k, c + 4, lines[j, 12], lines[j, 13], lines[j, 14], a0, a1, a2)
+        _angle_column(J, k, c + 5, lines[j, 6], lines[j, 7], lines[j, 8], a0, a1, a2)
+        if revolute[j]:
+            _angle_column(J, k, c + 6, lines[j, 15], lines[j, 16], lines[j, 17], a0, a1, a2)
+        else:
+            _length_column(J, k, c + 6, lines[j, 15], lines[j, 16], lines[j, 17])
 
 
 @njit
-def _urdf_rows(flat, i, dof, lines, revolute, stream):
-    """A pose's J in urdf_chain at flat[i:], row by row, from the lines of ``_urdf_pose`` (shift axes x y z,
-    roll and pitch axes, joint axis; tool point minus origin)."""
+def _urdf_rows(flat, k, dof, lines, revolute):
+    """J[k] of urdf_chain row by row in streaming stores (``flat``: J flattened), from the lines of
+    ``_urdf_pose``; called by urdf_chain itself (see the module docstring: called from ``_urdf_pose``, a
+    reference count came between the poses' stores, 1.5x slower)."""
+    i = k * 42 * dof
     for r in range(3):
         r1, r2 = (r + 1) % 3, (r + 2) % 3
         for j in range(dof):
             a1, a2 = lines[j, 18 + r1], lines[j, 18 + r2]
-            _put(flat, i, lines[j, r], stream)
-            _put(flat, i + 1, lines[j, 3 + r], stream)
-            _put(flat, i + 2, lines[j, 6 + r], stream)
-            _put(flat, i + 3, lines[j, 9 + r1] * a2 - lines[j, 9 + r2] * a1, stream)
-            _put(flat, i + 4, lines[j, 12 + r1] * a2 - lines[j, 12 + r2] * a1, stream)
-            _put(flat, i + 5, lines[j, 6 + r1] * a2 - lines[j, 6 + r2] * a1, stream)
+            _stream(flat, i, lines[j, r])
+            _stream(flat, i + 1, lines[j, 3 + r])
+            _stream(flat, i + 2, lines[j, 6 + r])
+            _stream(flat, i + 3, lines[j, 9 + r1] * a2 - lines[j, 9 + r2] * a1)
+            _stream(flat, i + 4, lines[j, 12 + r1] * a2 - lines[j, 12 + r2] * a1)
+            _stream(flat, i + 5, lines[j, 6 + r1] * a2 - lines[j, 6 + r2] * a1)
             if revolute[j]:
-                _put(flat, i + 6, lines[j, 15 + r1] * a2 - lines[j, 15 + r2] * a1, stream)
+                _stream(flat, i + 6, lines[j, 15 + r1] * a2 - lines[j, 15 + r2] * a1)
             else:
-                _put(flat, i + 6, lines[j, 15 + r], stream)
+                _stream(flat, i + 6, lines[j, 15 + r])
             i += 7
     for r in range(3):
         for j in range(dof):
-            _put(flat, i, 0.0, stream)
-            _put(flat, i + 1, 0.0, stream)
-            _put(flat, i + 2, 0.0, stream)
-            _put(flat, i + 3, lines[j, 9 + r], stream)
-            _put(flat, i + 4, lines[j, 12 + r], stream)
-            _put(flat, i + 5, lines[j, 6 + r], stream)
-            _put(flat, i + 6, lines[j, 15 + r] if revolute[j] else 0.0, stream)
+            _stream(flat, i, 0.0)
+            _stream(flat, i + 1, 0.0)
+            _stream(flat, i + 2, 0.0)
+            _stream(flat, i + 3, lines[j, 9 + r])
+            _stream(flat, i + 4, lines[j, 12 + r])
+            _stream(flat, i + 5, lines[j, 6 + r])
+            _stream(flat, i + 6, lines[j, 15 + r] if revolute[j] else 0.0)
             i += 7
 
 
