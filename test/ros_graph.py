@@ -22,9 +22,16 @@ class Graph:
         self.executor = MultiThreadedExecutor(num_threads=4, context=self.context) if spin else None
         self.nodes = []
         self.thread = None
+        self._stop = threading.Event()
         if spin:
-            self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+            self.thread = threading.Thread(target=self._spin, daemon=True)
             self.thread.start()
+
+    def _spin(self):
+        """``executor.spin()`` until close(): the thread has left the executor before close() shuts it down
+        (``Executor.shutdown`` destroys the guard condition a spinning thread still waits on)."""
+        while not self._stop.is_set() and self.context.ok():
+            self.executor.spin_once(timeout_sec=0.05)
 
     def start(self, cls, namespace=None, **params):
         node = cls(context=self.context, namespace=namespace,
@@ -47,8 +54,9 @@ class Graph:
 
     def close(self):
         if self.executor is not None:
-            self.executor.shutdown(timeout_sec=5.0)
+            self._stop.set()
             self.thread.join(timeout=5.0)
+            self.executor.shutdown(timeout_sec=5.0)
         for n in self.nodes:
             if hasattr(n, "close"):
                 n.close()
