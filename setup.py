@@ -29,7 +29,7 @@ setup(
     data_files=data_files,
     python_requires=">=3.10",
     install_requires=["numpy>=1.24", "scipy>=1.10", "PyYAML>=6", "matplotlib>=3.6", "pin>=2.7", "rosbags>=0.10",
-                      "orjson>=3.10", "threadpoolctl>=3.1", "numba>=0.59"],
+                      "orjson>=3.10", "threadpoolctl>=3.1", "numba>=0.59", "llvmlite>=0.42"],
     extras_require={"test": ["pytest>=7", "pytest-xdist>=3", "hypothesis>=6", "jsonschema>=4", "example-robot-data>=4"]},
     zip_safe=False,
     maintainer="tolerance_ros maintainers",
