@@ -14,8 +14,9 @@ from pinocchio; the rounds' own bests at N = 10,000 are printed under each table
 call can run 1.6x slower for a second at a time (its neighbours at work); the rounds, tens of seconds
 apart, show it.
 Then the 3-PUPS G (``fk_and_jacobian`` of rong2018_3pups) at N = 1 and 1,000, and the warm-up: a fresh
-process importing the models and making its first call, with an empty kernel cache (compile) and again
-(load from the cache). Exits 1 when a target is missed or the results disagree.
+process importing the models, warming up every kernel as a node does at start and making its first call,
+with an empty kernel cache (compile) and again (load from the cache). Exits 1 when a target is missed or
+the results disagree.
 
     python bench/bench_jacobian.py [--repeat 9] [--rounds 3] [--clock cpu|wall] [--skip-warm-up]
 """
@@ -253,8 +254,9 @@ WARM_UP_PROBE = """
 import json, sys, time
 t0 = time.perf_counter()
 sys.path.insert(0, {root!r})
-from tolerance_ros.core.models import URDFChain, load_robot
+from tolerance_ros.core.models import load_robot, warm_up_kernels
 t_import = time.perf_counter() - t0
+t_warm = warm_up_kernels()
 model = load_robot("gao2023_7dof")
 q = model.sample_joints(2, 0)
 t1 = time.perf_counter()
@@ -263,20 +265,22 @@ t_first = time.perf_counter() - t1
 t2 = time.perf_counter()
 model.fk_and_jacobian(q[1:])
 t_second = time.perf_counter() - t2
-print(json.dumps({{"import": t_import, "first": t_first, "second": t_second, "backend": model.backend}}))
+print(json.dumps({{"import": t_import, "warm": t_warm, "first": t_first, "second": t_second,
+                  "backend": model.backend}}))
 """
 
 
 def run_warm_up():
-    print("\nWarm-up: a fresh process imports the models and calls gao2023_7dof.fk_and_jacobian (one pose)")
+    print("\nWarm-up: a fresh process imports the models, warms up every kernel (warm_up_kernels(), as a node does "
+          "at start) and calls gao2023_7dof.fk_and_jacobian (one pose)")
     code = WARM_UP_PROBE.format(root=str(ROOT))
     with tempfile.TemporaryDirectory(prefix="numba-cache-") as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
         for label in ("cold (empty cache: compile)", "cached (load from the cache)"):
             out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
             r = json.loads(out.stdout.strip().splitlines()[-1])
-            print(f"  {label:<30} import {r['import']:.2f} s, first call {r['first']:.2f} s, "
-                  f"second call {r['second'] * 1e6:.0f} us ({r['backend']})")
+            print(f"  {label:<30} import {r['import']:.2f} s, warm-up {r['warm']:.2f} s, first call "
+                  f"{r['first'] * 1e6:.0f} us, second call {r['second'] * 1e6:.0f} us ({r['backend']})")
 
 
 def main():

@@ -290,8 +290,22 @@ def test_models_work_without_numba():
             "m = load_robot('gao2023_7dof')\n"
             "assert m.backend == 'numpy', m.backend\n"
             "assert m.fk_and_jacobian(np.zeros(7))[1].J.shape == (1, 6, 28)\n"
-            "assert m.warm_up() < 1.0\n")
+            "assert m.warm_up() < 1.0\n"
+            "from tolerance_ros.core.models import warm_up_kernels\n"
+            "assert warm_up_kernels() == 0.0\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         cwd=Path(__file__).resolve().parents[3])
+    assert out.returncode == 0, out.stderr
+
+
+def test_warm_up_kernels_readies_every_kernel_in_a_fresh_process():
+    """What a node calls at start: afterwards no kernel compiles on a request or a new robot_description."""
+    code = ("from tolerance_ros.core.models import kernels, warm_up_kernels\n"
+            "every = (kernels.dh_chain, kernels.urdf_chain, kernels.base64_triples, kernels.base64_quads)\n"
+            "assert not any(f.signatures for f in every)\n"
+            "assert warm_up_kernels() > 0.0\n"
+            "assert all(len(f.signatures) == 1 for f in every), [f.signatures for f in every]\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
                          cwd=Path(__file__).resolve().parents[3])
     assert out.returncode == 0, out.stderr
 

@@ -38,6 +38,13 @@ def compiled_kernels():
     return _KERNELS or None
 
 
+def warm_up_kernels() -> float:
+    """Compile, or load from the cache, every compiled kernel (none without numba); returns seconds. A node
+    calls it at start: a robot that comes later (``robot_description``) then finds its kernel ready."""
+    kernels = compiled_kernels()
+    return kernels.warm_up() if kernels is not None else 0.0
+
+
 class ModelError(ValueError):
     """An invalid mechanism model or an invalid input to one; the message names the field."""
 
