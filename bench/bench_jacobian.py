@@ -14,7 +14,7 @@ from pinocchio; the rounds' own bests at N = 10,000 are printed under each table
 call can run 1.6x slower for a second at a time (its neighbours at work); the rounds, tens of seconds
 apart, show it.
 Then the 3-PUPS G (``fk_and_jacobian`` of rong2018_3pups) at N = 1 and 1,000, and the warm-up: a fresh
-process importing the models, warming up every kernel as a node does at start and making its first call,
+process importing the models, warming up every kernel (``warm_up_kernels()``) and making its first call,
 with an empty kernel cache (compile) and again (load from the cache). Exits 1 when a target is missed or
 the results disagree.
 
@@ -271,8 +271,8 @@ print(json.dumps({{"import": t_import, "warm": t_warm, "first": t_first, "second
 
 
 def run_warm_up():
-    print("\nWarm-up: a fresh process imports the models, warms up every kernel (warm_up_kernels(), as a node does "
-          "at start) and calls gao2023_7dof.fk_and_jacobian (one pose)")
+    print("\nWarm-up: a fresh process imports the models, warms up every kernel (warm_up_kernels()) and calls "
+          "gao2023_7dof.fk_and_jacobian (one pose)")
     code = WARM_UP_PROBE.format(root=str(ROOT))
     with tempfile.TemporaryDirectory(prefix="numba-cache-") as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)

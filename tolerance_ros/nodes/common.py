@@ -61,12 +61,13 @@ def guarded(node, callback):
 
 def robot_set(node, specs, default) -> RobotSet:
     """The robots a node serves, with the ``tip_link`` / ``base_link`` parameters for ``robot_description``;
-    every compiled kernel is warmed up here, so that neither the first request nor the first
-    ``robot_description`` waits for a compilation (12-15 s with an empty cache, then 0.6-0.9 s)."""
+    the compiled kernels of its robots, and the URDF kernel when it follows ``robot_description``, are warmed
+    up here, so that neither the first request nor the first description waits for a compilation."""
     tip = declare(node, "tip_link", "", "robot_description: link the chain ends in (empty: the only moving leaf)")
     base = declare(node, "base_link", "", "robot_description: link the chain starts from (empty: the URDF root)")
     robots = RobotSet(specs, default, tip or None, base or None)
-    warm_up_kernels()
+    if robots.from_description:
+        warm_up_kernels(("urdf",))
     for model in robots.models.values():
         model.warm_up()
     return robots

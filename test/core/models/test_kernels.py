@@ -298,12 +298,14 @@ def test_models_work_without_numba():
     assert out.returncode == 0, out.stderr
 
 
-def test_warm_up_kernels_readies_every_kernel_in_a_fresh_process():
+def test_warm_up_kernels_readies_the_kernels_named_in_a_fresh_process():
     """What a node calls at start: afterwards no kernel compiles on a request or a new robot_description."""
     code = ("from tolerance_ros.core.models import kernels, warm_up_kernels\n"
             "every = (kernels.dh_chain, kernels.urdf_chain, kernels.base64_triples, kernels.base64_quads)\n"
             "assert not any(f.signatures for f in every)\n"
-            "assert warm_up_kernels() > 0.0\n"
+            "assert warm_up_kernels(('urdf',)) > 0.0\n"
+            "assert kernels.urdf_chain.signatures and not kernels.dh_chain.signatures\n"
+            "warm_up_kernels()\n"
             "assert all(len(f.signatures) == 1 for f in every), [f.signatures for f in every]\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
                          cwd=Path(__file__).resolve().parents[3])

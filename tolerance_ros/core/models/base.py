@@ -38,11 +38,11 @@ def compiled_kernels():
     return _KERNELS or None
 
 
-def warm_up_kernels() -> float:
-    """Compile, or load from the cache, every compiled kernel (none without numba); returns seconds. A node
-    calls it at start: a robot that comes later (``robot_description``) then finds its kernel ready."""
+def warm_up_kernels(which=("dh", "urdf", "base64")) -> float:
+    """Compile, or load from the cache, the compiled kernels named in ``which`` (see ``kernels.warm_up``;
+    none without numba); returns seconds."""
     kernels = compiled_kernels()
-    return kernels.warm_up() if kernels is not None else 0.0
+    return kernels.warm_up(which) if kernels is not None else 0.0
 
 
 class ModelError(ValueError):

@@ -563,16 +563,20 @@ def base64_quads(src, values, out):
     return -1
 
 
-def warm_up() -> float:
-    """Compile, or load from the on-disk cache, every kernel signature the models call; returns seconds."""
+def warm_up(which=("dh", "urdf", "base64")) -> float:
+    """Compile, or load from the on-disk cache, the kernels named in ``which`` ('dh': dh_chain, 'urdf':
+    urdf_chain, 'base64': the base64 kernels) in every signature the models call; returns seconds."""
     t0 = time.perf_counter()
-    base64_triples(np.zeros(3, np.uint8), B64_PAIRS, np.empty(2, np.uint16))
-    base64_quads(np.frombuffer(b"AAAA", np.uint8), B64_VALUES, np.empty(3, np.uint8))
+    if "base64" in which:
+        base64_triples(np.zeros(3, np.uint8), B64_PAIRS, np.empty(2, np.uint16))
+        base64_quads(np.frombuffer(b"AAAA", np.uint8), B64_VALUES, np.empty(3, np.uint8))
     q = np.zeros((1, 1))
     T = np.empty((1, 4, 4))
     eye = np.eye(4)
     revolute = np.ones(1, dtype=np.bool_)
-    dh_chain(q, np.zeros(4), NO_DX, revolute, True, eye, eye, T, np.empty((1, 6, 4)), True)
-    urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.array([[0.0, 0.0, 1.0]]), eye, T,
-               np.empty((1, 6, 7)), True)
+    if "dh" in which:
+        dh_chain(q, np.zeros(4), NO_DX, revolute, True, eye, eye, T, np.empty((1, 6, 4)), True)
+    if "urdf" in which:
+        urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.array([[0.0, 0.0, 1.0]]), eye,
+                   T, np.empty((1, 6, 7)), True)
     return time.perf_counter() - t0
