@@ -283,6 +283,13 @@ def test_backend_choice_and_fallback(gao, monkeypatch):
     _assert_same(fresh.fk_and_jacobian(q)[1].J, model.fk_and_jacobian(q)[1].J)
 
 
+def _run_fresh(code, timeout):
+    """Runs ``code`` in a fresh Python process from the repository root; fails with its stderr."""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout,
+                         cwd=Path(__file__).resolve().parents[3])
+    assert out.returncode == 0, out.stderr
+
+
 def test_models_work_without_numba():
     code = ("import sys; sys.modules['numba'] = None\n"
             "import numpy as np\n"
@@ -293,9 +300,7 @@ def test_models_work_without_numba():
             "assert m.warm_up() < 1.0\n"
             "from tolerance_ros.core.models import warm_up_kernels\n"
             "assert warm_up_kernels() == 0.0\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                         cwd=Path(__file__).resolve().parents[3])
-    assert out.returncode == 0, out.stderr
+    _run_fresh(code, timeout=120)
 
 
 def test_warm_up_kernels_readies_the_kernels_named_in_a_fresh_process():
@@ -307,9 +312,7 @@ def test_warm_up_kernels_readies_the_kernels_named_in_a_fresh_process():
             "assert kernels.urdf_chain.signatures and not kernels.dh_chain.signatures\n"
             "warm_up_kernels()\n"
             "assert all(len(f.signatures) == 1 for f in every), [f.signatures for f in every]\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                         cwd=Path(__file__).resolve().parents[3])
-    assert out.returncode == 0, out.stderr
+    _run_fresh(code, timeout=300)
 
 
 def test_warm_up_loads_the_kernels(gao, urdf_chains):
