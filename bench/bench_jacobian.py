@@ -164,17 +164,21 @@ def _median_ms(times) -> str:
 METHODS = ("compiled", "numpy", "pinocchio")
 
 
-def _call(method, model, error_model, data, q):
-    """The call timed for ``method``: (T, J) of the poses q."""
-    if method == "pinocchio":
-        pm, fid, cols, moving = error_model
-        return pinocchio_loop(pm, data, fid, cols, moving, q)
-    model.backend = "numba" if method == "compiled" else "numpy"
+def _on_reference(model, q):
+    """``model.fk_and_jacobian(q)`` on the numpy reference implementation."""
+    model.backend = "numpy"
     try:
-        T, EJ = model.fk_and_jacobian(q)
+        return model.fk_and_jacobian(q)
     finally:
         model.backend = "numba"
-    return T, EJ.J
+
+
+def _calls(model, error_model, data, q):
+    """{method: the call timed, a function of nothing}: ``model.fk_and_jacobian`` on the compiled kernels
+    and on the numpy reference, and the pinocchio loop with ``data``."""
+    pm, fid, cols, moving = error_model
+    return {"compiled": lambda: model.fk_and_jacobian(q), "numpy": lambda: _on_reference(model, q),
+            "pinocchio": lambda: pinocchio_loop(pm, data, fid, cols, moving, q)}
 
 
 def time_chain(model, error_model, args):
@@ -183,15 +187,8 @@ def time_chain(model, error_model, args):
     q_all = model.sample_joints(SIZES[-1], 0)
     out = {}
     for n in SIZES:
-        q = np.ascontiguousarray(q_all[:n])
-        for method in METHODS:
-            if method != "pinocchio":
-                model.backend = "numba" if method == "compiled" else "numpy"
-                out[n, method] = best_time(lambda: model.fk_and_jacobian(q), args.repeat, args.clock)
-                model.backend = "numba"
-            else:
-                out[n, method] = best_time(lambda: _call(method, model, error_model, data, q), args.repeat,
-                                           args.clock)
+        for method, call in _calls(model, error_model, data, np.ascontiguousarray(q_all[:n])).items():
+            out[n, method] = best_time(call, args.repeat, args.clock)
     return out
 
 
@@ -203,7 +200,10 @@ def run_chain(label, model, error_model, rounds, args, verdicts):
     print(f"{'N':>7} {'method':<10}{'us/call':>12}{'us/pose':>10}{'vs pinocchio':>14}{'max |diff|':>12}")
     for n in SIZES:
         q = np.ascontiguousarray(q_all[:n])
-        results = {method: _call(method, model, error_model, data, q) for method in METHODS}
+        results = {}
+        for method, call in _calls(model, error_model, data, q).items():
+            T, J = call()
+            results[method] = (T, J if method == "pinocchio" else J.J)
         best = {method: min(r[n, method] for r in rounds) for method in METHODS}
         T_p, J_p = results["pinocchio"]
         for method in METHODS:
