@@ -1,0 +1,6 @@
+"""``python -m tolerance_ros.cli``: the same as ``tolerance-ros``."""
+import sys
+
+from . import main
+
+sys.exit(main())

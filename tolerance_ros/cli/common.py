@@ -1,0 +1,78 @@
+"""What every command of the command line shares: its errors, option values with units, the robot of
+``--robot``, the target-missed record, and the arguments every command takes."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from ..core.models import load_robot
+from ..core.units import UnitError, parse_quantity
+
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_TARGET_MISSED = 0, 1, 2, 3
+
+
+class CLIError(Exception):
+    """A user error reported as one line on stderr (and as a JSON error with --json)."""
+
+
+class UsageError(CLIError):
+    """An argument the parser cannot read (unknown option, missing value)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error becomes a UsageError (one line, or JSON with --json), not an exit."""
+
+    def error(self, message):
+        raise UsageError(f"{message} (see '{self.prog} --help')")
+
+
+def quantity(text, kind, option, positive=True):
+    """SI value of an option written with its unit (``1.4mm``); None stays None; CLIError otherwise."""
+    if text is None:
+        return None
+    try:
+        value = parse_quantity(text, kind, field=option)
+    except UnitError as exc:
+        raise CLIError(str(exc)) from None
+    if positive and not value > 0:
+        raise CLIError(f"{option}: must be > 0, got {text!r}")
+    return value
+
+
+def load_model(args):
+    """The model of ``--robot`` (with ``--tip-link`` / ``--base-link``); says which tip it took when the
+    choice was made for the user (a URDF whose only moving leaf link is the tip)."""
+    model = load_robot(args.robot, getattr(args, "tip_link", None), getattr(args, "base_link", None))
+    if getattr(model, "tip_chosen", False) and not args.quiet:
+        print(f"robot {model.name}: tip link {model.tip_link!r}, the only leaf link the joints move "
+              f"(choose another with --tip-link)", file=sys.stderr)
+    return model
+
+
+def missed(args, what: str):
+    """Record that the run's target was not met (exit code 3; ``what`` is printed last on stderr)."""
+    args.missed.append(what)
+
+
+def relative(path, start) -> str:
+    """``path`` relative to the directory ``start`` when it lies at most two levels up from it (files that
+    move together), else absolute."""
+    target = Path(path).resolve()
+    try:
+        rel = os.path.relpath(target, Path(start).resolve())
+    except ValueError:  # another drive
+        return str(target)
+    return rel if Path(rel).parts[:3] != (os.pardir,) * 3 else str(target)
+
+
+def common_arguments(p, robot=True):
+    """The options every command takes (``--robot`` and its chain where it needs a robot)."""
+    if robot:
+        p.add_argument("--robot", required=True, help="shipped robot name or YAML/URDF path")
+        p.add_argument("--tip-link", help="URDF robots: the link the chain ends in (the tool)")
+        p.add_argument("--base-link", help="URDF robots: the link the chain starts from (fixed to the root)")
+    p.add_argument("--json", action="store_true", help="print one JSON document (SI units) on stdout")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    return p

@@ -1,0 +1,86 @@
+"""`tolerance-ros compensate`: joints that put the calibrated robot's tool at each target."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..render.text import table
+from .common import load_model, missed
+
+NAME = "compensate"
+HELP = "joints that put the calibrated robot's tool at each target"
+ROBOT = True
+
+
+def add_arguments(p):
+    p.add_argument("--calibration", required=True, help="calibration.yaml written by calibrate")
+    p.add_argument("--targets", required=True, help="campaign file: test poses as nominal joints or as tool poses")
+    p.add_argument("--match", choices=["pose", "position"], default="pose", help="match the whole pose or the position")
+    p.add_argument("--seed", type=int, default=0, help="seed of the starts for tool-pose targets")
+    p.add_argument("--out", metavar="FILE", help="write the compensated joints as a campaign file")
+
+
+def run(args):
+    from ..core.calibration.compensate import compensate
+    from ..core.calibration.writers import load_calibration
+    from ..core.campaign import load_campaign
+    model = load_model(args)
+    cal = load_calibration(args.calibration, model)
+    calibrated = cal.mechanism(model)
+    targets = load_campaign(args.targets, model)
+    by_joints = [i for i, tp in enumerate(targets.poses) if tp.joints is not None]
+    by_pose = [i for i, tp in enumerate(targets.poses) if tp.joints is None]
+    results = [None] * len(targets.poses)
+    for idx, kind in ((by_joints, "joints"), (by_pose, "pose")):
+        if not idx:
+            continue
+        if kind == "joints":
+            q = np.array([targets.poses[i].joints for i in idx])
+            comp = compensate(calibrated, model, joints=model.check_joints(q, "targets"), match=args.match)
+        else:
+            comp = compensate(calibrated, model, poses=np.array([targets.poses[i].pose for i in idx]), match=args.match,
+                              rng=args.seed)
+        d = comp.to_dict()
+        for k, i in enumerate(idx):
+            results[i] = {"name": targets.poses[i].name, "target": kind, "nominal_joints": d["nominal_joints"][k],
+                          "joints": d["joints"][k], "correction": d["correction"][k],
+                          "residual_position_m": float(comp.residual_position[k]),
+                          "residual_orientation_rad": float(comp.residual_orientation[k]),
+                          "reached": bool(comp.reached[k]), "near_singularity": bool(comp.near_singularity[k]),
+                          "out_of_limits": bool(comp.out_of_limits[k])}
+    unreached = [r["name"] for r in results if not r["reached"]]
+    if unreached:
+        missed(args, f"{len(unreached)} target(s) out of reach of the calibrated robot: {', '.join(unreached)}")
+    out_path = None
+    if args.out:
+        from ..core.calibration.planning import campaign_dict
+        doc = campaign_dict(model, np.array([r["joints"] for r in results]), f"{targets.name}_compensated",
+                            targets.cycles, targets.dwell_s,
+                            f"{targets.name} compensated with {Path(args.calibration).name} (tolerance-ros compensate)")
+        for entry, r in zip(doc["poses"], results):
+            entry["name"] = r["name"]
+        out_path = Path(args.out)
+        out_path.parent.mkdir(parents=True, exist_ok=True)
+        import yaml
+        out_path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
+    if args.json:
+        return {"robot": model.name, "calibration": str(args.calibration), "match": args.match,
+                "joint_names": list(model.joint_names), "targets": results,
+                "out_of_reach": unreached, "out": str(out_path) if out_path else None}
+    rev = [t != "prismatic" for t in model.joint_types]
+
+    def shown(v, per_rad, per_m):
+        return ", ".join(f"{x * (per_rad if r else per_m):.4f}" for x, r in zip(v, rev))
+
+    print(f"robot {model.name}, calibration {args.calibration}: {len(results)} targets ({args.match}); joints in deg "
+          f"(prismatic mm), corrections in mdeg (prismatic um)")
+    print(table(["target", "given", "compensated joints", "correction", "residual um", "flags"],
+                [[r["name"], r["target"], shown(r["joints"], 180 / np.pi, 1e3),
+                  shown(r["correction"], 18e4 / np.pi, 1e6), f"{r['residual_position_m'] * 1e6:.3g}",
+                  ", ".join(f for f, on in (("out of reach", not r["reached"]),
+                                            ("near singularity", r["near_singularity"]),
+                                            ("out of limits", r["out_of_limits"])) if on)]
+                 for r in results]))
+    if out_path:
+        print(f"wrote {out_path}")

@@ -1,0 +1,62 @@
+"""`tolerance-ros jacobian`: nominal pose and parameter-error Jacobian at given or random configurations."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..render.text import table
+from .common import CLIError, load_model
+
+NAME = "jacobian"
+HELP = "nominal pose and parameter-error Jacobian at configurations"
+ROBOT = True
+
+
+def add_arguments(p):
+    p.add_argument("--joints", action="append", metavar="Q1,Q2,...",
+                   help="a joint configuration (rad, m); repeat for several")
+    p.add_argument("--deg", action="store_true", help="revolute joints in --joints are in degrees")
+    p.add_argument("--random", type=int, default=1, metavar="N", help="N random configurations if no --joints")
+    p.add_argument("--seed", type=int, default=0)
+
+
+def _joints(args, model):
+    if args.joints:
+        rows = []
+        for i, text in enumerate(args.joints):
+            try:
+                vals = [float(v) for v in text.replace(",", " ").split()]
+            except ValueError:
+                raise CLIError(f"--joints[{i}]: expected {model.dof} numbers separated by commas, got {text!r}") from None
+            rows.append(vals)
+        lens = {len(r) for r in rows}
+        if lens != {model.dof}:
+            raise CLIError(f"--joints: expected {model.dof} values per configuration "
+                           f"({', '.join(model.joint_names)}), got {sorted(lens)}")
+        q = np.array(rows)
+        if args.deg:
+            q = np.where([t == "revolute" for t in model.joint_types], np.deg2rad(q), q)
+        return model.check_joints(q, "--joints", allow_out_of_limits=True)
+    return model.sample_joints(args.random, args.seed)
+
+
+def run(args):
+    model = load_model(args)
+    q = _joints(args, model)
+    T, EJ = model.fk_and_jacobian(q)
+    outside = model.out_of_limits(q)
+    if args.json:
+        return {"robot": model.name, "joint_names": list(model.joint_names), "joints": q,
+                "out_of_limits": outside.any(axis=1), "poses": T, "parameters": list(EJ.names),
+                "units": list(EJ.units), "rows": ["dx", "dy", "dz", "drx", "dry", "drz"],
+                "jacobian": EJ.J}
+    for k in range(q.shape[0]):
+        p = T[k, :3, 3] * 1e3
+        flag = "  (outside joint limits)" if outside[k].any() else ""
+        print(f"pose {k}: q = [{', '.join(f'{v:.4f}' for v in q[k])}]{flag}")
+        print(f"  tool position [mm]: {p[0]:.3f} {p[1]:.3f} {p[2]:.3f}")
+        rows = []
+        for j, (n, u) in enumerate(zip(EJ.names, EJ.units)):
+            col = EJ.J[k, :, j]
+            rows.append([n, u] + [f"{v * 1e3:.5f}" for v in col[:3]] + [f"{v:.5f}" for v in col[3:]])
+        print(table(["param", "unit", "dPx mm/u", "dPy mm/u", "dPz mm/u", "dRx rad/u", "dRy rad/u", "dRz rad/u"],
+                    rows))

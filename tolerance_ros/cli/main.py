@@ -1,0 +1,111 @@
+"""The parser, assembled from the command modules, and the entry point: exit codes, one-line errors,
+the JSON document of ``--json``."""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import sys
+
+from ..core.jsonio import dumps
+from ..core.resources import ConfigNotFound
+from ..core.synthesis.problem import InfeasibleError
+from ..core.threads import limited
+from . import (allocate, calibrate, compensate, jacobian, paper, plan_campaign, report, robots, sensitivity,
+               verify)
+from .common import (EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError, Parser, UsageError,
+                     common_arguments)
+
+COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, calibrate, compensate, plan_campaign, paper)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``tolerance-ros`` parser: one subcommand per module of ``COMMANDS`` (its NAME, HELP, ROBOT,
+    ``add_arguments`` and ``run``)."""
+    from . import __doc__ as doc
+    parser = Parser(prog="tolerance-ros", description=doc.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for command in COMMANDS:
+        p = common_arguments(sub.add_parser(command.NAME, help=command.HELP), robot=command.ROBOT)
+        command.add_arguments(p)
+        p.set_defaults(func=command.run)
+    return parser
+
+
+_NEGATIVE = re.compile(r"^-(\d|\.\d)")
+
+
+def _attach_negative_values(argv, parser):
+    """``--limit -1.4mm`` -> ``--limit=-1.4mm``, so that a negative value reaches the option's own check
+    instead of being taken for an option."""
+    takes_value = set()
+    parsers = [parser] + [p for a in parser._actions if isinstance(a, argparse._SubParsersAction)
+                          for p in a.choices.values()]
+    for p in parsers:
+        for a in p._actions:
+            if a.option_strings and a.nargs is None:
+                takes_value.update(a.option_strings)
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in takes_value and i + 1 < len(argv) and _NEGATIVE.match(argv[i + 1]):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
+def error_code(exc) -> str:
+    """The stable code of an error, as the services use them (not a Python class name)."""
+    if isinstance(exc, ConfigNotFound) and exc.kind == "robots":
+        return "unknown_robot"
+    if isinstance(exc, InfeasibleError):
+        return "infeasible"
+    if isinstance(exc, (CLIError, ValueError, OSError, NotImplementedError)):
+        return "invalid_request"
+    return "internal"
+
+
+def _message(exc) -> str:
+    return str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+
+
+def _fail(prog, code, message, as_json) -> int:
+    if as_json:
+        print(dumps({"ok": False, "error": {"code": code, "message": message}}))
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    return EXIT_INTERNAL if code == "internal" else EXIT_INPUT
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    as_json = "--json" in argv
+    parser = build_parser()
+    try:
+        args = parser.parse_args(_attach_negative_values(argv, parser))
+        for name in ("samples", "poses", "random", "mc_poses", "ga_tol", "ga_rounds", "n"):
+            if getattr(args, name, 1) is not None and getattr(args, name, 1) < 1:
+                raise UsageError(f"--{name.replace('_', '-')}: must be >= 1")
+    except UsageError as exc:
+        return _fail(parser.prog, "invalid_request", str(exc), as_json)
+    prog = f"{parser.prog} {args.command}"
+    args.missed = []
+    try:
+        with limited(1):
+            out = args.func(args)
+        if as_json and out is not None:
+            doc = {"ok": not args.missed, **out} if isinstance(out, dict) else out
+            if args.missed and isinstance(doc, dict):
+                doc["failed"] = list(args.missed)
+            print(dumps(doc, indent=1))
+    except BrokenPipeError:  # the reader (e.g. `| head`) went away: not an error of ours
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
+    except Exception as exc:  # every error is one line (and a JSON document with --json)
+        code = error_code(exc)
+        message = _message(exc) if code != "internal" else f"internal error (a bug): {type(exc).__name__}: {exc}"
+        return _fail(prog, code, message, as_json)
+    for what in args.missed:
+        print(f"{prog}: FAILED: {what}", file=sys.stderr)
+    return EXIT_TARGET_MISSED if args.missed else EXIT_OK

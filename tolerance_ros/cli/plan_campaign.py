@@ -1,0 +1,84 @@
+"""`tolerance-ros plan-campaign`: test poses that make the identification best conditioned."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..core.budget import load_budget
+from ..render.text import Progress, table
+from .common import CLIError, load_model, quantity
+
+NAME = "plan-campaign"
+HELP = "test poses that make the identification best conditioned"
+ROBOT = True
+
+
+def add_arguments(p):
+    p.add_argument("--n", type=int, default=30, help="number of test poses (default 30)")
+    p.add_argument("--criterion", choices=["observability", "condition", "min-singular", "noise-amplification"],
+                   default="observability",
+                   help="observability: O1 (Borm & Menq 1991); condition: O2; min-singular: O3; "
+                        "noise-amplification: O4 (Nahvi & Hollerbach 1996)")
+    p.add_argument("--candidates", type=int, default=2000,
+                   help="candidate poses within the joint limits (default 2000)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cycles", type=int, default=3, help="visits per test pose in the campaign file (default 3)")
+    p.add_argument("--budget", help="scale each parameter by its tolerance (default 1 mm / 1 mrad)")
+    p.add_argument("--noise", default="10um", help="tracker position noise (default 10um)")
+    p.add_argument("--orientation-noise",
+                   help="tracker orientation noise, e.g. 10urad: the tracker measures orientation")
+    p.add_argument("--compare", metavar="CAMPAIGN",
+                   help="ISO 9283 cube campaign to compare with (default: built by IK)")
+    p.add_argument("--out", metavar="FILE", help="campaign file to write (default <robot>_planned.yaml)")
+    p.add_argument("--plot", metavar="DIR", help="write singular_values.png into DIR")
+
+
+def run(args):
+    from ..core.calibration.planning import CRITERIA, REFERENCES, campaign_dict, plan
+    from ..core.campaign import load_campaign
+    model = load_model(args)
+    for name in ("candidates", "cycles"):
+        if getattr(args, name) < 1:
+            raise CLIError(f"--{name}: must be >= 1")
+    noise = quantity(args.noise, "length", "--noise")
+    onoise = quantity(args.orientation_noise, "angle", "--orientation-noise")
+    delta = load_budget(args.budget, model).vector_for(model) if args.budget else None
+    iso = load_campaign(args.compare, model).joints_for(model) if args.compare else None
+    prog = Progress("plan-campaign", not args.quiet)
+    prog(0, 1)
+    pl = plan(model, args.n, args.criterion, args.candidates, args.seed, delta,
+              noise / onoise if onoise else None, iso)
+    prog(1, 1)
+    out_path = Path(args.out or f"{model.name}_planned.yaml")
+    idx = CRITERIA[args.criterion]
+    desc = (f"{args.n} poses chosen by tolerance-ros plan-campaign: {idx} ({REFERENCES[idx]}) maximised by a DETMAX "
+            f"exchange over {args.candidates} candidates within the joint limits (seed {args.seed})")
+    import yaml
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    out_path.write_text(f"# {desc}\n" + yaml.safe_dump(campaign_dict(model, pl.q, f"{model.name}_planned", args.cycles,
+                                                                        description=desc),
+                                                         sort_keys=False, default_flow_style=None, width=120))
+    plots = []
+    if args.plot:
+        from ..render import plots as P
+        plots.append(str(P.singular_values(pl.spectra, Path(args.plot) / "singular_values.png",
+                                           f"{model.name}: scaled identification Jacobian")))
+    if args.json:
+        doc = pl.to_dict()
+        doc.update(robot=model.name, campaign_file=str(out_path), plots=plots)
+        return doc
+    print(f"robot {model.name}: {args.n} poses maximising {idx} ({REFERENCES[idx]}) over {args.candidates} "
+          f"candidates (seed {args.seed}, {pl.exchanges} exchanges); {len(pl.columns)} unknowns "
+          f"({len(pl.columns) - 6} parameters + base), held: {', '.join(pl.held) or 'none'}")
+    rows = []
+    for label, d in (("planned", pl.chosen), (f"random (median of {pl.random['draws']})", pl.random),
+                     ("ISO 9283 cube", pl.iso_cube)):
+        if d is None:
+            rows.append([label, "-", "-", "-", "-", "-", "-", "-"])
+            continue
+        rows.append([label, d.get("poses", args.n), f"{d['rank']}/{len(pl.columns)}", f"{d['O1'] * 1e3:.4g}",
+                     f"{d['O2']:.4g}", f"{d['O3'] * 1e3:.4g}", f"{d['O4'] * 1e3:.4g}", f"{d['condition']:.4g}"])
+    print(table(["pose set", "poses", "rank", "O1 mm", "O2", "O3 mm", "O4 mm", "condition"], rows))
+    print(pl.iso_cube_note)
+    print(f"wrote {out_path}")
+    for f in plots:
+        print(f"plot: {f}")

@@ -1,0 +1,90 @@
+"""`tolerance-ros report`: accuracy report of measured poses (registration, errors, budget check, ISO 9283, identification)."""
+from __future__ import annotations
+
+from ..core.accuracy.verdicts import describe
+from ..core.budget import load_budget
+from ..render.text import table
+from .common import CLIError, load_model, missed
+
+NAME = "report"
+HELP = "accuracy report of measured poses (ISO 9283, budget, identification)"
+ROBOT = True
+
+
+def add_arguments(p):
+    p.add_argument("--measurements", required=True, help="CSV file, campaign log (.jsonl) or rosbag2 (dir, .db3, .mcap)")
+    p.add_argument("--budget", help="tolerance budget to check against")
+    p.add_argument("--campaign", help="campaign with the test poses (ISO 9283 statistics per pose)")
+    p.add_argument("--registration", choices=["base", "base+tool", "none"], default="base",
+                   help="estimate the base (and tool) transform, or take measurements as base-frame")
+    p.add_argument("--skip-bad", action="store_true", help="skip malformed rows (they are listed), instead of failing")
+    p.add_argument("--out", metavar="DIR", help="write report.md, plots, JSON and CSV into DIR")
+    p.add_argument("--stream", action="store_true", help="constant memory for large CSV files (summary only)")
+
+
+SKIPPED_SHOWN = 10  # skipped rows and records listed by `report` (--json lists them all)
+
+
+def run(args):
+    from ..core.accuracy.evaluation import evaluate_file
+    from ..core.accuracy.io import read_measurements
+    from ..core.campaign import load_campaign
+    from ..render.accuracy_report import write_report
+    model = load_model(args)
+    budget = load_budget(args.budget, model) if args.budget else None
+    campaign = load_campaign(args.campaign, model) if args.campaign else None
+    if args.stream:
+        from ..core.accuracy.evaluation import stream_file
+        if args.skip_bad:
+            raise CLIError("--skip-bad: not available with --stream, which stops at the first bad row")
+        if args.registration == "base+tool":
+            raise CLIError("--stream: the tool offset needs all measurements at once; use --registration base")
+        res = stream_file(model, args.measurements, budget, campaign, registration=args.registration)
+        _over_limit(args, res["summary"])
+        if args.json:
+            return res
+        s = res["summary"]
+        print(f"robot {model.name}: {res['measurements']} measurements streamed from {res['source']}; "
+              f"{describe(s['verdicts'], s['exceeded'])}; position error mean "
+              f"{s['position_error_m']['mean'] * 1e3:.4f} mm, max {s['position_error_m']['max'] * 1e3:.4f} mm")
+        return None
+    meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
+    res = evaluate_file(model, meas, budget, campaign, registration=args.registration)
+    _over_limit(args, res["summary"])
+    files = write_report(res, args.out, model, budget) if args.out else {}
+    body = {k: v for k, v in res.items() if k != "rows"}
+    body["files"] = files
+    if args.json:
+        return body
+    s = res["summary"]
+    pe = s["position_error_m"]
+    print(f"robot {model.name}: {res['measurements']} measurements from {res['source']}"
+          + (f"; {len(meas.skipped)} skipped:" if meas.skipped else ""))
+    for skip in meas.skipped[:SKIPPED_SHOWN]:
+        print("  " + ", ".join(f"{k} {v}" for k, v in skip.items() if k != "reason") + f": {skip['reason']}")
+    if len(meas.skipped) > SKIPPED_SHOWN:
+        print(f"  ... and {len(meas.skipped) - SKIPPED_SHOWN} more (all of them in skipped_rows of --json)")
+    print(f"registration {res['registration']['method']}: residual RMS {res['registration']['residual_rms_m'] * 1e3:.4f}"
+          f" mm; position error mean {pe['mean'] * 1e3:.4f}, max {pe['max'] * 1e3:.4f} mm")
+    if budget is not None:
+        print(f"budget ({budget.criterion} bound): {describe(s['verdicts'], s['exceeded'])}")
+    if res.get("per_pose"):
+        rows = [[n, v["n"]] + ([f"{v[k] * 1e3:.4f}" for k in ("AP_p", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a")]
+                               if "AP_p" in v else ["-"] * 6) for n, v in res["per_pose"].items()]
+        print(table(["pose", "n", "AP_p mm", "AP_a mrad", "AP_b mrad", "AP_c mrad", "RP_l mm", "RP_a mrad"], rows))
+    ident = res.get("identification")
+    if ident:
+        oot = ident.get("out_of_tolerance", [])
+        print(f"identification: {len(oot)} parameter(s) out of tolerance"
+              + (": " + ", ".join(f"{o['name']} ({o['ratio']:.2f}x)" for o in oot) if oot else "")
+              + (f"; not separable: {', '.join(ident['unidentifiable'])}" if ident.get("unidentifiable") else ""))
+    for k, v in files.items():
+        for f in (v if isinstance(v, list) else [v]):
+            print(f"wrote {f}")
+
+
+def _over_limit(args, summary):
+    n = summary["verdicts"].get("over limit", 0)
+    if n:
+        what = ", ".join(f"{k} {v}" for k, v in summary["exceeded"].items() if "limit" in k and v)
+        missed(args, f"{n} of {summary['measurements']} measurements over the design limit ({what})")
