@@ -11,7 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tolerance_ros.core.accuracy import io
+from tolerance_ros.core.accuracy.io import campaign_log, csv_format
 from tolerance_ros.core.accuracy.io import (MAX_LINE, Measurements, MeasurementError, read_csv, read_log,
                                             read_measurements, read_rosbag, write_csv, write_rosbag)
 from tolerance_ros.core.geometry import transform
@@ -202,7 +202,7 @@ def test_numbers_are_plain_ascii_on_the_fast_and_the_row_by_row_path(tmp_path, t
 def test_a_clean_file_takes_the_fast_path(tmp_path, monkeypatch):
     m = _meas(3000)
     p = write_csv(tmp_path / "m.csv", m)
-    monkeypatch.setattr(io, "_convert_slow", lambda *a: pytest.fail("a clean file was read row by row"))
+    monkeypatch.setattr(csv_format, "_convert_slow", lambda *a: pytest.fail("a clean file was read row by row"))
     back = read_csv(p)
     assert len(back) == 3000 and np.allclose(back.T, m.T, atol=1e-8)
 
@@ -322,7 +322,7 @@ def test_a_deep_log_line_never_reaches_the_parser(tmp_path, monkeypatch):
     p = _write(tmp_path / "campaign.jsonl", _log_around("[" * 100_000 + "]" * 100_000))
     parsed = []
     real = json.loads
-    monkeypatch.setattr(io.json, "loads", lambda s, **kw: parsed.append(len(s)) or real(s, **kw))
+    monkeypatch.setattr(campaign_log.json, "loads", lambda s, **kw: parsed.append(len(s)) or real(s, **kw))
     with pytest.raises(MeasurementError, match="line 3: nested deeper than 64 levels"):
         read_log(p)
     assert parsed and max(parsed) < 1000

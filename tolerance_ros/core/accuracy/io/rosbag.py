@@ -1,0 +1,123 @@
+"""rosbag2 recordings (sqlite3 or mcap) of measured poses (PoseStamped) and joint states, read and
+written with the ``rosbags`` package (the real ROS 2 Jazzy message definitions; no ROS needed)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ...geometry import matrices_to_quat
+from ...ingest import IngestError, JointOrder, pair_by_stamp, pose_from_values, stamp_seconds
+from .measurements import MeasurementError, Measurements
+from .text import _cut
+
+def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic="/joint_states",
+                slop: float = 0.005, skip_bad: bool = False) -> Measurements:
+    """Measurements from a rosbag2 recording (sqlite3 or mcap) of PoseStamped and JointState.
+
+    Each measured pose is paired with the joint state nearest to its header stamp within ``slop`` s.
+    Unpaired measurements are an error unless ``skip_bad`` (then listed in ``skipped``).
+    """
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.rosbag2 import ReaderError
+    from rosbags.typesys import Stores, get_typestore
+
+    path = Path(path)
+    if not path.exists():
+        raise MeasurementError(f"{path}: no such bag")
+    poses, pstamps, jstates, jstamps = [], [], [], []
+    order = None
+    skipped = []
+    types = {pose_topic: "geometry_msgs/msg/PoseStamped", joint_topic: "sensor_msgs/msg/JointState"}
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            conns = [c for c in reader.connections if c.topic in types]
+            if not any(c.topic == pose_topic for c in conns):
+                raise MeasurementError(f"{path}: no topic {pose_topic} "
+                                       f"(topics: {sorted({c.topic for c in reader.connections})})")
+            for c in conns:
+                if c.msgtype != types[c.topic]:
+                    raise MeasurementError(f"{path}: topic {c.topic} carries {c.msgtype}, expected {types[c.topic]}")
+            for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
+                try:
+                    try:
+                        msg = reader.deserialize(raw, conn.msgtype)
+                    except AnyReaderError as exc:
+                        raise IngestError(f"cannot be decoded as {conn.msgtype} ({_cut(str(exc), 80)})") from None
+                    st = stamp_seconds(msg.header.stamp)
+                    if conn.topic == pose_topic:
+                        p, o = msg.pose.position, msg.pose.orientation
+                        poses.append(pose_from_values((p.x, p.y, p.z), (o.x, o.y, o.z, o.w)))
+                        pstamps.append(st)
+                    else:
+                        if order is None:
+                            order = JointOrder(joint_names or msg.name)
+                        jstates.append(order(msg.name, msg.position))
+                        jstamps.append(st)
+                except IngestError as exc:
+                    err = f"message {k} on {conn.topic}: {exc}"
+                    if not skip_bad:
+                        raise MeasurementError(f"{path}: {err}") from None
+                    skipped.append({"message": k, "reason": err})
+    except (AnyReaderError, ReaderError, FileNotFoundError) as exc:
+        raise MeasurementError(f"{path}: not a readable rosbag2 recording ({exc})") from None
+    if not poses:
+        raise MeasurementError(f"{path}: no messages on {pose_topic}"
+                               + (f" ({len(skipped)} skipped, the first: {skipped[0]['reason']})" if skipped else ""))
+    by_time = np.argsort(pstamps, kind="stable")
+    pst = np.array(pstamps)[by_time]
+    T = np.array(poses)[by_time]
+    joints = None
+    if jstates:
+        pair = pair_by_stamp(pst, jstamps, slop)
+        if np.any(pair < 0):
+            bad = np.flatnonzero(pair < 0)
+            err = (f"{len(bad)} measured pose(s) have no joint state within {slop} s "
+                   f"(first at stamp {pst[bad[0]]:.9f} s)")
+            if not skip_bad:
+                raise MeasurementError(f"{path}: {err}")
+            skipped += [{"measurement": int(i), "reason": f"unpaired measurement at stamp {pst[i]:.9f} s"} for i in bad]
+            keep = pair >= 0
+            pst, T, pair = pst[keep], T[keep], pair[keep]
+        joints = np.array(jstates)[pair]
+    return Measurements(pst, T, joints, order.joint_names if order else (), np.array([""] * len(pst), dtype=object),
+                        np.full(len(pst), -1), True, str(path), skipped)
+
+
+def write_rosbag(path, m: Measurements, storage="sqlite3", pose_topic="/measured_pose", joint_topic="/joint_states",
+                 frame_id="tracker", joint_offset_s=0.0) -> Path:
+    """Write measurements as a rosbag2 recording (PoseStamped + JointState, ROS 2 Jazzy types)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    T = ts.types
+    Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
+    PoseStamped, Pose = T["geometry_msgs/msg/PoseStamped"], T["geometry_msgs/msg/Pose"]
+    Point, Quaternion = T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/Quaternion"]
+    JointState = T["sensor_msgs/msg/JointState"]
+    plugin = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}[storage]
+    quats = matrices_to_quat(m.T[:, :3, :3])
+
+    def stamp(t):
+        ns = int(round(t * 1e9))
+        return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), ns
+
+    with Writer(Path(path), version=9, storage_plugin=plugin) as w:
+        cp = w.add_connection(pose_topic, PoseStamped.__msgtype__, typestore=ts)
+        cj = w.add_connection(joint_topic, JointState.__msgtype__, typestore=ts) if m.joints is not None else None
+        for i in range(len(m)):
+            if cj is not None:
+                tj, ns = stamp(m.stamps[i] + joint_offset_s)
+                js = JointState(header=Header(stamp=tj, frame_id=""), name=list(m.joint_names),
+                                position=np.asarray(m.joints[i], float), velocity=np.zeros(0), effort=np.zeros(0))
+                w.write(cj, ns, ts.serialize_cdr(js, JointState.__msgtype__))
+            tp, ns = stamp(m.stamps[i])
+            p = m.T[i, :3, 3]
+            q = quats[i]
+            msg = PoseStamped(header=Header(stamp=tp, frame_id=frame_id),
+                              pose=Pose(position=Point(x=p[0], y=p[1], z=p[2]),
+                                        orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])))
+            w.write(cp, ns + 1, ts.serialize_cdr(msg, PoseStamped.__msgtype__))
+    return Path(path)
+
