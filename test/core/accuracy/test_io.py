@@ -57,6 +57,10 @@ GOOD = "stamp[s],x[mm],y[mm],z[mm]\n0,1,2,3\n1,1,2,3\n"
     ("stamp[s],x[furlong],y[mm],z[mm]\n0,1,2,3\n", "needs a length unit"),
     ("stamp[s],x,y[mm],z[mm]\n0,1,2,3\n", "needs a length unit"),
     ("stamp[h],x[mm],y[mm],z[mm]\n0,1,2,3\n", "time unit"),
+    ("stamp,x[mm],y[mm],z[mm]\n0,1,2,3\n", r"column 'stamp' needs a time unit in brackets \(s, ms, us, ns\), got ''"),
+    ("stamp[s],x[mm],y[mm],z[mm],marker_std[mm]\n0,1,2,3,0.2\n",
+     r"line 1: header: column 'marker_std' is not a measurement column .*'tolerance-ros import'"),
+    ("stamp[s],target,x[mm],y[mm],z[mm]\n0,A,1,2,3\n1, ,1,2,3\n", "line 3: target: empty"),
     ("stamp[s],x[mm],y[mm],z[mm],roll[deg]\n0,1,2,3,4\n", "roll, pitch, yaw"),
     ("# only a comment\n", "empty file"),
 ])
@@ -141,6 +145,8 @@ BAD_ROWS = [
     ("unclosed quote", '1,"P1,0,1,2,3,0,0,0,1\n', "expected 10 columns, got 2"),
     ("the same record twice", ROW.format(t=0), "the same record as line 2 (a measurement written twice)"),
     ("the same record with other spacing", ROW.format(t=0).replace(",", " , "),
+     "the same record as line 2 (a measurement written twice)"),
+    ("the same record with its numbers written otherwise", "0.0,P1,0,1.00,2e0,3.000,0,0,0,1.0\n",
      "the same record as line 2 (a measurement written twice)"),
 ]
 
@@ -453,3 +459,24 @@ def test_mutated_files_are_read_or_refused(tmp_path, data):
     csv_text, log = _valid_files()
     _read_or_measurement_error(_write(tmp_path / "m.csv", data.draw(_mutated(csv_text))), read_csv)
     _read_or_measurement_error(_write(tmp_path / "m.jsonl", data.draw(_mutated(log))), read_log)
+
+
+def test_targets_are_read_written_and_indexed(tmp_path):
+    p = _write(tmp_path / "t.csv", "stamp[s],pose,target,x[mm],y[mm],z[mm],joint:j1[rad]\n"
+                                  "0,P1,A,1,2,3,0.1\n0,P1,B,4,5,6,0.1\n1,P2,A,7,8,9,0.2\n1,P2,C,1,1,1,0.2\n")
+    m = read_csv(p)
+    assert m.target.tolist() == ["A", "B", "A", "C"] and m.target_names == ("A", "B", "C")
+    assert m.target_index().tolist() == [0, 1, 0, 2] and m.has_orientation is False
+    back = read_csv(write_csv(tmp_path / "back.csv", m))
+    assert back.target.tolist() == m.target.tolist() and back.has_orientation is False
+    assert np.allclose(back.T[:, :3, 3], m.T[:, :3, 3])
+    assert read_csv(write_csv(tmp_path / "one.csv", _meas())).target_names == ("",)
+    with pytest.raises(MeasurementError, match=r"target\(s\) \['C'\] are not among \['A', 'B'\]"):
+        m.target_index(("A", "B"))
+
+
+def test_position_only_measurements_are_written_without_orientation(tmp_path):
+    m = _meas()
+    m.has_orientation = False
+    text = write_csv(tmp_path / "p.csv", m).read_text()
+    assert "roll" not in text and read_csv(tmp_path / "p.csv").has_orientation is False

@@ -1,5 +1,4 @@
-"""Measurements in and out: CSV files, the accuracy monitor's campaign log (JSON Lines) and rosbag2
-recordings (sqlite3 or mcap, read with the ``rosbags`` package).
+"""The documented measurement CSV, read (checked, chunked) and written.
 
 CSV format: optional ``#`` comment lines, then a header naming each column with its unit in brackets::
 
@@ -7,12 +6,16 @@ CSV format: optional ``#`` comment lines, then a header naming each column with 
 
 ``x y z`` is the measured tool position, ``roll pitch yaw`` its orientation (``R = Rz(yaw) Ry(pitch)
 Rx(roll)``; optional, or ``qx qy qz qw`` quaternion columns instead), ``pose`` the test pose name and
-``cycle`` its 0-based cycle (both optional), ``joint:<name>`` the joint reading at the measurement
-(rad or deg for revolute, m or mm for prismatic). Lengths: m, mm, um; angles: rad, deg, mrad.
+``cycle`` its 0-based cycle (both optional), ``target`` the reflector or marker the row measured (a name;
+optional: without it every row measures one target; several targets of one visit are rows of the same
+stamp), ``joint:<name>`` the joint reading at the measurement (rad or deg for revolute, m or mm for
+prismatic). Lengths: m, mm, um; angles: rad, deg, mrad; the stamp's unit (s, ms, us, ns) is required.
+Any other column is an error naming it (``tolerance-ros import`` maps a file's own columns).
 The orientation columns come all three or all four, never some of them. A number is what ``float()``
 reads from ASCII digits, sign, point and exponent (no ``1_000``, no other digits, no nan or inf), and
 must be finite; stamps must not decrease. Files are UTF-8. A row that repeats an earlier row field for
-field (the same stamp, pose and values: a measurement written twice) is an error naming both lines.
+field (the same stamp, pose, target and values, numbers compared by value: a measurement written twice)
+is an error naming both lines.
 
 Every problem is a ``MeasurementError`` naming the file, the line and the column or field. With
 ``skip_bad`` a bad row or line is skipped instead and listed in ``skipped`` with its reason (a bad
@@ -101,10 +104,10 @@ def read_csv(path, skip_bad: bool = False, chunk_rows: int | None = None):
     return m
 
 
-_TIME_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-
-
+_TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _RPY, _QUAT = ("roll", "pitch", "yaw"), ("qx", "qy", "qz", "qw")
+_KNOWN = ("stamp", "pose", "cycle", "target", "x", "y", "z") + _RPY + _QUAT
+MAX_TARGET = 100  # characters of a target name
 
 
 @dataclass
@@ -131,6 +134,11 @@ class _Spec:
 
 def _spec_from_header(header, source):
     cols = _parse_header(header, source)
+    unknown = [c for c in cols if c not in _KNOWN and not c.startswith("joint:")]
+    if unknown:
+        raise MeasurementError(f"{source}: column {unknown[0]!r} is not a measurement column (known: "
+                               f"{', '.join(_KNOWN)}, joint:<name>); convert a file with columns of its own with "
+                               f"'tolerance-ros import', which maps them")
     missing = [c for c in ("stamp", "x", "y", "z") if c not in cols]
     if missing:
         raise MeasurementError(f"{source}: missing column(s) {missing}; header is {header}")
@@ -142,7 +150,7 @@ def _spec_from_header(header, source):
     if rpy and quat:
         raise MeasurementError(f"{source}: give the orientation as roll, pitch, yaw or as qx, qy, qz, qw, not both")
     if cols["stamp"][1] not in _TIME_UNITS:
-        raise MeasurementError(f"{source}: column 'stamp' needs a time unit (s, ms, us, ns), "
+        raise MeasurementError(f"{source}: column 'stamp' needs a time unit in brackets (s, ms, us, ns), "
                                f"got {cols['stamp'][1]!r}")
     names = ["stamp", "x", "y", "z"]
     scale = [_TIME_UNITS[cols["stamp"][1]]] + [_scale(c, cols[c][1], "length", source) for c in "xyz"]
@@ -218,15 +226,26 @@ class _Copies:
         self.stamp, self.seen = None, {}
 
     def check(self, row, lineno):
-        stamp = row[self.stamp_col].strip() if len(row) > self.stamp_col else None
+        stamp = _field_value(row[self.stamp_col]) if len(row) > self.stamp_col else None
         if stamp != self.stamp:
             self.stamp, self.seen = stamp, {}
-        key = tuple(f.strip() for f in row)
+        key = tuple(map(_field_value, row))
         first = self.seen.get(key)
         if first is not None:
             raise MeasurementError(f"the same record as line {first} (a measurement written twice)")
         if len(self.seen) < self.keep:
             self.seen[key] = lineno
+
+
+def _field_value(text):
+    """A field as it compares with another: a number by its value (``1.0`` is ``1.00``), else its text."""
+    s = text.strip()
+    if s and not _NOT_NUMERIC.search(s):
+        try:
+            return float(s)
+        except ValueError:
+            pass
+    return s
 
 
 def _convert(raw, spec, last, skip_bad, source):
@@ -265,7 +284,12 @@ def _convert_fast(rows, spec, last):
     except ValueError:
         return None
     poses = [p.strip() for p in by_col[spec.cols["pose"][0]]] if "pose" in spec.cols else [""] * len(rows)
-    return _Block(stamps, A[:, 1:4], R, poses, np.array(cycles, int), joints)
+    targets = None
+    if "target" in spec.cols:
+        targets = [t.strip() for t in by_col[spec.cols["target"][0]]]
+        if not all(0 < len(t) <= MAX_TARGET for t in targets):
+            return None
+    return _Block(stamps, A[:, 1:4], R, poses, np.array(cycles, int), joints, targets)
 
 
 def _convert_slow(raw, spec, last, skip_bad, source):
@@ -287,15 +311,18 @@ def _convert_slow(raw, spec, last, skip_bad, source):
         buf.append(rec)
     A = np.array([r[0] for r in buf], float).reshape(len(buf), len(spec.num_cols))
     R, joints = spec.rotations_and_joints(A)
-    block = _Block(A[:, 0], A[:, 1:4], R, [r[1] for r in buf], np.array([r[2] for r in buf], int), joints)
+    block = _Block(A[:, 0], A[:, 1:4], R, [r[1] for r in buf], np.array([r[2] for r in buf], int), joints,
+                   [r[3] for r in buf] if "target" in spec.cols else None)
     return block, skipped, last
 
 
 class _Block:
-    """Parsed rows of one chunk, column-wise (SI); ``R`` is None without orientation columns."""
+    """Parsed rows of one chunk, column-wise (SI); ``R`` is None without orientation columns, ``targets``
+    None without a target column."""
 
-    def __init__(self, stamps, pos, R, poses, cycles, joints):
+    def __init__(self, stamps, pos, R, poses, cycles, joints, targets=None):
         self.stamps, self.pos, self.R, self.poses, self.cycles, self.joints = stamps, pos, R, poses, cycles, joints
+        self.targets = targets
 
 
 def _num(text, what):
@@ -312,7 +339,7 @@ def _num(text, what):
 
 
 def _parse_row(row, spec):
-    """(numeric values in SI, pose label, cycle) of one row; MeasurementError names the column."""
+    """(numeric values in SI, pose label, cycle, target) of one row; MeasurementError names the column."""
     vals = [_num(row[i], name) * s for i, name, s in zip(spec.num_cols, spec.num_names, spec.scale)]
     if spec.orientation == "quat":
         try:
@@ -321,7 +348,18 @@ def _parse_row(row, spec):
             raise MeasurementError(f"qx, qy, qz, qw: {exc}") from None
     pose = row[spec.cols["pose"][0]].strip() if "pose" in spec.cols else ""
     cycle = _cycle(row[spec.cols["cycle"][0]]) if "cycle" in spec.cols else -1
-    return vals, pose, cycle
+    target = _target(row[spec.cols["target"][0]]) if "target" in spec.cols else ""
+    return vals, pose, cycle, target
+
+
+def _target(text):
+    """A target name: not empty, at most MAX_TARGET characters."""
+    t = text.strip()
+    if not t:
+        raise MeasurementError("target: empty (in a file with a target column every row names its target)")
+    if len(t) > MAX_TARGET:
+        raise MeasurementError(f"target: {_show(t)} is longer than {MAX_TARGET} characters")
+    return t
 
 
 def _cycle(text):
@@ -341,18 +379,22 @@ def _pack(block, spec, source, skipped):
     if block.R is not None:
         T[:, :3, :3] = block.R
     joints = block.joints if spec.joint_names else None
+    targets = np.array(block.targets, dtype=object) if block.targets is not None else None
     return Measurements(block.stamps, T, joints, spec.joint_names, np.array(block.poses, dtype=object),
-                        np.asarray(block.cycles, dtype=int), spec.orientation is not None, source, list(skipped))
+                        np.asarray(block.cycles, dtype=int), spec.orientation is not None, source, list(skipped),
+                        targets)
 
 
 def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="deg") -> Path:
-    """Write measurements in the CSV format above (positions and angles in the given units)."""
+    """Write measurements in the CSV format above (positions and angles in the given units; orientation
+    columns only for measurements that have one, a target column for named targets)."""
     path = Path(path)
     ls, as_ = LENGTH_UNITS[length_unit], ANGLE_UNITS[angle_unit]
-    rpy = rpy_from_matrix(m.T[:, :3, :3]) / as_
+    rpy = rpy_from_matrix(m.T[:, :3, :3]) / as_ if m.has_orientation else np.zeros((len(m), 0))
     pos = m.T[:, :3, 3] / ls
-    header = ["stamp[s]", "pose", "cycle"] + [f"{c}[{length_unit}]" for c in "xyz"] + \
-        [f"{c}[{angle_unit}]" for c in ("roll", "pitch", "yaw")] + \
+    named = m.target is not None
+    header = ["stamp[s]", "pose", "cycle"] + (["target"] if named else []) + [f"{c}[{length_unit}]" for c in "xyz"] + \
+        ([f"{c}[{angle_unit}]" for c in ("roll", "pitch", "yaw")] if m.has_orientation else []) + \
         [f"joint:{n}[rad]" for n in m.joint_names]
     with path.open("w", newline="") as fh:
         for c in comments:
@@ -361,7 +403,7 @@ def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="
         w.writerow(header)
         for i in range(len(m)):
             row = [f"{m.stamps[i]:.6f}", m.pose[i] if m.pose is not None else "",
-                   int(m.cycle[i]) if m.cycle is not None and m.cycle[i] >= 0 else ""]
+                   int(m.cycle[i]) if m.cycle is not None and m.cycle[i] >= 0 else ""] + ([m.target[i]] if named else [])
             row += [f"{v:.6f}" for v in pos[i]] + [f"{v:.7f}" for v in rpy[i]]
             if m.joints is not None:
                 row += [f"{v:.9f}" for v in m.joints[i]]

@@ -12,7 +12,13 @@ class MeasurementError(ValueError):
 
 @dataclass
 class Measurements:
-    """Measured tool poses (SI) with their stamps, optional joints and test-pose labels."""
+    """Measured tool poses or points (SI) with their stamps, optional joints, test-pose labels and targets.
+
+    ``T`` (n, 4, 4): the measured pose in the tracker frame (m); without orientation (``has_orientation``
+    False) only its position is measured and its rotation is the identity, never read. ``target`` (n,)
+    names the reflector or marker each row measured (None: one target, unnamed); rows of one pose visit
+    share its stamp, joints and labels.
+    """
 
     stamps: np.ndarray
     T: np.ndarray
@@ -23,9 +29,36 @@ class Measurements:
     has_orientation: bool = True
     source: str = ""
     skipped: list = field(default_factory=list)
+    target: np.ndarray | None = None
 
     def __len__(self):
         return len(self.stamps)
+
+    @property
+    def target_names(self) -> tuple:
+        """The targets in order of first appearance (``("",)`` for one unnamed target)."""
+        if self.target is None:
+            return ("",)
+        return tuple(dict.fromkeys(str(t) for t in self.target))
+
+    def target_index(self, names=None) -> np.ndarray:
+        """(n,) index of each row's target in ``names`` (default ``target_names``)."""
+        names = self.target_names if names is None else tuple(names)
+        if self.target is None:
+            return np.zeros(len(self), int)
+        lookup = {n: k for k, n in enumerate(names)}
+        missing = sorted({str(t) for t in self.target} - set(lookup))
+        if missing:
+            raise MeasurementError(f"{self.source}: target(s) {missing} are not among {list(names)}")
+        return np.array([lookup[str(t)] for t in self.target], int)
+
+    def select(self, rows) -> "Measurements":
+        """The measurements of ``rows`` (a boolean mask or indices), same source."""
+        rows = np.asarray(rows)
+        pick = (lambda a: None if a is None else a[rows])
+        return Measurements(self.stamps[rows], self.T[rows], pick(self.joints), self.joint_names, pick(self.pose),
+                            pick(self.cycle), self.has_orientation, self.source, list(self.skipped),
+                            pick(self.target))
 
 
 def concat(parts) -> Measurements:
@@ -37,5 +70,6 @@ def concat(parts) -> Measurements:
                         first.joint_names,
                         np.concatenate([p.pose for p in parts]) if first.pose is not None else None,
                         np.concatenate([p.cycle for p in parts]) if first.cycle is not None else None,
-                        first.has_orientation, first.source, [s for p in parts for s in p.skipped])
+                        first.has_orientation, first.source, [s for p in parts for s in p.skipped],
+                        np.concatenate([p.target for p in parts]) if first.target is not None else None)
 
