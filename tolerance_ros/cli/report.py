@@ -64,14 +64,27 @@ def run(args):
         print("  " + ", ".join(f"{k} {v}" for k, v in skip.items() if k != "reason") + f": {skip['reason']}")
     if len(meas.skipped) > SKIPPED_SHOWN:
         print(f"  ... and {len(meas.skipped) - SKIPPED_SHOWN} more (all of them in skipped_rows of --json)")
-    print(f"registration {res['registration']['method']}: residual RMS {res['registration']['residual_rms_m'] * 1e3:.4f}"
-          f" mm; position error mean {pe['mean'] * 1e3:.4f}, max {pe['max'] * 1e3:.4f} mm")
+    reg = res["registration"]
+    oe = s.get("orientation_error_rad")
+    print(f"registration {reg['method']}: residual RMS {reg['residual_rms_m'] * 1e3:.4f} mm; position error at the "
+          f"{'targets' if len(res['targets']) > 1 else 'measured point'} mean {pe['mean'] * 1e3:.4f}, max "
+          f"{pe['max'] * 1e3:.4f} mm" + (f"; orientation error mean {oe['mean'] * 1e3:.4f}, max {oe['max'] * 1e3:.4f} mrad"
+                                          if oe else " (points: no orientation measured)"))
+    if reg.get("targets_estimated"):
+        print("targets in the tool frame [mm]: " + "; ".join(
+            f"{t['name'] or 'tool point'} ({', '.join(f'{v * 1e3:.3f}' for v in t['xyz_m'])})" for t in reg["targets"]))
+    for w in res.get("warnings", []):
+        print(f"WARNING: {w}")
+        missed(args, w)
     if budget is not None:
         print(f"budget ({budget.criterion} bound): {describe(s['verdicts'], s['exceeded'])}")
     if res.get("per_pose"):
-        rows = [[n, v["n"]] + ([f"{v[k] * 1e3:.4f}" for k in ("AP_p", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a")]
-                               if "AP_p" in v else ["-"] * 6) for n, v in res["per_pose"].items()]
-        print(table(["pose", "n", "AP_p mm", "AP_a mrad", "AP_b mrad", "AP_c mrad", "RP_l mm", "RP_a mrad"], rows))
+        keys = ("AP_p", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a") if res["orientation_measured"] else ("AP_p", "RP_l")
+        heads = {"AP_p": "AP_p mm", "AP_a": "AP_a mrad", "AP_b": "AP_b mrad", "AP_c": "AP_c mrad", "RP_l": "RP_l mm",
+                 "RP_a": "RP_a mrad"}
+        rows = [[n, v["n"]] + ([f"{v[k] * 1e3:.4f}" for k in keys] if "AP_p" in v else ["-"] * len(keys))
+                for n, v in res["per_pose"].items()]
+        print(table(["pose", "n"] + [heads[k] for k in keys], rows))
     ident = res.get("identification")
     if ident:
         oot = ident.get("out_of_tolerance", [])

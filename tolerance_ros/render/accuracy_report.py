@@ -47,19 +47,24 @@ def write_report(res, out_dir, model, budget=None) -> dict:
         with (out / "measurements.csv").open("w", newline="") as fh:
             w = csv.writer(fh)
             ori = "orientation_bound" in rows
-            w.writerow(["stamp[s]", "pose", "dx[m]", "dy[m]", "dz[m]", "drx[rad]", "dry[rad]", "drz[rad]",
-                        "error[m]", "bound[m]", "margin[m]"]
+            measured = rows.get("dphi") is not None
+            names = res.get("targets", [""])
+            named = len(names) > 1 or names[0]
+            w.writerow(["stamp[s]", "pose"] + (["target"] if named else []) + ["dx[m]", "dy[m]", "dz[m]"]
+                       + (["drx[rad]", "dry[rad]", "drz[rad]"] if measured else []) + ["error[m]", "bound[m]", "margin[m]"]
                        + (["orientation_error[rad]", "orientation_bound[rad]"] if ori else [])
                        + ["verdict", "exceeded"] + [f"joint:{n}" for n in model.joint_names])
             for i in range(len(rows["error"])):
-                w.writerow([f"{rows['stamp'][i]:.6f}", rows["label"][i]] + [f"{v:.9g}" for v in rows["dp"][i]]
-                           + [f"{v:.9g}" for v in rows["dphi"][i]]
+                w.writerow([f"{rows['stamp'][i]:.6f}", rows["label"][i]] + ([names[rows["target"][i]]] if named else [])
+                           + [f"{v:.9g}" for v in rows["dp"][i]]
+                           + ([f"{v:.9g}" for v in rows["dphi"][i]] if measured else [])
                            + [f"{rows[k][i]:.9g}" for k in ("error", "bound", "margin")]
                            + ([f"{rows[k][i]:.9g}" for k in ("orientation_error", "orientation_bound")] if ori else [])
                            + [rows["verdict"][i], rows["exceeded"][i]] + [f"{v:.9g}" for v in rows["joints"][i]])
         files["measurements_csv"] = str(out / "measurements.csv")
     if res.get("per_pose"):
-        keys = ["n", "AP_p", "AP_x", "AP_y", "AP_z", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a", "RP_b", "RP_c"]
+        keys = ["n", "AP_p", "AP_x", "AP_y", "AP_z", "RP_l"] + (["AP_a", "AP_b", "AP_c", "RP_a", "RP_b", "RP_c"]
+                                                                if res.get("orientation_measured", True) else [])
         with (out / "per_pose.csv").open("w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["pose"] + [k + ("" if k == "n" else ("[m]" if k[-1] in "pxyzl" else "[rad]")) for k in keys])
@@ -82,11 +87,16 @@ def write_report(res, out_dir, model, budget=None) -> dict:
 
 def _registration_line(reg) -> str:
     what = {"base": "the base -> tracker transform estimated from all measurements",
-            "base+tool": "the base -> tracker transform and the tool offset estimated from all measurements",
+            "base+tool": "the base -> tracker transform and each target's offset on the tool estimated from all "
+                         "measurements",
             "none": "none: the measurements are taken as base-frame poses",
             "given": "a given base -> tracker transform"}[reg["method"]]
-    return (f"Registration: {what}; position residual RMS {reg['residual_rms_m'] * 1e3:.4f} mm, "
+    line = (f"Registration: {what}; position residual RMS {reg['residual_rms_m'] * 1e3:.4f} mm, "
             f"max {reg['residual_max_m'] * 1e3:.4f} mm.")
+    if reg.get("targets_estimated"):
+        line += " Targets in the tool frame (mm): " + "; ".join(
+            f"{t['name'] or 'tool point'} [{', '.join(f'{v * 1e3:.3f}' for v in t['xyz_m'])}]" for t in reg["targets"]) + "."
+    return line
 
 
 def markdown(res, model, budget, files) -> str:
@@ -95,9 +105,13 @@ def markdown(res, model, budget, files) -> str:
          + (f"; {len(res['skipped_rows'])} measurements skipped (each with its reason in report.json)" if res["skipped_rows"] else ""),
          "", "## Registration", "", _registration_line(res["registration"]), ""]
     pe = s["position_error_m"]
-    L += ["## Errors (base frame, after registration)", "",
-          f"Position error: mean {pe['mean'] * 1e3:.4f} mm, std {pe['std'] * 1e3:.4f} mm, max {pe['max'] * 1e3:.4f} mm.",
-          ""]
+    oe = s.get("orientation_error_rad")
+    L += ["## Errors (base frame, after registration, at each measured target)", "",
+          f"Position error: mean {pe['mean'] * 1e3:.4f} mm, std {pe['std'] * 1e3:.4f} mm, max {pe['max'] * 1e3:.4f} mm."
+          + (f" Orientation error: mean {oe['mean'] * 1e3:.4f} mrad, max {oe['max'] * 1e3:.4f} mrad." if oe else
+             " The measurements are points: no orientation was measured."), ""]
+    for w in res.get("warnings", []):
+        L += [f"**Warning:** {w}", ""]
     if budget is not None:
         limits = [f"position {budget.limit_position * 1e3:g} mm" if budget.limit_position else None,
                   f"orientation {budget.limit_orientation * 1e3:g} mrad" if budget.limit_orientation else None]
@@ -113,8 +127,9 @@ def markdown(res, model, budget, files) -> str:
                 L.append(f"| {name} | {v['n']} | " + " | ".join(["-"] * 11) + " |")
                 continue
             L.append(f"| {name} | {v['n']} | " + " | ".join(
-                f"{v[k] * 1e3:.4f}" for k in ("AP_p", "AP_x", "AP_y", "AP_z", "AP_a", "AP_b", "AP_c", "RP_l", "RP_a",
-                                               "RP_b", "RP_c")) + " |")
+                f"{v[k] * 1e3:.4f}" if v[k] is not None else "-" for k in ("AP_p", "AP_x", "AP_y", "AP_z", "AP_a",
+                                                                             "AP_b", "AP_c", "RP_l", "RP_a", "RP_b",
+                                                                             "RP_c")) + " |")
         L.append("")
     ident = res.get("identification")
     if ident:

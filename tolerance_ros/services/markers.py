@@ -57,12 +57,15 @@ def bound_markers(model, q, delta, scale: float = 100.0, k_sigma: float = 3.0) -
 
 def measurement_markers(model, recent, scale: float = 100.0, slots: int = 20) -> list:
     """Arrows nominal -> measured tool point (error drawn ``scale`` times) and margin texts for the recent
-    paired measurements: dicts with ``seq``, ``joints``, ``dp`` (measured - nominal, m), ``bound`` and
-    ``margin`` (m; NaN without a budget). Ids cycle over ``slots``."""
+    paired measurements: dicts with ``seq``, ``joints``, ``nominal`` (the target's nominal point, m; the
+    tool point when absent), ``dp`` (measured - nominal, m), ``bound`` and ``margin`` (m; NaN without a
+    budget). Ids cycle over ``slots``."""
     if not recent:
         return []
-    q = np.array([r["joints"] for r in recent], float)
-    nominal = model.fk(q)[:, :3, 3]
+    if all("nominal" in r for r in recent):
+        nominal = np.array([r["nominal"] for r in recent], float)
+    else:
+        nominal = model.fk(np.array([r["joints"] for r in recent], float))[:, :3, 3]
     out = []
     for r, p in zip(recent, nominal):
         tip = p + scale * np.asarray(r["dp"], float)

@@ -20,6 +20,7 @@ from ..core.ingest import IngestError, JointOrder, StateBuffer, pose_from_values
 from ..core.jsonio import dumps_fast
 from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
+from ..core.accuracy.targets import Targets
 
 OK, WARN, ERROR = 0, 1, 2
 MAX_FRAME_CHARS = 100  # of a measurement's frame_id in the campaign log
@@ -29,8 +30,8 @@ class MonitorLogic:
     """See the module docstring. ``budget`` is a Budget or None; ``campaign`` a Campaign or None."""
 
     def __init__(self, model, budget=None, campaign=None, slop=0.02, max_wait=1.0, T_tracker_base=None,
-                 tool_offset=None, log_path=None, pose_tolerance=1e-3, state_buffer=2000, clock=time.monotonic,
-                 name="tolerance_ros: accuracy monitor", recent=20):
+                 targets=None, log_path=None, pose_tolerance=1e-3, state_buffer=2000, clock=time.monotonic,
+                 name="tolerance_ros: accuracy monitor", recent=20, orientation=True):
         self.model = model
         self.name = name
         self.recent = deque(maxlen=recent)  # the latest paired results, for the markers
@@ -38,12 +39,15 @@ class MonitorLogic:
         self._drawn_generation = None
         self.campaign = campaign
         self.slop, self.max_wait = float(slop), float(max_wait)
-        self.T_tracker_base, self.tool_offset = T_tracker_base, tool_offset
+        self.T_tracker_base = T_tracker_base
+        self.orientation = bool(orientation)
+        self.targets = targets if targets is not None else Targets.at_tool(frames=self.orientation)
+        self._target_index = {n: k for k, n in enumerate(self.targets.names)}
         self.pose_tolerance = pose_tolerance
         self.clock = clock
         self.states = StateBuffer(model.dof, state_buffer)
         self.joint_order = JointOrder(model.joint_names)
-        self.pending = deque()                    # (seq, stamp, T, arrival)
+        self.pending = deque()                    # (seq, stamp, T, arrival, target index)
         self.seq = 0
         self.counts = {"received": 0, "paired": 0, "unpaired": 0, "rejected": 0, "joint_states": 0,
                        "joint_states_rejected": 0}
@@ -55,13 +59,15 @@ class MonitorLogic:
             path.parent.mkdir(parents=True, exist_ok=True)
             self.log = path.open("a", buffering=1)
             self._write({"event": "start", "robot": model.name, "joint_names": list(model.joint_names),
-                         "slop": self.slop, "wall_time": time.time()})
+                         "slop": self.slop, "wall_time": time.time(), "orientation": self.orientation,
+                         "targets": [n for n in self.targets.names if n]})
         self.set_budget(budget)
 
     def set_budget(self, budget):
         """Use a new budget (Budget or None) from now on; statistics restart with it."""
         self.acc = AccuracyAccumulator.from_budget(self.model, budget, self.campaign, self.T_tracker_base,
-                                                   self.tool_offset, self.pose_tolerance, identify=False)
+                                                   self.targets, self.pose_tolerance, identify=False,
+                                                   orientation=self.orientation)
         self.budget = budget
         self.delta = budget.vector_for(self.model) if budget is not None else None
         self.generation += 1
@@ -93,29 +99,44 @@ class MonitorLogic:
         self.states.add(t, q)
         return self.resolve()
 
-    def on_pose(self, stamp, frame_id, position, quaternion) -> list:
-        """A measured pose (position m, quaternion x y z w); returns the results decided by it."""
+    def on_pose(self, stamp, frame_id, position, quaternion=None, target="") -> list:
+        """A measured pose (position m, quaternion x y z w; None for a measured point, and ignored when the
+        monitor measures points) of the target named ``target``; returns the results decided by it."""
         self.counts["received"] += 1
         seq = self.seq
         self.seq += 1
+        quaternion = quaternion if self.orientation else None
         rec = {"event": "measurement", "seq": seq, "stamp": None, "frame": str(frame_id)[:MAX_FRAME_CHARS],
-               "position": _numbers(position), "quaternion": _numbers(quaternion)}
+               "position": _numbers(position), "quaternion": None if quaternion is None else _numbers(quaternion)}
+        if target:
+            rec["target"] = str(target)[:MAX_FRAME_CHARS]
         try:
+            k = self._target_index.get(str(target))
+            if k is None:
+                raise IngestError(f"target {str(target)[:MAX_FRAME_CHARS]!r} is not one of the monitor's targets "
+                                  f"{[n for n in self.targets.names]}")
             rec["stamp"] = t = stamp_seconds(stamp)
-            T = pose_from_values(position, quaternion)
+            if quaternion is None and self.orientation:
+                raise IngestError("orientation: missing (the monitor measures poses)")
+            T = pose_from_values(position, quaternion if quaternion is not None else (0.0, 0.0, 0.0, 1.0))
         except IngestError as exc:
             self.counts["rejected"] += 1
             self.last_reasons.append(f"measurement {seq} rejected: {exc}")
             self._write({**rec, "rejected": str(exc)})
             return []
         self._write(rec)
-        self.pending.append((seq, t, T, self.clock()))
+        self.pending.append((seq, t, T, self.clock(), k))
         return self.resolve()
 
-    def on_pose_msg(self, msg) -> list:
-        """Duck-typed geometry_msgs/PoseStamped."""
+    def on_pose_msg(self, msg, target="") -> list:
+        """Duck-typed geometry_msgs/PoseStamped of the target ``target``."""
         p, o = msg.pose.position, msg.pose.orientation
-        return self.on_pose(msg.header.stamp, msg.header.frame_id, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w))
+        return self.on_pose(msg.header.stamp, msg.header.frame_id, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w), target)
+
+    def on_point_msg(self, msg, target="") -> list:
+        """Duck-typed geometry_msgs/PointStamped of the target ``target`` (a measured point)."""
+        p = msg.point
+        return self.on_pose(msg.header.stamp, msg.header.frame_id, (p.x, p.y, p.z), None, target)
 
     def on_joint_state_msg(self, msg) -> list:
         """Duck-typed sensor_msgs/JointState."""
@@ -129,15 +150,15 @@ class MonitorLogic:
         keep = deque()
         while self.pending:
             item = self.pending.popleft()
-            seq, t, T, arrival = item
+            seq, t, T, arrival, k = item
             if newest >= t or newest >= t + self.slop or now - arrival >= self.max_wait:
-                decided.append(self._pair(seq, t, T))
+                decided.append(self._pair(seq, t, T, k))
             else:
                 keep.append(item)
         self.pending = keep
         return [d for d in decided if d is not None]
 
-    def _pair(self, seq, t, T):
+    def _pair(self, seq, t, T, k=0):
         found = self.states.nearest(t, self.slop)
         if found is None:
             self.counts["unpaired"] += 1
@@ -147,11 +168,14 @@ class MonitorLogic:
             self._write({"event": "unpaired", "seq": seq, "reason": reason})
             return None
         joint_stamp, q = found
-        r = self.acc.add(T[None], q[None])
+        r = self.acc.add(T[None], q[None], target=[k])
         self.counts["paired"] += 1
-        res = {"seq": seq, "stamp": t, "joints": q, "label": str(r["label"][0]), "verdict": str(r["verdict"][0]),
-               "position_error": float(r["position_error"][0]), "orientation_error": float(r["orientation_error"][0]),
-               "bound": float(r["bound"][0]), "margin": float(r["margin"][0]), "dp": r["dp"][0]}
+        e_ori = r["orientation_error"]
+        res = {"seq": seq, "stamp": t, "joints": q, "target": self.targets.names[k], "label": str(r["label"][0]),
+               "verdict": str(r["verdict"][0]), "position_error": float(r["position_error"][0]),
+               "orientation_error": None if e_ori is None else float(e_ori[0]),
+               "bound": float(r["bound"][0]), "margin": float(r["margin"][0]), "dp": r["dp"][0],
+               "nominal": r["nominal"][0]}
         self.last = res
         self.recent.append(res)
         self._write({"event": "paired", "seq": seq, "joint_stamp": joint_stamp, "joint_names": list(self.model.joint_names),

@@ -1,8 +1,9 @@
 """Streaming evaluation of measurements: one code path for the live accuracy monitor and offline reports.
 
-``AccuracyAccumulator.add`` takes a batch of measurements (tracker-frame poses with the joint readings
-at their stamps), expresses them in the base frame through the registration, compares them with the
-nominal model and with the budget's predicted bound, and updates fixed-size aggregates: verdict
+``AccuracyAccumulator.add`` takes a batch of measurements (tracker-frame poses or points with the joint
+readings at their stamps and the target each one measured), expresses them in the base frame through the
+registration, compares them with the nominal model at their target (its point on the tool, not the
+flange) and with the budget's predicted bound there, and updates fixed-size aggregates: verdict
 counts, error statistics, per-test-pose samples (bounded by the campaign's cycles) and the normal
 equations of a linearised identification. Memory does not grow with the number of measurements.
 """
@@ -10,10 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import criterion_bound
 from .identification import base_jacobian, identify_from_normal_equations
 from .iso9283 import pose_characteristics
 from .registration import to_base_frame
-from .verdicts import EXCEEDED, VERDICTS, budget_check, pose_errors, predicted_bounds
+from .targets import Targets, shift_jacobian
+from .verdicts import EXCEEDED, VERDICTS, budget_check, pose_errors
 
 
 class _Running:
@@ -52,29 +55,34 @@ class AccuracyAccumulator:
     model : Mechanism.  delta : (p,) budget tolerances (SI) or None.  criterion : 'paper' |
     'worst-case' | 'rss' for the predicted bound.  limit / limit_orientation : design limits (m, rad).
     T_tracker_base : 4x4 registration (identity: measurements already in the base frame).
-    tool_offset : (3,) m in the tool frame, removed from measurements.  campaign_joints : (k, dof)
-    test-pose joints with ``campaign_names``; a measurement belongs to a test pose when all its joints
-    are within ``pose_tolerance`` (rad or m) of it (or when labelled).
+    targets : the measured targets' frames in the tool frame (``targets.Targets``; default: the tool
+    frame itself); every error and bound is taken at a measurement's target.  orientation : whether the
+    measurements carry orientation (False for points: no orientation figure is computed or reported).
+    campaign_joints : (k, dof) test-pose joints with ``campaign_names``; a measurement belongs to a test
+    pose when all its joints are within ``pose_tolerance`` (rad or m) of it (or when labelled).
     """
 
     def __init__(self, model, delta=None, criterion="paper", limit=None, limit_orientation=None,
-                 T_tracker_base=None, tool_offset=None, campaign_joints=None, campaign_names=(), cycles=30,
-                 pose_tolerance=1e-3, k_sigma=3.0, identify=True):
+                 T_tracker_base=None, targets: Targets | None = None, campaign_joints=None, campaign_names=(),
+                 cycles=30, pose_tolerance=1e-3, k_sigma=3.0, identify=True, orientation=True):
         self.model = model
         self.delta = None if delta is None else np.asarray(delta, float)
         self.criterion = criterion
         self.k_sigma = k_sigma
         self.limit, self.limit_orientation = limit, limit_orientation
         self.T_base_tracker = np.linalg.inv(np.eye(4) if T_tracker_base is None else np.asarray(T_tracker_base, float))
-        self.tool_offset = None if tool_offset is None else np.asarray(tool_offset, float)
+        self.targets = targets if targets is not None else Targets.at_tool(frames=orientation)
+        self._offset = bool(np.any(self.targets.X != np.eye(4)))
+        self.orientation = bool(orientation)
         self.campaign_joints = None if campaign_joints is None else np.atleast_2d(np.asarray(campaign_joints, float))
         self.campaign_names = list(campaign_names)
         self.max_per_pose = 10 * cycles
         self.pose_tolerance = pose_tolerance
-        self.per_pose = {n: [] for n in self.campaign_names}
-        self.per_pose_dropped = {n: 0 for n in self.campaign_names}
+        keys = [self._key(n, k) for n in self.campaign_names for k in range(len(self.targets))]
+        self.per_pose = {key: [] for key in keys}
+        self.per_pose_dropped = dict.fromkeys(keys, 0)
         self.position = _Running()
-        self.orientation = _Running()
+        self.orientation_stats = _Running()
         self.margin = _Running()
         self.counts = dict.fromkeys(VERDICTS, 0)
         self.exceeded = dict.fromkeys(EXCEEDED, 0)
@@ -88,20 +96,34 @@ class AccuracyAccumulator:
         self.rows = 0
 
     @classmethod
-    def from_budget(cls, model, budget=None, campaign=None, T_tracker_base=None, tool_offset=None,
-                    pose_tolerance=1e-3, identify=True) -> "AccuracyAccumulator":
+    def from_budget(cls, model, budget=None, campaign=None, T_tracker_base=None, targets=None,
+                    pose_tolerance=1e-3, identify=True, orientation=True) -> "AccuracyAccumulator":
         """Accumulator checking against a Budget (or none) with a Campaign's test poses (or none)."""
         return cls(model, budget.vector_for(model) if budget is not None else None,
                    budget.criterion if budget is not None else "paper",
                    budget.limit_position if budget is not None else None,
-                   budget.limit_orientation if budget is not None else None, T_tracker_base, tool_offset,
-                   campaign.joints_for(model) if campaign is not None else None,
+                   budget.limit_orientation if budget is not None and orientation else None, T_tracker_base,
+                   targets, campaign.joints_for(model) if campaign is not None else None,
                    campaign.names if campaign is not None else (), campaign.cycles if campaign is not None else 30,
-                   pose_tolerance, identify=identify)
+                   pose_tolerance, identify=identify, orientation=orientation)
+
+    def _key(self, name, k) -> str:
+        """The test-pose key of a pose name and target index: the name, or ``name@target`` with targets."""
+        target = self.targets.names[k]
+        return f"{name}@{target}" if len(self.targets) > 1 or target else str(name)
 
     def to_base(self, T_tracker) -> np.ndarray:
-        """(n, 4, 4) tracker-frame poses in the base frame (see ``registration.to_base_frame``)."""
-        return to_base_frame(T_tracker, self.T_base_tracker, self.tool_offset)
+        """(n, 4, 4) tracker-frame readings in the base frame."""
+        return to_base_frame(T_tracker, self.T_base_tracker)
+
+    def nominal(self, q, target=None, jacobian=True):
+        """(T (n, 4, 4) nominal target frames, J (n, 6, p) at the targets or None) at joints q."""
+        T_tool, EJ = self.model.fk_and_jacobian(q, jacobian=jacobian)
+        if not self._offset:
+            return T_tool, (EJ.J if jacobian else None)
+        idx = self.targets.rows(target if target is not None else [], len(T_tool))
+        T = self.targets.poses(T_tool, idx)
+        return T, (shift_jacobian(EJ.J, self.targets.arms(T_tool, idx)) if jacobian else None)
 
     def label(self, q) -> np.ndarray:
         """(n,) campaign test-pose name of each configuration, or '' when none is close enough."""
@@ -112,22 +134,31 @@ class AccuracyAccumulator:
         k = np.argmin(d, axis=1)
         return np.where(d[np.arange(len(q)), k] <= self.pose_tolerance, np.array(self.campaign_names, dtype=object)[k], "")
 
-    def add(self, T_tracker, q, labels=None) -> dict:
-        """Evaluate a batch: (n, 4, 4) tracker poses and (n, dof) joints; returns per-measurement arrays."""
+    def add(self, T_tracker, q, labels=None, target=None) -> dict:
+        """Evaluate a batch: (n, 4, 4) tracker readings, (n, dof) joints and (n,) target indices (None:
+        the one target); returns per-measurement arrays."""
         q = self.model.check_joints(q)
         T_meas = self.to_base(np.asarray(T_tracker, float).reshape(-1, 4, 4))
-        T_nom, EJ = self.model.fk_and_jacobian(q)
-        dp, dphi = pose_errors(T_nom, T_meas)
-        e_pos, e_ori = np.sqrt(np.einsum("ni,ni->n", dp, dp)), np.sqrt(np.einsum("ni,ni->n", dphi, dphi))
+        idx = self.targets.rows(target if target is not None else [], len(q))
+        T_nom, J = self.nominal(q, idx)
+        dp = T_meas[:, :3, 3] - T_nom[:, :3, 3]
+        e_pos = np.sqrt(np.einsum("ni,ni->n", dp, dp))
+        dphi = e_ori = None
+        if self.orientation:
+            _, dphi = pose_errors(T_nom, T_meas)
+            e_ori = np.sqrt(np.einsum("ni,ni->n", dphi, dphi))
         b_pos = b_ori = None
         if self.delta is not None:
-            b_pos, b_ori = predicted_bounds(self.model, q, self.delta, self.criterion, self.k_sigma, EJ)
+            b_pos = criterion_bound(J[:, :3], self.delta, self.criterion, self.k_sigma)
+            if self.orientation:
+                b_ori = criterion_bound(J[:, 3:], self.delta, self.criterion, self.k_sigma)
         check = budget_check(e_pos, b_pos, self.limit, e_ori, b_ori if self.limit_orientation else None,
                              self.limit_orientation)
         labels = self.label(q) if labels is None else np.asarray(labels, dtype=object)
         self.n += len(q)
         self.position.update(e_pos)
-        self.orientation.update(e_ori)
+        if e_ori is not None:
+            self.orientation_stats.update(e_ori)
         if self.delta is not None:
             self.margin.update(check["margin"])
         for v in check["verdict"]:
@@ -136,43 +167,54 @@ class AccuracyAccumulator:
             self.exceeded[what] += int(count)
         k = int(np.argmax(e_pos))
         if self.worst is None or e_pos[k] > self.worst["error"]:
-            self.worst = {"error": float(e_pos[k]), "joints": q[k].tolist(), "label": str(labels[k])}
-        for i, name in enumerate(labels):
-            if name in self.per_pose:
-                if len(self.per_pose[name]) < self.max_per_pose:
-                    self.per_pose[name].append(T_meas[i])
-                else:
-                    self.per_pose_dropped[name] += 1
+            self.worst = {"error": float(e_pos[k]), "joints": q[k].tolist(), "label": str(labels[k]),
+                          "target": self.targets.names[idx[k]]}
+        if self.per_pose:
+            for i, name in enumerate(labels):
+                key = self._key(name, idx[i]) if name else None
+                if key in self.per_pose:
+                    if len(self.per_pose[key]) < self.max_per_pose:
+                        self.per_pose[key].append(T_meas[i])
+                    else:
+                        self.per_pose_dropped[key] += 1
         if self.identify:
-            self._normal_equations(T_nom, EJ, dp, dphi)
-        return {"position_error": e_pos, "orientation_error": e_ori, "dp": dp, "dphi": dphi, "label": labels, **check}
+            self._normal_equations(T_nom, J, dp)
+        return {"position_error": e_pos, "orientation_error": e_ori, "dp": dp, "dphi": dphi, "label": labels,
+                "target": idx, "nominal": T_nom[:, :3, 3], **check}
 
-    def _normal_equations(self, T_nom, EJ, dp, dphi):
+    def _normal_equations(self, T_nom, J, dp):
         Jb = base_jacobian(T_nom[:, :3, 3])[:, :3]
-        J = np.concatenate([EJ.position, Jb], axis=2).reshape(-1, self.JtJ.shape[0])
+        A = np.concatenate([J[:, :3], Jb], axis=2).reshape(-1, self.JtJ.shape[0])
         r = dp.reshape(-1)
-        self.JtJ += J.T @ J
-        self.Jtr += J.T @ r
+        self.JtJ += A.T @ A
+        self.Jtr += A.T @ r
         self.rtr += float(r @ r)
         self.rows += len(r)
 
     def commanded(self) -> dict:
-        """Nominal poses of the campaign test poses."""
+        """Nominal frames of the campaign test poses at each target, by test-pose key."""
         if self.campaign_joints is None:
             return {}
-        T = self.model.fk(self.campaign_joints)
-        return dict(zip(self.campaign_names, T))
+        T_tool = self.model.fk(self.campaign_joints)
+        out = {}
+        for k in range(len(self.targets)):
+            T = self.targets.poses(T_tool, np.full(len(T_tool), k))
+            out.update({self._key(n, k): T[i] for i, n in enumerate(self.campaign_names)})
+        return out
 
     def summary(self, sigma_position=1e-5) -> dict:
         out = {"measurements": self.n, "verdicts": dict(self.counts), "exceeded": dict(self.exceeded),
-               "position_error_m": self.position.to_dict(), "orientation_error_rad": self.orientation.to_dict(),
+               "position_error_m": self.position.to_dict(),
+               "orientation_error_rad": self.orientation_stats.to_dict() if self.orientation else None,
                "margin_m": self.margin.to_dict() if self.delta is not None else None, "worst": self.worst}
+        if not self.orientation:
+            out["exceeded"] = {k: v for k, v in out["exceeded"].items() if not k.startswith("orientation")}
         cmd = self.commanded()
         out["test_poses"] = {}
         for name, samples in self.per_pose.items():
             entry = {"n": len(samples), "beyond_storage": self.per_pose_dropped[name]}
             if len(samples) >= 2:
-                entry.update(pose_characteristics(cmd[name], np.array(samples)).to_dict())
+                entry.update(pose_characteristics(cmd[name], np.array(samples), self.orientation).to_dict())
             out["test_poses"][name] = entry
         if self.identify and self.rows:
             out["identification"] = self.linear_identification(sigma_position).to_dict()

@@ -11,6 +11,7 @@ from .identification import identify
 from .io import MeasurementError, read_csv
 from .iso9283 import pose_characteristics
 from .registration import KabschAccumulator, Registration, register
+from .targets import Targets
 
 IDENTIFY_MAX = 20000  # up to this many measurements the nonlinear identification runs on all of them
 
@@ -19,81 +20,133 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
                   sigma_position=1e-5, sigma_orientation=None) -> dict:
     """Evaluate measurements (see the module docstring).
 
-    registration : 'base' (estimate base -> tracker), 'base+tool' (and the tool offset), 'none'
-    (measurements already in the base frame) or a Registration.
+    registration : 'base' (estimate base -> tracker), 'base+tool' (and each target's offset on the
+    tool), 'none' (measurements already in the base frame) or a Registration (its targets are used).
+    Every error is taken at the measured target; measurements without orientation get no orientation
+    figure. ``warnings`` names what cannot be right (measurements in another frame than the one claimed).
     """
     if len(meas) == 0:
         raise MeasurementError(f"{meas.source}: no measurements")
     q = measurement_joints(model, meas, campaign)
-    T_nom = model.fk(q)
+    names = meas.target_names
+    T_tool = model.fk(q)
+    warnings = []
     if isinstance(registration, Registration):
         reg = registration
-    elif registration == "none":
-        reg = Registration(np.eye(4), None, np.linalg.norm(meas.T[:, :3, 3] - T_nom[:, :3, 3], axis=1), len(q))
-    elif registration in ("base", "base+tool"):
-        reg = register(T_nom, meas.T, tool=registration == "base+tool")
+        idx = meas.target_index(reg.targets.names)
     else:
-        raise ValueError(f"registration: expected 'base', 'base+tool' or 'none', got {registration!r}")
+        idx = meas.target_index(names)
+        reg = register_measurements(T_tool, meas, idx, names, registration)
+        if registration == "none":
+            warnings += frame_warnings(T_tool, meas, idx, names, reg)
     delta = budget.vector_for(model) if budget is not None else None
-    acc = AccuracyAccumulator.from_budget(model, budget, campaign, reg.T_tracker_base, reg.tool_offset)
+    acc = AccuracyAccumulator.from_budget(model, budget, campaign, reg.T_tracker_base, reg.targets,
+                                          orientation=meas.has_orientation)
     labels = None
     if meas.pose is not None and any(str(p) for p in meas.pose):
         labels = np.array([str(p) for p in meas.pose], dtype=object)
     rows = []
     for a in range(0, len(q), 5000):
         b = min(len(q), a + 5000)
-        r = acc.add(meas.T[a:b], q[a:b], None if labels is None else labels[a:b])
+        r = acc.add(meas.T[a:b], q[a:b], None if labels is None else labels[a:b], idx[a:b])
         if keep_rows:
             rows.append(r)
     method = registration if isinstance(registration, str) else "given"
     out = {"source": meas.source, "robot": model.name, "measurements": len(q), "skipped_rows": meas.skipped,
-           "registration": {"method": method, **reg.to_dict()}, "summary": acc.summary(sigma_position)}
+           "orientation_measured": bool(meas.has_orientation), "targets": list(reg.targets.names),
+           "registration": {"method": method, **reg.to_dict()}, "summary": acc.summary(sigma_position),
+           "warnings": warnings}
     T_base = reg.to_base(meas.T)
     if campaign is not None:
         lab = labels if labels is not None else acc.label(q)
-        out["per_pose"] = per_pose_statistics(campaign.names, acc.commanded(), T_base, lab)
+        keys = np.array([acc._key(n, k) if n else "" for n, k in zip(lab, idx)], dtype=object)
+        out["per_pose"] = per_pose_statistics(list(acc.commanded()), acc.commanded(), T_base, keys,
+                                              meas.has_orientation)
     if len(q) <= IDENTIFY_MAX:
         ident = identify(model, q, T_base, delta, sigma_position,
-                         sigma_orientation if meas.has_orientation else None)
+                         sigma_orientation if meas.has_orientation else None, targets=reg.targets, target_index=idx)
         out["identification"] = ident.to_dict()
     else:
         out["identification"] = out["summary"].pop("identification", None)
     if keep_rows:
-        cat = {k: np.concatenate([r[k] for r in rows]) for k in rows[0] if k not in ("dp", "dphi")}
+        cat = {k: np.concatenate([r[k] for r in rows]) for k in rows[0] if k not in ("dp", "dphi", "orientation_error")
+               and rows[0][k] is not None}
         out["rows"] = {"stamp": meas.stamps, "joints": q, "dp": np.concatenate([r["dp"] for r in rows]),
-                       "dphi": np.concatenate([r["dphi"] for r in rows]), **cat}
+                       "dphi": np.concatenate([r["dphi"] for r in rows]) if meas.has_orientation else None,
+                       "orientation_error": (np.concatenate([r["orientation_error"] for r in rows])
+                                             if meas.has_orientation else None), **cat}
     return out
 
 
+def register_measurements(T_tool, meas, idx, names, registration) -> Registration:
+    """The Registration of ``meas`` by method: 'base', 'base+tool' or 'none'."""
+    if registration == "none":
+        tg = Targets.at_tool(names, meas.has_orientation)
+        return Registration(np.eye(4), tg, np.linalg.norm(meas.T[:, :3, 3] - tg.poses(T_tool, idx)[:, :3, 3], axis=1),
+                            len(T_tool))
+    if registration not in ("base", "base+tool"):
+        raise ValueError(f"registration: expected 'base', 'base+tool' or 'none', got {registration!r}")
+    if registration == "base" and len(names) > 1:
+        raise ValueError(f"registration: {len(names)} targets ({', '.join(names)}) sit at different points of the "
+                         f"tool; fit their offsets with registration 'base+tool'")
+    return register(T_tool, meas.T, tool=registration == "base+tool", index=idx, names=names,
+                    frames=meas.has_orientation)
+
+
+def frame_warnings(T_tool, meas, idx, names, reg) -> list:
+    """What says that measurements claimed to be in the base frame are not: a registration would shrink the
+    error many times over."""
+    if len(T_tool) < 3:
+        return []
+    try:
+        best = register(T_tool, meas.T, index=idx, names=names, targets=reg.targets)
+    except ValueError:
+        return []
+    if reg.rms > 10 * best.rms and reg.rms > 1e-3:
+        return [f"the measurements are not in the robot's base frame: their RMS error is {reg.rms * 1e3:.4g} mm as "
+                f"given and {best.rms * 1e3:.4g} mm after a registration; use registration 'base' (or 'base+tool')"]
+    return []
+
+
 def stream_file(model, path, budget=None, campaign=None, chunk_rows=5000, registration="base") -> dict:
-    """Constant-memory evaluation of a large CSV file: pass 1 registers the base (position sums),
-    pass 2 feeds the accumulator chunk by chunk. Identification is the linearised one."""
+    """Constant-memory evaluation of a large CSV file of one target: pass 1 registers the base (position
+    sums), pass 2 feeds the accumulator chunk by chunk. Identification is the linearised one."""
     T_tb = np.eye(4)
     if registration == "base":
         kab = KabschAccumulator()
         for m in read_csv(path, chunk_rows=chunk_rows):
+            _one_target(m)
             kab.add(model.fk(measurement_joints(model, m, campaign))[:, :3, 3], m.T[:, :3, 3])
         T_tb = kab.result()
     elif registration != "none":
         raise ValueError("stream_file: registration must be 'base' or 'none'")
-    acc = AccuracyAccumulator.from_budget(model, budget, campaign, T_tb)
+    acc = None
     skipped = []
     for m in read_csv(path, chunk_rows=chunk_rows):
+        _one_target(m)
+        if acc is None:
+            acc = AccuracyAccumulator.from_budget(model, budget, campaign, T_tb, orientation=m.has_orientation)
         labels = np.array([str(p) for p in m.pose], dtype=object) if m.pose is not None and any(m.pose) else None
         acc.add(m.T, measurement_joints(model, m, campaign), labels)
         skipped += m.skipped
     return {"source": str(path), "robot": model.name, "measurements": acc.n, "skipped_rows": skipped,
-            "T_tracker_base": T_tb, "summary": acc.summary()}
+            "orientation_measured": acc.orientation, "T_tracker_base": T_tb, "summary": acc.summary()}
 
 
-def per_pose_statistics(names, T_commanded: dict, T_measured, labels) -> dict:
-    """ISO 9283 characteristics for each test pose name (measured poses grouped by ``labels``)."""
+def _one_target(m):
+    if len(m.target_names) > 1:
+        raise MeasurementError(f"{m.source}: streaming takes one target; this file has {len(m.target_names)} "
+                               f"({', '.join(m.target_names)}): evaluate it without streaming")
+
+
+def per_pose_statistics(names, T_commanded: dict, T_measured, labels, orientation=True) -> dict:
+    """ISO 9283 characteristics for each test pose key (measured poses grouped by ``labels``)."""
     out = {}
     labels = np.asarray(labels, dtype=object)
     for name in names:
         sel = labels == name
         if sel.sum() >= 2:
-            out[name] = pose_characteristics(T_commanded[name], np.asarray(T_measured)[sel]).to_dict()
+            out[name] = pose_characteristics(T_commanded[name], np.asarray(T_measured)[sel], orientation).to_dict()
         else:
             out[name] = {"n": int(sel.sum()), "note": "fewer than 2 measurements"}
     return out

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import qr
 
-from ..geometry import exp_so3
-from .verdicts import pose_errors
+from ..geometry import exp_so3, rotation_error
+from .targets import Targets, shift_jacobian
 
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
 SCALE_WITHOUT_BUDGET = 1e-3  # column scale (m or rad) of parameters without a tolerance, and of the base
@@ -54,6 +54,13 @@ class Identification:
     aliases: dict = field(default_factory=dict)
     sigma: float | None = None
     fit_condition: float | None = None
+    targets: Targets | None = None
+    targets_std: np.ndarray | None = None
+    compliance: np.ndarray | None = None
+    compliance_std: np.ndarray | None = None
+    compliance_held: list = field(default_factory=list)
+    row_residuals: np.ndarray | None = None
+    weights: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         return {"method": self.method,
@@ -101,22 +108,88 @@ def _prior(delta, sigma_position, p, estimate_base=True) -> np.ndarray:
     return prior
 
 
-def _stack(model, q, T_meas, dx, base, use_orientation, w_ori):
-    """Residuals (measured - model) and their Jacobian in the unknowns [dx; base], stacked per pose."""
-    T_nom, EJ = model.fk_and_jacobian(q, dx)
-    B = base_matrix(base)
-    Tb = B @ T_nom
-    dp, dphi = pose_errors(Tb, T_meas)
-    Jb = base_jacobian(Tb[:, :3, 3])
+class _Layout:
+    """Columns of the unknowns: parameter errors (p), base correction (6), target points (3 per target),
+    target rotations (3 per target, measured frames with orientation rows), compliances (one per joint
+    in ``cmask``)."""
+
+    def __init__(self, p, K, est_targets, rot_targets, cmask):
+        self.p, self.K = p, K
+        self.cmask = np.zeros(0, bool) if cmask is None else np.asarray(cmask, bool)
+        self.nc = int(self.cmask.sum())
+        self.nt = 3 * K if est_targets else 0
+        self.nr = 3 * K if (est_targets and rot_targets) else 0
+        self.base = slice(p, p + 6)
+        self.t = slice(p + 6, p + 6 + self.nt)
+        self.r = slice(self.t.stop, self.t.stop + self.nr)
+        self.c = slice(self.r.stop, self.r.stop + self.nc)
+        self.n = self.c.stop
+
+    @property
+    def nuisance(self) -> np.ndarray:
+        """Columns always estimated, whatever the parameters: the base and the targets."""
+        return np.r_[np.arange(self.base.start, self.base.stop), np.arange(self.t.start, self.r.stop)]
+
+    @property
+    def estimable(self) -> np.ndarray:
+        """Columns that may be held: the parameters and the compliances."""
+        return np.r_[np.arange(self.p), np.arange(self.c.start, self.c.stop)]
+
+
+def _targets_with(targets, layout, x):
+    """Target frames (K, 4, 4) with the updates of ``x``: points shifted, rotations turned in the tool frame."""
+    X = targets.X.copy()
+    if layout.nt:
+        X[:, :3, 3] += x[layout.t].reshape(-1, 3)
+    if layout.nr:
+        X[:, :3, :3] = exp_so3(x[layout.r].reshape(-1, 3)) @ X[:, :3, :3]
+    return X
+
+
+def _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity=None, sqrt_w=None):
+    """(J, r, |dp|): the Jacobian in the unknowns (``_Layout``) and the residuals (measured - model), rows
+    stacked per measurement, and each measurement's position residual (m, unweighted). The model of a
+    measurement is ``B T(q + C g, dx) X_k`` at its target ``k``."""
+    p = layout.p
+    q_eff = q
+    if layout.nc:
+        c = np.zeros(model.dof)
+        c[layout.cmask] = x[layout.c]
+        q_eff = q + gravity * c
+    T_tool, EJ = model.fk_and_jacobian(q_eff, x[:p])
+    X = _targets_with(targets, layout, x)[idx]
+    arms = np.einsum("nij,nj->ni", T_tool[:, :3, :3], X[:, :3, 3])
+    Jt = shift_jacobian(EJ.J, arms) if np.any(arms) else EJ.J
+    B = base_matrix(x[layout.base])
     R0 = B[:3, :3]
-    rows_J = [np.concatenate([np.einsum("ij,njp->nip", R0, EJ.position), Jb[:, :3]], axis=2)]
-    rows_r = [dp]
-    if use_orientation:
-        rows_J.append(w_ori * np.concatenate([np.einsum("ij,njp->nip", R0, EJ.orientation), Jb[:, 3:]], axis=2))
-        rows_r.append(w_ori * dphi)
-    J = np.concatenate(rows_J, axis=1).reshape(-1, model.n_params + 6)
-    r = np.concatenate(rows_r, axis=1).reshape(-1)
-    return J, r
+    Tp = B @ T_tool @ X
+    n = len(q)
+    rows = 6 if use_ori else 3
+    J = np.zeros((n, rows, layout.n))
+    J[:, :3, :p] = np.einsum("ij,njp->nip", R0, Jt[:, :3])
+    Jb = base_jacobian(Tp[:, :3, 3])
+    J[:, :3, layout.base] = Jb[:, :3]
+    if use_ori:
+        J[:, 3:, :p] = w_ori * np.einsum("ij,njp->nip", R0, Jt[:, 3:])
+        J[:, 3:, layout.base] = w_ori * Jb[:, 3:]
+    RW = R0 @ T_tool[:, :3, :3]
+    for k in range(layout.K if layout.nt else 0):
+        sel = idx == k
+        J[sel, :3, layout.t.start + 3 * k:layout.t.start + 3 * k + 3] = RW[sel]
+        if use_ori and layout.nr:
+            J[sel, 3:, layout.r.start + 3 * k:layout.r.start + 3 * k + 3] = w_ori * RW[sel]
+    if layout.nc:
+        cols = model.joint_columns()[layout.cmask]
+        Jc = np.einsum("ij,njc->nic", R0, Jt[:, :, cols]) * gravity[:, None, layout.cmask]
+        J[:, :3, layout.c] = Jc[:, :3]
+        if use_ori:
+            J[:, 3:, layout.c] = w_ori * Jc[:, 3:]
+    dp = T_meas[:, :3, 3] - Tp[:, :3, 3]
+    r = dp if not use_ori else np.concatenate([dp, w_ori * rotation_error(T_meas[:, :3, :3], Tp[:, :3, :3])], axis=1)
+    if sqrt_w is not None:
+        J *= sqrt_w[:, None, None]
+        r = r * sqrt_w[:, None]
+    return J.reshape(n * rows, layout.n), r.reshape(-1), np.linalg.norm(dp, axis=1)
 
 
 def _identifiability(s, V, cols, n_unknowns, tol_rank):
@@ -134,21 +207,27 @@ def _identifiability(s, V, cols, n_unknowns, tol_rank):
 
 
 def dependent_parameters(Js, p, estimate_base=True, tol_rank=1e-6) -> np.ndarray:
-    """(p,) mask of the parameters to hold at nominal so that the rest (and the base) are identifiable.
+    """(p,) mask of the parameters to hold at nominal so that the rest (and the base) are identifiable;
+    ``Js`` is the column-scaled Jacobian in the unknowns [dx (p); base (6)] (see ``dependent_columns``)."""
+    return dependent_columns(Js, np.arange(p), np.arange(p, p + 6) if estimate_base else np.zeros(0, int), tol_rank)
 
-    ``Js`` is the column-scaled Jacobian in the unknowns [dx (p); base (6)]. The base columns are kept;
-    their span is projected out of the parameter columns, and QR with column pivoting (the elimination
-    of redundant parameters of Hollerbach & Wampler 1996) keeps the parameters whose pivot exceeds
-    ``tol_rank`` times the largest singular value of ``Js``; the other parameters are dependent.
+
+def dependent_columns(Js, estimable, nuisance, tol_rank=1e-6) -> np.ndarray:
+    """Mask over the ``estimable`` columns of the scaled Jacobian ``Js``: those to hold so that the rest and
+    the ``nuisance`` columns (always estimated: base, targets) are identifiable.
+
+    The nuisance columns' span is projected out of the estimable columns, and QR with column pivoting
+    (the elimination of redundant parameters of Hollerbach & Wampler 1996) keeps the columns whose pivot
+    exceeds ``tol_rank`` times the largest singular value of ``Js``; the others are dependent.
     """
-    A = Js[:, :p]
-    if estimate_base:
-        Qb, Rb = np.linalg.qr(Js[:, p:])
+    A = Js[:, estimable]
+    if len(nuisance):
+        Qb, Rb = np.linalg.qr(Js[:, nuisance])
         Qb = Qb[:, np.abs(np.diag(Rb)) > 1e-12 * max(np.abs(Rb).max(), 1e-300)]
         A = A - Qb @ (Qb.T @ A)
     smax = np.linalg.norm(Js, 2) if Js.size else 0.0
     _, R, piv = qr(A, mode="economic", pivoting=True)
-    pivots = np.zeros(p)
+    pivots = np.zeros(len(estimable))
     k = min(R.shape)
     pivots[piv[:k]] = np.abs(np.diag(R))[:k]
     return ~(pivots > tol_rank * smax)
@@ -190,70 +269,123 @@ def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iteratio
 
 
 def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientation=None, iterations=8,
-             estimate_base=True, tol_rank=1e-6, hold=None, noise_from_residuals=False) -> Identification:
+             estimate_base=True, tol_rank=1e-6, hold=None, noise_from_residuals=False, targets=None,
+             target_index=None, estimate_targets=False, gravity=None, compliance=None,
+             weights=None) -> Identification:
     """Estimate parameter errors dx (and a base correction) from measured base-frame poses (n, 4, 4).
 
-    Regularised Gauss-Newton on the nonlinear model: minimise ``|r(dx)|^2 / sigma^2 + |dx / delta|^2``.
-    Identifiability from the SVD of the column-scaled Jacobian at the nominal parameters (a structural
-    property of the model and the poses; the perturbed model only blurs its null space): singular values
-    below ``tol_rank`` of the largest leave a null space, and a parameter with a weight of 0.1 or more
-    in it cannot be separated from others. ``sigma_orientation`` (rad) adds the orientation rows.
+    Regularised Levenberg-Marquardt on the nonlinear model: minimise ``|r(dx)|^2 / sigma^2 + |dx / delta|^2``
+    (a Gauss-Newton step, damped only where it would raise the cost). Identifiability from the SVD of the
+    column-scaled Jacobian at the nominal parameters (a structural property of the model and the poses;
+    the perturbed model only blurs its null space): singular values below ``tol_rank`` of the largest
+    leave a null space, and a parameter with a weight of 0.1 or more in it cannot be separated from
+    others. ``sigma_orientation`` (rad) adds the orientation rows (measured frames only).
 
-    ``hold``: None estimates every parameter; ``"dependent"`` holds the parameters of
-    ``dependent_parameters`` (judged at nominal) at 0; a list of names holds those. With
-    ``noise_from_residuals`` the covariance is scaled by the residual noise ``|r|^2 / (rows - unknowns)``
-    instead of ``sigma_position^2`` (the prior, if any, is kept).
+    targets, target_index : the measured targets' frames in the tool frame (``targets.Targets``) and each
+    row's target (default: the tool frame itself); with ``estimate_targets`` their points (and, with
+    orientation rows, their rotations) are corrected too. gravity, compliance : (n, dof) gravity load of
+    each row's joints (N m, N) and the (dof,) mask of the joints whose compliance (rad/(N m), m/N) is
+    estimated: the joints deflect by ``c * g``. weights : (n,) row weights (0 leaves a row out).
+
+    ``hold``: None estimates every parameter; ``"dependent"`` holds the parameters (and compliances) of
+    ``dependent_columns`` (judged at nominal, the base and targets always estimated) at 0; a list of
+    names holds those. With ``noise_from_residuals`` the covariance is scaled by the residual noise
+    ``|r|^2 / (rows - unknowns)`` instead of ``sigma_position^2`` (the prior, if any, is kept).
     """
     q = model.check_joints(q)
     T_meas = np.asarray(T_meas, float)
-    p = model.n_params
+    n, p = len(q), model.n_params
     use_ori = sigma_orientation is not None
     w_ori = sigma_position / sigma_orientation if use_ori else 0.0
-    scale = column_scale(delta, p)
-    prior = _prior(delta, sigma_position, p, estimate_base)
-    x = np.zeros(p + 6)
-    J, r = _stack(model, q, T_meas, None, x[p:], use_ori, w_ori)
+    targets = targets if targets is not None else Targets.at_tool()
+    idx = targets.rows(target_index if target_index is not None else [], n)
+    layout = _Layout(p, len(targets), estimate_targets, targets.frames and use_ori, compliance)
+    if layout.nc:
+        gravity = np.asarray(gravity, float).reshape(n, model.dof)
+    w = np.ones(n) if weights is None else np.asarray(weights, float).reshape(n)
+    sqrt_w = None if weights is None else np.sqrt(w)
+    scale = np.concatenate([column_scale(delta, p), np.full(layout.nt + layout.nr, SCALE_WITHOUT_BUDGET),
+                            _compliance_scale(gravity, layout)])
+    prior = np.concatenate([_prior(delta, sigma_position, p, estimate_base), np.full(layout.n - p - 6, 1e-12)])
+    x = np.zeros(layout.n)
+    J, r, _ = _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity, sqrt_w)
+    rows_used = max(int(np.count_nonzero(w)), 1) * (6 if use_ori else 3)
     Js = J * scale
-    rms0 = float(np.sqrt(np.mean(r ** 2)))
-    held = np.zeros(p + 6, bool)
+    rms0 = float(np.sqrt(r @ r / rows_used))
+    held = np.zeros(layout.n, bool)
     if not estimate_base:
-        held[p:] = True
+        held[layout.base] = True
     if isinstance(hold, str) and hold == "dependent":
-        held[:p] = dependent_parameters(Js, p, estimate_base, tol_rank)
+        nuisance = layout.nuisance if estimate_base else layout.nuisance[6:]
+        held[layout.estimable[dependent_columns(Js, layout.estimable, nuisance, tol_rank)]] = True
     elif hold is not None:
         held[model.param_index(list(hold))] = True
     free = np.flatnonzero(~held)
-    it = 0
+    cost = r @ r + prior @ (x * x)
+    lam, it = 0.0, 0
     for it in range(1, iterations + 1):
-        Jf = J[:, free]
-        step = np.linalg.solve(Jf.T @ Jf + np.diag(prior[free]), Jf.T @ r - prior[free] * x[free])
-        x[free] += step
-        J, r = _stack(model, q, T_meas, x[:p], x[p:], use_ori, w_ori)
+        Jf = J[:, free] * scale[free]
+        A = Jf.T @ Jf + np.diag(prior[free] * scale[free] ** 2)
+        g = Jf.T @ r - prior[free] * x[free] * scale[free]
+        for _ in range(12):
+            step = np.linalg.solve(A + lam * np.diag(np.diag(A)), g) * scale[free]
+            x_new = x.copy()
+            x_new[free] += step
+            J_new, r_new, _ = _stack(model, q, T_meas, x_new, layout, targets, idx, use_ori, w_ori, gravity, sqrt_w)
+            cost_new = r_new @ r_new + prior @ (x_new * x_new)
+            if np.isfinite(cost_new) and cost_new <= cost * (1 + 1e-12):
+                lam = lam / 10 if lam > 1e-6 else 0.0
+                break
+            lam = max(lam * 10, 1e-4)
+        else:
+            break
+        x, J, r, cost = x_new, J_new, r_new, cost_new
         if np.max(np.abs(step) / scale[free]) < 1e-10:
             break
     Jf = J[:, free]
     noise = sigma_position
     if noise_from_residuals:
-        dof = len(r) - len(free)
+        dof = rows_used - len(free)
         if dof < 1:
-            raise ValueError(f"identification: {len(r)} residuals for {len(free)} unknowns; the noise cannot be "
+            raise ValueError(f"identification: {rows_used} residuals for {len(free)} unknowns; the noise cannot be "
                              f"estimated (measure more poses)")
         noise = float(np.sqrt(r @ r / dof))
-    cov = np.zeros((p + 6, p + 6))
-    cov[np.ix_(free, free)] = np.linalg.inv(Jf.T @ Jf + np.diag(prior[free])) * noise ** 2
+    cov = np.zeros((layout.n, layout.n))
+    cov[np.ix_(free, free)] = np.linalg.pinv(Jf.T @ Jf + np.diag(prior[free])) * noise ** 2
     cols = np.flatnonzero(np.linalg.norm(Js, axis=0) > 0)
     A = Js[:, cols]
     _, s, Vt = np.linalg.svd(A, full_matrices=A.shape[0] < A.shape[1])  # Vt square; U small or thin
     s = np.concatenate([s, np.zeros(len(cols) - len(s))])
-    rank, cond, weight = _identifiability(s, Vt.T, cols, p + 6, tol_rank)
-    ident = _result(model, x, cov, rank, cond, weight, cols, delta, rms0, float(np.sqrt(np.mean(r ** 2))), it,
-                    "gauss-newton", estimate_base)
+    rank, cond, weight = _identifiability(s, Vt.T, cols, layout.n, tol_rank)
+    main = np.arange(p + 6)
+    ident = _result(model, x[main], cov[np.ix_(main, main)], rank, cond, weight[main], cols[cols < p + 6], delta,
+                    rms0, float(np.sqrt(r @ r / rows_used)), it, "gauss-newton", estimate_base)
     ident.held = [model.param_names[j] for j in np.flatnonzero(held[:p])]
-    ident.aliases = _aliases(Js, free, np.flatnonzero(held[:p]), scale, tuple(model.param_names) + BASE_NAMES)
+    ident.aliases = _aliases(Js, free[free < p + 6], np.flatnonzero(held[:p]), scale, tuple(model.param_names) + BASE_NAMES)
     ident.sigma = noise
     sf = np.linalg.svd(Js[:, free], compute_uv=False)
     ident.fit_condition = float(sf.max() / sf.min()) if sf.size and sf.min() > 0 else float("inf")
+    ident.targets = Targets(targets.names, _targets_with(targets, layout, x), targets.frames)
+    if layout.nt:
+        ident.targets_std = np.sqrt(np.maximum(np.diag(cov)[layout.t], 0.0)).reshape(-1, 3)
+    if layout.nc:
+        ident.compliance = np.zeros(model.dof)
+        ident.compliance[layout.cmask] = x[layout.c]
+        ident.compliance_std = np.zeros(model.dof)
+        ident.compliance_std[layout.cmask] = np.sqrt(np.maximum(np.diag(cov)[layout.c], 0.0))
+        ident.compliance_held = [model.joint_names[j] for j, h in zip(np.flatnonzero(layout.cmask), held[layout.c]) if h]
+    ident.row_residuals = _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity)[2]
+    ident.weights = w
     return ident
+
+
+def _compliance_scale(gravity, layout) -> np.ndarray:
+    """Column scale of each estimated compliance: the one that deflects its joint by 1 mrad (or 1 mm) at
+    the largest load of the data."""
+    if not layout.nc:
+        return np.zeros(0)
+    top = np.abs(np.asarray(gravity, float)[:, layout.cmask]).max(axis=0)
+    return SCALE_WITHOUT_BUDGET / np.where(top > 0, top, 1.0)
 
 
 def identify_from_normal_equations(model, JtJ, Jtr, rtr, rows, delta=None, sigma_position=1e-5,

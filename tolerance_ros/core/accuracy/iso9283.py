@@ -28,7 +28,7 @@ def wrap(angle):
 
 @dataclass
 class PoseCharacteristics:
-    """ISO 9283 figures of one test pose (m, rad); ``mean_error`` is the 3-PUPS paper's Table 3 row."""
+    """ISO 9283 figures of one test pose (m, rad; the orientation figures are None for measured points)."""
 
     n: int
     AP_p: float
@@ -49,10 +49,11 @@ class PoseCharacteristics:
         return asdict(self)
 
 
-def pose_characteristics(commanded, attained) -> PoseCharacteristics:
+def pose_characteristics(commanded, attained, orientation: bool = True) -> PoseCharacteristics:
     """ISO 9283 AP and RP of one test pose.
 
     commanded : 4x4 commanded (nominal) pose.  attained : (n, 4, 4) measured poses, n >= 2.
+    orientation : False for measured points: the orientation figures are None (nothing measured them).
     """
     T = np.asarray(attained, dtype=float)
     C = np.asarray(commanded, dtype=float)
@@ -69,6 +70,9 @@ def pose_characteristics(commanded, attained) -> PoseCharacteristics:
     l = np.linalg.norm(p - pbar, axis=1)
     lbar = l.mean()
     S_l = np.sqrt(np.sum((l - lbar) ** 2) / (n - 1))
+    if not orientation:
+        return PoseCharacteristics(n, float(np.linalg.norm(ap)), *map(float, ap), None, None, None,
+                                   float(lbar + 3 * S_l), None, None, None, float(lbar), float(S_l))
     dang = wrap(rpy_from_matrix(T[:, :3, :3]) - rpy_from_matrix(C[None, :3, :3]))
     abar = dang.mean(axis=0)
     S_ang = np.sqrt(np.sum((dang - abar) ** 2, axis=0) / (n - 1))

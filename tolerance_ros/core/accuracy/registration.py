@@ -1,5 +1,22 @@
-"""Registration: the rigid transform from the robot base frame to the tracker frame (and optionally
-the tool/TCP offset), estimated by least squares from paired nominal and measured poses."""
+"""Registration: the rigid transform from the robot base frame to the tracker frame and, optionally, the
+offsets of the measured targets on the tool, by least squares from nominal tool poses and the tracker's
+readings.
+
+Model: target ``k`` seen at joints ``q_i`` reads ``m_i = A T(q_i) X_k`` (``A`` = ``T_tracker_base``,
+``T(q)`` the nominal tool frame, ``X_k`` the target's frame in the tool frame; positions always, the
+orientation too when the targets are measured frames).
+
+Without offsets to fit, the targets' points are known in the base frame and ``A`` is the closed-form
+Kabsch solution. With offsets (``tool=True``) the problem is not convex, but for a fixed rotation ``R``
+of ``A`` it is linear: ``R^T m_i - p_i = b + R_i t_k`` (``b = R^T a``, ``p_i, R_i`` the tool frame,
+``t_k`` the target point). Eliminating ``(b, t)`` leaves a quadratic form in the nine entries of ``R``,
+``f(R) = |P (G vec R^T - p)|^2`` with the fixed projector ``P``; it is evaluated on a dense seeded
+cover of SO(3) (4,096 rotations, the 24 of the cube, and the projection of its unconstrained minimum),
+so no starting guess is involved; the best distinct candidates are refined by Levenberg-Marquardt on
+the full residual and the lowest wins. This finds the global solution for any tracker placement (any
+rotation, upside down) and any offsets. Measured frames then get each target's rotation in closed form
+(the rotation nearest the mean of ``R_i^T R^T R_m``). SI throughout.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -8,16 +25,23 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from .targets import Targets
+
+COVER = 4096      # rotations of the seeded cover of SO(3) on which f(R) is evaluated
+REFINE = 6        # distinct best candidates refined by Levenberg-Marquardt
+DISTINCT = 0.2    # rad: candidates closer than this to a better one are not refined again
+
 
 @dataclass
 class Registration:
-    """``T_tracker_base`` maps base-frame poses into the tracker frame; ``tool_offset`` (m, tool frame) is
-    added to the nominal tool point when estimated. Residuals are position residuals (m)."""
+    """``T_tracker_base`` maps base-frame poses into the tracker frame; ``targets`` are the measured
+    targets' frames in the tool frame (fitted when ``estimated``). Residuals are position residuals (m)."""
 
     T_tracker_base: np.ndarray
-    tool_offset: np.ndarray | None
+    targets: Targets
     residuals: np.ndarray
     n: int
+    estimated: bool = False
 
     @property
     def rms(self) -> float:
@@ -27,22 +51,24 @@ class Registration:
     def max(self) -> float:
         return float(self.residuals.max())
 
+    @property
+    def tool_offset(self) -> np.ndarray | None:
+        """(3,) m: the one target's fitted point in the tool frame (None when not fitted or several)."""
+        return self.targets.offsets[0].copy() if self.estimated and len(self.targets) == 1 else None
+
     def to_base(self, T_tracker) -> np.ndarray:
-        """(n, 4, 4) tracker-frame poses expressed in the base frame (tool offset removed)."""
-        return to_base_frame(T_tracker, np.linalg.inv(self.T_tracker_base), self.tool_offset)
+        """(n, 4, 4) tracker-frame readings expressed in the base frame."""
+        return np.linalg.inv(self.T_tracker_base) @ np.asarray(T_tracker, float).reshape(-1, 4, 4)
 
     def to_dict(self) -> dict:
-        return {"T_tracker_base": self.T_tracker_base, "tool_offset_m": self.tool_offset, "n": self.n,
+        return {"T_tracker_base": self.T_tracker_base, "tool_offset_m": self.tool_offset,
+                "targets_estimated": self.estimated, **self.targets.to_dict(), "n": self.n,
                 "residual_rms_m": self.rms, "residual_max_m": self.max}
 
 
-def to_base_frame(T_tracker, T_base_tracker, tool_offset=None) -> np.ndarray:
-    """(n, 4, 4) tracker-frame poses in the base frame (``T_base_tracker`` @ T), with the tool offset
-    (m, tool frame) removed from the measured point."""
-    T = np.asarray(T_base_tracker, dtype=float) @ np.asarray(T_tracker, dtype=float).reshape(-1, 4, 4)
-    if tool_offset is not None:
-        T[:, :3, 3] -= np.einsum("nij,j->ni", T[:, :3, :3], tool_offset)
-    return T
+def to_base_frame(T_tracker, T_base_tracker) -> np.ndarray:
+    """(n, 4, 4) tracker-frame readings in the base frame (``T_base_tracker @ T``)."""
+    return np.asarray(T_base_tracker, dtype=float) @ np.asarray(T_tracker, dtype=float).reshape(-1, 4, 4)
 
 
 def kabsch(P, M):
@@ -56,37 +82,133 @@ def kabsch(P, M):
     return R, cm - R @ cp, S
 
 
-def register(T_nominal, T_measured, tool: bool = False) -> Registration:
-    """Estimate the base-to-tracker transform from (n, 4, 4) nominal base-frame poses and their tracker
-    readings; with ``tool`` also the tool-point offset in the tool frame (needs varied orientations)."""
+def spread_ratio(P, M) -> float:
+    """RMS spread of measured points ``M`` about their centroid over that of the nominal points ``P``
+    ((n, 3) each): about 1 when both are in the same length unit, 1e-3 for metres labelled millimetres."""
+    P, M = np.asarray(P, float), np.asarray(M, float)
+    sp = np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1)))
+    sm = np.sqrt(np.mean(np.sum((M - M.mean(axis=0)) ** 2, axis=1)))
+    return float(sm / sp) if sp > 0 else float("inf")
+
+
+def register(T_nominal, T_measured, tool: bool = False, index=None, names=("",), frames: bool = False,
+             targets: Targets | None = None) -> Registration:
+    """Registration of tracker readings (n, 4, 4) to nominal tool frames (n, 4, 4) in the base frame.
+
+    index : (n,) each row's target in ``names`` (None: one target).  tool : fit each target's offset
+    (needs varied orientations).  frames : the readings are frames (their orientation is measured).
+    targets : known target frames instead (only the tracker is fitted; ``tool`` must be False).
+    """
     Tn, Tm = np.asarray(T_nominal, float), np.asarray(T_measured, float)
     if Tn.shape != Tm.shape or Tn.ndim != 3 or Tn.shape[1:] != (4, 4):
         raise ValueError(f"registration: nominal and measured poses must both be (n, 4, 4), got {Tn.shape}, {Tm.shape}")
     n = len(Tn)
-    P, M = Tn[:, :3, 3], Tm[:, :3, 3]
     if n < 3:
         raise ValueError(f"registration: needs at least 3 poses, got {n}")
-    R, t, S = kabsch(P, M)
-    if S[1] < 1e-9 * max(S[0], 1e-300):
-        raise ValueError("registration: the measured points are collinear; the rotation is not determined")
-    offset = None
-    if tool:
-        def resid(x):
-            Rx = Rotation.from_rotvec(x[:3]).as_matrix()
-            pts = P + np.einsum("nij,j->ni", Tn[:, :3, :3], x[6:9])
-            return ((pts @ Rx.T + x[3:6]) - M).ravel()
+    names = tuple(targets.names) if targets is not None else tuple(names)
+    K = len(names)
+    idx = np.zeros(n, int) if index is None else np.asarray(index, int)
+    if idx.shape != (n,) or (n and (idx.min() < 0 or idx.max() >= K)):
+        raise ValueError(f"registration: index must give each of the {n} rows one of {K} targets")
+    if tool and targets is not None:
+        raise ValueError("registration: give known targets or fit them (tool), not both")
+    if not tool:
+        tg = targets if targets is not None else Targets.at_tool(names, frames)
+        P = tg.poses(Tn, idx)[:, :3, 3]
+        R, t, S = kabsch(P, Tm[:, :3, 3])
+        if S[1] < 1e-9 * max(S[0], 1e-300):
+            raise ValueError("registration: the measured points are collinear; the rotation is not determined")
+        A = _matrix(R, t)
+        return Registration(A, tg, np.linalg.norm(P @ R.T + t - Tm[:, :3, 3], axis=1), n, False)
+    R, b, offsets = _global_points(Tn, Tm[:, :3, 3], idx, K, names)
+    X = np.tile(np.eye(4), (K, 1, 1))
+    X[:, :3, 3] = offsets
+    if frames:
+        for k in range(K):
+            sel = idx == k
+            Mk = np.einsum("nji,jk,nkl->il", Tn[sel, :3, :3], R.T, Tm[sel, :3, :3])
+            X[k, :3, :3] = _nearest_rotation(Mk)
+    A = _matrix(R, R @ b)
+    tg = Targets(names, X, frames)
+    P = tg.poses(Tn, idx)[:, :3, 3]
+    return Registration(A, tg, np.linalg.norm(P @ R.T + R @ b - Tm[:, :3, 3], axis=1), n, True)
 
-        x0 = np.concatenate([Rotation.from_matrix(R).as_rotvec(), t, np.zeros(3)])
-        sol = least_squares(resid, x0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
-        Jm = sol.jac
-        if np.linalg.matrix_rank(Jm, tol=1e-9 * np.abs(Jm).max()) < 9:
-            raise ValueError("registration: the tool offset is not determined (orientations too similar)")
-        R, t, offset = Rotation.from_rotvec(sol.x[:3]).as_matrix(), sol.x[3:6], sol.x[6:9]
-        P = P + np.einsum("nij,j->ni", Tn[:, :3, :3], offset)
+
+def _matrix(R, t) -> np.ndarray:
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, t
-    res = np.linalg.norm(P @ R.T + t - M, axis=1)
-    return Registration(T, offset, res, n)
+    return T
+
+
+def _nearest_rotation(M) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(M)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
+    return U @ D @ Vt
+
+
+def _design(Rt, idx, K) -> np.ndarray:
+    """(3n, 3 + 3K) design of ``b + R_i t_k``: an identity block, then each row's tool rotation in its
+    target's block."""
+    n = len(Rt)
+    D = np.zeros((n, 3, 3 + 3 * K))
+    D[:, :, :3] = np.eye(3)
+    for k in range(K):
+        sel = idx == k
+        D[sel, :, 3 + 3 * k:6 + 3 * k] = Rt[sel]
+    return D.reshape(3 * n, 3 + 3 * K)
+
+
+def _global_points(Tn, M, idx, K, names):
+    """(R, b, offsets (K, 3)) minimising sum |R^T m_i - b - p_i - R_i t_k|^2 over every rotation."""
+    n = len(Tn)
+    Rt, p = Tn[:, :3, :3], Tn[:, :3, 3].reshape(-1)
+    counts = np.bincount(idx, minlength=K)
+    if counts.min() < 3:
+        k = int(np.argmin(counts))
+        raise ValueError(f"registration: the tool offsets are not determined (target {names[k] or '(unnamed)'} "
+                         f"has {counts[k]} measurement(s); each needs at least 3, at different orientations)")
+    D = _design(Rt, idx, K)
+    sv = np.linalg.svd(D, compute_uv=False)
+    if sv.min() < 1e-9 * sv.max():
+        raise ValueError("registration: the tool offsets are not determined (the tool orientations are too similar)")
+    # y(R) = G r - p with r = vec(R^T) row-major: (R^T m)_j = sum_l r[3j + l] m_l
+    G = np.zeros((n, 3, 9))
+    for j in range(3):
+        G[:, j, 3 * j:3 * j + 3] = M
+    G = G.reshape(3 * n, 9)
+    Dp = np.linalg.pinv(D)
+    PG = G - D @ (Dp @ G)
+    Pp = p - D @ (Dp @ p)
+    Q, c = G.T @ PG, G.T @ Pp
+    cover = Rotation.concatenate([Rotation.create_group("O"), Rotation.random(COVER, random_state=20261201)])
+    cands = [cover.as_matrix()]
+    r_free = np.linalg.lstsq(Q, c, rcond=None)[0]
+    cands.append(_nearest_rotation(r_free.reshape(3, 3).T)[None])
+    Rs = np.concatenate(cands)                                       # candidate R (tracker <- base)
+    r = np.transpose(Rs, (0, 2, 1)).reshape(len(Rs), 9)              # vec(R^T)
+    cost = np.einsum("ci,ij,cj->c", r, Q, r) - 2.0 * r @ c
+    order = np.argsort(cost)
+    chosen = []
+    for i in order:
+        if all(np.linalg.norm(Rotation.from_matrix(Rs[i].T @ Rs[j]).as_rotvec()) > DISTINCT for j in chosen):
+            chosen.append(i)
+        if len(chosen) == REFINE:
+            break
+    best = None
+    for i in chosen:
+        R0 = Rs[i]
+        z0 = Dp @ (G @ R0.T.reshape(9) - p)
+
+        def resid(x, R0=R0):
+            R = R0 @ Rotation.from_rotvec(x[:3]).as_matrix()
+            return (G @ R.T.reshape(9) - p) - D @ x[3:]
+
+        sol = least_squares(resid, np.concatenate([np.zeros(3), z0]), method="lm", xtol=1e-15, ftol=1e-15,
+                            gtol=1e-15)
+        if best is None or sol.cost < best[0]:
+            best = (sol.cost, R0 @ Rotation.from_rotvec(sol.x[:3]).as_matrix(), sol.x[3:])
+    _, R, z = best
+    return R, z[:3], z[3:].reshape(K, 3)
 
 
 class KabschAccumulator:
@@ -113,6 +235,4 @@ class KabschAccumulator:
             raise ValueError("registration: the measured points are collinear; the rotation is not determined")
         D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
         R = Vt.T @ D @ U.T
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = R, cm - R @ cp
-        return T
+        return _matrix(R, cm - R @ cp)

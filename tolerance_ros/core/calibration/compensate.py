@@ -21,8 +21,6 @@ import numpy as np
 
 from ..geometry import rotation_error
 from ..models.base import PRISMATIC, Mechanism, ModelError
-from ..models.dh import DHChain
-from ..models.urdf import URDFChain
 
 LENGTH = 1.0  # m: weight of orientation errors (rad) against position errors (m) in the solve and the flags
 MATCHES = ("pose", "position")
@@ -65,13 +63,11 @@ class Compensation:
 
 def joint_columns(model: Mechanism) -> np.ndarray:
     """(dof,) column of each joint's zero offset in the model's parameter-error Jacobian."""
-    n = model.dof
-    if isinstance(model, DHChain):
-        return np.array([(n + i) if t == PRISMATIC else (3 * n + i) for i, t in enumerate(model.joint_types)])
-    if isinstance(model, URDFChain):
-        return 7 * np.arange(n) + 6
-    raise ModelError(f"compensation: robot {model.name!r} is a {type(model).__name__}; joints are solved for "
-                     f"serial D-H and URDF chains")
+    try:
+        return model.joint_columns()
+    except ModelError:
+        raise ModelError(f"compensation: robot {model.name!r} is a {type(model).__name__}; joints are solved for "
+                         f"serial D-H and URDF chains") from None
 
 
 def joint_jacobian(model: Mechanism, q):

@@ -230,6 +230,12 @@ class Mechanism(ABC):
         dx = self.check_dx(dx, n)
         return np.array(dx.reshape(-1, self.n_params), order="C")
 
+    def joint_columns(self) -> np.ndarray:
+        """(dof,) column of each joint's zero offset in the parameter-error Jacobian: the derivative of the
+        pose in that joint. ModelError for mechanisms whose joints are not such parameters."""
+        raise ModelError(f"robot {self.name!r} is a {type(self).__name__}; its joints are not parameters of its "
+                         f"error model (serial D-H and URDF chains only)")
+
     def out_of_limits(self, q) -> np.ndarray:
         """(n, dof) boolean mask of joints outside their limits."""
         q = np.atleast_2d(np.asarray(q, dtype=float))

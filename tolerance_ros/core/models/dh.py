@@ -85,6 +85,11 @@ class DHChain(CompiledChain):
         self.nominal = np.concatenate([self.a, self.d, self.alpha, self.theta])
         self._revolute = np.array([t == REVOLUTE for t in types])
 
+    def joint_columns(self) -> np.ndarray:
+        """(dof,) column of each joint's zero offset: d_i for a prismatic joint, theta_i for a revolute one."""
+        n = self.dof
+        return np.array([(n + i) if t == PRISMATIC else (3 * n + i) for i, t in enumerate(self.joint_types)])
+
     def _run_kernel(self, kernels, q, dx, T, J, jacobian):
         return kernels.dh_chain(q, self.nominal, dx, self._revolute, self.convention == "standard", self.base,
                                 self.tool, T, J, jacobian)

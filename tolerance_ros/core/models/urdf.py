@@ -165,6 +165,10 @@ class URDFChain(CompiledChain):
                 raise ModelError(f"urdf: joint {model.names[jid]!r} has {nq} configuration variables; "
                                  f"a serial chain needs 1-DOF joints")
 
+    def joint_columns(self) -> np.ndarray:
+        """(dof,) column of each joint's zero offset ``j.offset``."""
+        return 7 * np.arange(self.dof) + 6
+
     def _run_kernel(self, kernels, q, dx, T, J, jacobian):
         return kernels.urdf_chain(q, self.nominal, dx, self._revolute, self._fixed, self._axes, self._tool, T, J,
                                   jacobian)

@@ -3,7 +3,8 @@
 Campaign log of the accuracy monitor (JSON Lines of events, SI)::
 
     {"event": "measurement", "seq": 7, "stamp": 12.5, "frame": "tracker", "position": [x, y, z],
-     "quaternion": [qx, qy, qz, qw]}                        # written the moment it arrives
+     "quaternion": [qx, qy, qz, qw] | null, "target": "A"}  # written the moment it arrives (quaternion
+                                                           # null for a measured point; target if named)
     {"event": "paired", "seq": 7, "joint_stamp": 12.49, "joint_names": [...], "joints": [...],
      "pose": "P1" | null, "verdict": "within", ...}           # written when its joint state is known
     {"event": "unpaired", "seq": 8, "reason": "..."}
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ...ingest import IngestError, JointOrder, pose_from_values, stamp_seconds
+from .csv_format import MAX_TARGET
 from .measurements import MeasurementError, Measurements
 from .text import _check_text, _cut, _lines, _not_utf8, _show
 
@@ -42,7 +44,7 @@ def read_log(path, skip_bad=False) -> Measurements:
     source = str(path)
     if not path.is_file():
         raise MeasurementError(f"{source}: file not found")
-    meas, pairs, logged, decided, skipped = {}, {}, {}, {}, []
+    meas, pairs, logged, decided, skipped, kinds = {}, {}, {}, {}, [], []
     order, session = None, 0
     with path.open(encoding="utf-8", errors="surrogateescape", newline="") as fh:
         for lineno, line in _lines(fh):
@@ -74,9 +76,19 @@ def read_log(path, skip_bad=False) -> Measurements:
                         skipped.append({"line": lineno, "seq": seq, "reason": f"rejected: {rec['rejected']}"})
                         continue
                     stamp = stamp_seconds(_number(rec, "stamp"))
-                    T = pose_from_values(_numbers(rec, "position", 3), _numbers(rec, "quaternion", 4))
+                    point = rec.get("quaternion", ()) is None
+                    T = pose_from_values(_numbers(rec, "position", 3),
+                                         (0.0, 0.0, 0.0, 1.0) if point else _numbers(rec, "quaternion", 4))
+                    if kinds and point != kinds[0]:
+                        raise MeasurementError("quaternion: points and poses mixed in one log (measurement "
+                                               f"{'without' if point else 'with'} an orientation)")
+                    kinds.append(point)
+                    target = rec.get("target", "")
+                    if not isinstance(target, str) or len(target) > MAX_TARGET:
+                        raise MeasurementError(f"target: expected a name of at most {MAX_TARGET} characters, got "
+                                               f"{_brief(target)}")
                     logged[key] = (lineno, "measured")
-                    meas[key] = (stamp, T)
+                    meas[key] = (stamp, T, target)
                     continue
                 if key not in logged:
                     raise MeasurementError(f"seq: no measurement {seq} logged before this {ev} event")
@@ -118,9 +130,10 @@ def read_log(path, skip_bad=False) -> Measurements:
                                   f"{skipped[0]['reason']})" if skipped else ""))
     skipped.sort(key=lambda s: s["line"])
     T = np.array([meas[k][1] for k in keys])
+    targets = np.array([meas[k][2] for k in keys], dtype=object)
     return Measurements(np.array([meas[k][0] for k in keys]), T, np.array([pairs[k][0] for k in keys]),
                         order.joint_names, np.array([pairs[k][1] for k in keys], dtype=object), np.full(len(keys), -1),
-                        True, source, skipped)
+                        not kinds[0], source, skipped, targets if any(targets) else None)
 
 
 def _brief(value):
