@@ -61,6 +61,7 @@ class Identification:
     compliance_held: list = field(default_factory=list)
     row_residuals: np.ndarray | None = None
     weights: np.ndarray | None = None
+    n_free: int = 0
 
     def to_dict(self) -> dict:
         return {"method": self.method,
@@ -94,15 +95,20 @@ def base_matrix(base) -> np.ndarray:
 
 
 def column_scale(delta, p: int) -> np.ndarray:
-    """(p + 6,) expected size of each unknown: its tolerance, or ``SCALE_WITHOUT_BUDGET``."""
-    d = np.full(p, SCALE_WITHOUT_BUDGET) if delta is None else np.where(np.asarray(delta) > 0, delta,
-                                                                          SCALE_WITHOUT_BUDGET)
+    """(p + 6,) expected size of each unknown: its tolerance (finite, > 0), or ``SCALE_WITHOUT_BUDGET``."""
+    d = np.full(p, SCALE_WITHOUT_BUDGET) if delta is None else np.where(
+        (np.asarray(delta) > 0) & np.isfinite(delta), delta, SCALE_WITHOUT_BUDGET)
     return np.concatenate([d, np.full(6, SCALE_WITHOUT_BUDGET)])
 
 
 def _prior(delta, sigma_position, p, estimate_base=True) -> np.ndarray:
-    """Diagonal of the regulariser: (sigma / tolerance)^2 with a budget, a weak ridge without."""
-    prior = (sigma_position / column_scale(delta, p)) ** 2 if delta is not None else np.full(p + 6, 1e-12)
+    """Diagonal of the regulariser: (sigma / tolerance)^2 with a budget (0 where the tolerance is infinite,
+    the scale of ``column_scale`` where it is 0), a weak ridge without."""
+    if delta is None:
+        prior = np.full(p + 6, 1e-12)
+    else:
+        d = np.asarray(delta, float)
+        prior = np.where(np.isinf(np.r_[d, np.zeros(6)]), 0.0, (sigma_position / column_scale(d, p)) ** 2)
     if not estimate_base:
         prior[p:] = 1e12
     return prior
@@ -179,11 +185,10 @@ def _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity=No
         if use_ori and layout.nr:
             J[sel, 3:, layout.r.start + 3 * k:layout.r.start + 3 * k + 3] = w_ori * RW[sel]
     if layout.nc:
-        cols = model.joint_columns()[layout.cmask]
-        Jc = np.einsum("ij,njc->nic", R0, Jt[:, :, cols]) * gravity[:, None, layout.cmask]
-        J[:, :3, layout.c] = Jc[:, :3]
+        Jc = Jt[:, :, model.joint_columns()[layout.cmask]] * gravity[:, None, layout.cmask]
+        J[:, :3, layout.c] = np.einsum("ij,njc->nic", R0, Jc[:, :3])
         if use_ori:
-            J[:, 3:, layout.c] = w_ori * Jc[:, 3:]
+            J[:, 3:, layout.c] = w_ori * np.einsum("ij,njc->nic", R0, Jc[:, 3:])
     dp = T_meas[:, :3, 3] - Tp[:, :3, 3]
     r = dp if not use_ori else np.concatenate([dp, w_ori * rotation_error(T_meas[:, :3, :3], Tp[:, :3, :3])], axis=1)
     if sqrt_w is not None:
@@ -206,6 +211,25 @@ def _identifiability(s, V, cols, n_unknowns, tol_rank):
     return rank, cond, weight
 
 
+def _largest_singular_value(A) -> float:
+    """Largest singular value of a tall matrix, from the eigenvalues of its Gram matrix."""
+    if not A.size:
+        return 0.0
+    return float(np.sqrt(max(np.linalg.eigvalsh(A.T @ A)[-1], 0.0)))
+
+
+def _singular_values_and_vectors(A):
+    """(singular values, descending; right singular vectors as columns) of A (m, k), from the Gram matrix
+    when A is tall (its small singular values are accurate to about sqrt(eps) of the largest, enough to
+    judge ranks at ``tol_rank``), else from a full SVD."""
+    if A.shape[0] >= A.shape[1]:
+        lam, V = np.linalg.eigh(A.T @ A)
+        order = np.argsort(lam)[::-1]
+        return np.sqrt(np.maximum(lam[order], 0.0)), V[:, order]
+    _, s, Vt = np.linalg.svd(A, full_matrices=True)
+    return np.concatenate([s, np.zeros(A.shape[1] - len(s))]), Vt.T
+
+
 def dependent_parameters(Js, p, estimate_base=True, tol_rank=1e-6) -> np.ndarray:
     """(p,) mask of the parameters to hold at nominal so that the rest (and the base) are identifiable;
     ``Js`` is the column-scaled Jacobian in the unknowns [dx (p); base (6)] (see ``dependent_columns``)."""
@@ -225,7 +249,7 @@ def dependent_columns(Js, estimable, nuisance, tol_rank=1e-6) -> np.ndarray:
         Qb, Rb = np.linalg.qr(Js[:, nuisance])
         Qb = Qb[:, np.abs(np.diag(Rb)) > 1e-12 * max(np.abs(Rb).max(), 1e-300)]
         A = A - Qb @ (Qb.T @ A)
-    smax = np.linalg.norm(Js, 2) if Js.size else 0.0
+    smax = _largest_singular_value(Js)
     _, R, piv = qr(A, mode="economic", pivoting=True)
     pivots = np.zeros(len(estimable))
     k = min(R.shape)
@@ -271,7 +295,7 @@ def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iteratio
 def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientation=None, iterations=8,
              estimate_base=True, tol_rank=1e-6, hold=None, noise_from_residuals=False, targets=None,
              target_index=None, estimate_targets=False, gravity=None, compliance=None,
-             weights=None) -> Identification:
+             weights=None, estimate=None, analysis=True) -> Identification:
     """Estimate parameter errors dx (and a base correction) from measured base-frame poses (n, 4, 4).
 
     Regularised Levenberg-Marquardt on the nonlinear model: minimise ``|r(dx)|^2 / sigma^2 + |dx / delta|^2``
@@ -286,9 +310,12 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     orientation rows, their rotations) are corrected too. gravity, compliance : (n, dof) gravity load of
     each row's joints (N m, N) and the (dof,) mask of the joints whose compliance (rad/(N m), m/N) is
     estimated: the joints deflect by ``c * g``. weights : (n,) row weights (0 leaves a row out).
+    analysis : False skips the identifiability analysis (rank, condition, unidentifiable, aliases), for
+    fits that only predict (cross-validation).
 
-    ``hold``: None estimates every parameter; ``"dependent"`` holds the parameters (and compliances) of
-    ``dependent_columns`` (judged at nominal, the base and targets always estimated) at 0; a list of
+    ``estimate``: the names of the parameters to estimate (None: all; the others are held at 0). ``hold``:
+    None holds no more; ``"dependent"`` also holds the parameters (and compliances) of ``dependent_columns``
+    (judged at nominal among those without a prior, the base and targets always estimated) at 0; a list of
     names holds those. With ``noise_from_residuals`` the covariance is scaled by the residual noise
     ``|r|^2 / (rows - unknowns)`` instead of ``sigma_position^2`` (the prior, if any, is kept).
     """
@@ -315,9 +342,14 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     held = np.zeros(layout.n, bool)
     if not estimate_base:
         held[layout.base] = True
+    if estimate is not None:
+        held[:p] = True
+        held[model.param_index(list(estimate))] = False
     if isinstance(hold, str) and hold == "dependent":
         nuisance = layout.nuisance if estimate_base else layout.nuisance[6:]
-        held[layout.estimable[dependent_columns(Js, layout.estimable, nuisance, tol_rank)]] = True
+        cand = layout.estimable[~held[layout.estimable]]
+        cand = cand[prior[cand] <= 1e-12]  # a column with a prior is determined by it
+        held[cand[dependent_columns(Js, cand, nuisance, tol_rank)]] = True
     elif hold is not None:
         held[model.param_index(list(hold))] = True
     free = np.flatnonzero(~held)
@@ -353,18 +385,23 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     cov = np.zeros((layout.n, layout.n))
     cov[np.ix_(free, free)] = np.linalg.pinv(Jf.T @ Jf + np.diag(prior[free])) * noise ** 2
     cols = np.flatnonzero(np.linalg.norm(Js, axis=0) > 0)
-    A = Js[:, cols]
-    _, s, Vt = np.linalg.svd(A, full_matrices=A.shape[0] < A.shape[1])  # Vt square; U small or thin
-    s = np.concatenate([s, np.zeros(len(cols) - len(s))])
-    rank, cond, weight = _identifiability(s, Vt.T, cols, layout.n, tol_rank)
     main = np.arange(p + 6)
+    if analysis:
+        s, V = _singular_values_and_vectors(Js[:, cols])
+        rank, cond, weight = _identifiability(s, V, cols, layout.n, tol_rank)
+    else:
+        rank, cond, weight = 0, float("nan"), np.zeros(layout.n)
     ident = _result(model, x[main], cov[np.ix_(main, main)], rank, cond, weight[main], cols[cols < p + 6], delta,
                     rms0, float(np.sqrt(r @ r / rows_used)), it, "gauss-newton", estimate_base)
     ident.held = [model.param_names[j] for j in np.flatnonzero(held[:p])]
-    ident.aliases = _aliases(Js, free[free < p + 6], np.flatnonzero(held[:p]), scale, tuple(model.param_names) + BASE_NAMES)
     ident.sigma = noise
-    sf = np.linalg.svd(Js[:, free], compute_uv=False)
-    ident.fit_condition = float(sf.max() / sf.min()) if sf.size and sf.min() > 0 else float("inf")
+    if analysis:
+        ident.aliases = _aliases(Js, free[free < p + 6], np.flatnonzero(held[:p]), scale,
+                                 tuple(model.param_names) + BASE_NAMES)
+        sf = _singular_values_and_vectors(Js[:, free])[0]
+        ident.fit_condition = float(sf.max() / sf.min()) if sf.size and sf.min() > 0 else float("inf")
+    else:
+        ident.unidentifiable = []
     ident.targets = Targets(targets.names, _targets_with(targets, layout, x), targets.frames)
     if layout.nt:
         ident.targets_std = np.sqrt(np.maximum(np.diag(cov)[layout.t], 0.0)).reshape(-1, 3)
@@ -376,6 +413,7 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
         ident.compliance_held = [model.joint_names[j] for j, h in zip(np.flatnonzero(layout.cmask), held[layout.c]) if h]
     ident.row_residuals = _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity)[2]
     ident.weights = w
+    ident.n_free = int(len(free))
     return ident
 
 

@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 from .targets import Targets
 
 COVER = 4096      # rotations of the seeded cover of SO(3) on which f(R) is evaluated
-REFINE = 6        # distinct best candidates refined by Levenberg-Marquardt
+REFINE = 4        # distinct best candidates refined by Levenberg-Marquardt
 DISTINCT = 0.2    # rad: candidates closer than this to a better one are not refined again
 
 
@@ -199,11 +199,17 @@ def _global_points(Tn, M, idx, K, names):
         R0 = Rs[i]
         z0 = Dp @ (G @ R0.T.reshape(9) - p)
 
-        def resid(x, R0=R0):
-            R = R0 @ Rotation.from_rotvec(x[:3]).as_matrix()
-            return (G @ R.T.reshape(9) - p) - D @ x[3:]
+        def rotated(w, R0=R0):
+            return G @ (R0 @ Rotation.from_rotvec(w).as_matrix()).T.reshape(9) - p
 
-        sol = least_squares(resid, np.concatenate([np.zeros(3), z0]), method="lm", xtol=1e-15, ftol=1e-15,
+        def resid(x):
+            return rotated(x[:3]) - D @ x[3:]
+
+        def jac(x, h=1e-7):
+            cols = [(rotated(x[:3] + h * e) - rotated(x[:3] - h * e)) / (2 * h) for e in np.eye(3)]
+            return np.column_stack(cols + [-D])
+
+        sol = least_squares(resid, np.concatenate([np.zeros(3), z0]), jac=jac, method="lm", xtol=1e-15, ftol=1e-15,
                             gtol=1e-15)
         if best is None or sol.cost < best[0]:
             best = (sol.cost, R0 @ Rotation.from_rotvec(sol.x[:3]).as_matrix(), sol.x[3:])
