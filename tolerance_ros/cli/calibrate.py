@@ -1,4 +1,5 @@
-"""`tolerance-ros calibrate`: a calibrated robot file from measured poses, validated on held-out poses."""
+"""`tolerance-ros calibrate`: a calibrated robot file from measured poses, chosen by what predicts held-out
+poses, fitted robustly, refused when it cannot be right."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,9 +8,9 @@ from ..render.text import Progress, table
 from .common import CLIError, load_model, missed, quantity, relative
 
 NAME = "calibrate"
-HELP = ("calibrated robot file from measured poses, validated on "
-        "held-out poses")
+HELP = "calibrated robot file from measured poses, validated on held-out poses"
 ROBOT = True
+PARAMETERS = ("auto", "registration", "joint-offsets", "full", "full+elastic")
 
 
 def add_arguments(p):
@@ -17,15 +18,35 @@ def add_arguments(p):
                    help="CSV file, campaign log (.jsonl) or rosbag2 (dir, .db3, .mcap)")
     p.add_argument("--campaign", help="campaign with the test poses (joints of rows labelled by pose)")
     p.add_argument("--registration", choices=["base", "base+tool"], default="base",
-                   help="estimate the tracker-to-base transform (and the tool offset)")
+                   help="estimate the tracker-to-base transform (and each target's offset on the tool)")
+    p.add_argument("--parameters", choices=PARAMETERS, default="auto",
+                   help="what to identify: auto (default: the candidate that predicts held-out poses best), the "
+                        "registration alone, the joint offsets, every parameter, or every parameter and a joint "
+                        "compliance times its gravity load (URDF robots with inertials)")
+    p.add_argument("--prior", default="10mm,10mrad",
+                   help="prior std of the origin errors of the regularised fits, LENGTH,ANGLE (default 10mm,10mrad), "
+                        "or none")
+    p.add_argument("--no-robust", action="store_true",
+                   help="keep every measurement (by default outliers beyond 4.6 robust sigmas are left out and listed)")
     p.add_argument("--noise", default="10um", help="tracker position noise, weights the rows (default 10um); the "
                                                    "uncertainties use the residual noise")
     p.add_argument("--orientation-noise", help="tracker orientation noise, e.g. 10urad: also fit orientations")
-    p.add_argument("--folds", type=int, default=5, help="k of the k-fold validation by test pose (default 5)")
+    p.add_argument("--folds", type=int, default=10, help="k of the k-fold validation by test pose (default 10)")
     p.add_argument("--seed", type=int, default=0, help="seed of the split into folds")
     p.add_argument("--skip-bad", action="store_true", help="skip malformed rows (they are listed), instead of failing")
     p.add_argument("--out", required=True, metavar="DIR",
-                   help="write the calibrated robot file, calibration.yaml, calibration.md/.json and plots into DIR")
+                   help="write the calibrated robot file, calibration.yaml, calibration.md/.json and plots into DIR "
+                        "(a calibration that is refused goes to calibration.refused.yaml, and no robot file)")
+
+
+def prior_option(text):
+    """(length m, angle rad) of ``--prior LENGTH,ANGLE``, or None for ``none``."""
+    if text.strip().lower() == "none":
+        return None
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise CLIError(f"--prior: expected LENGTH,ANGLE (e.g. 10mm,10mrad) or none, got {text!r}")
+    return quantity(parts[0], "length", "--prior"), quantity(parts[1], "angle", "--prior")
 
 
 def run(args):
@@ -33,50 +54,84 @@ def run(args):
     from ..core.calibration.calibrate import calibrate_measurements
     from ..core.calibration.writers import save_calibration, write_calibrated_robot
     from ..core.campaign import load_campaign
-    from ..render.calibration_report import parameter_rows, summary_rows, write_calibration_report
+    from ..render.calibration_report import write_calibration_report
     model = load_model(args)
     noise = quantity(args.noise, "length", "--noise")
     onoise = quantity(args.orientation_noise, "angle", "--orientation-noise")
+    prior = prior_option(args.prior)
     if args.folds < 2:
         raise CLIError("--folds: must be >= 2")
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
-    prog = Progress("calibrate", not args.quiet)
-    prog(0, 1)
-    cal = calibrate_measurements(model, meas, campaign, args.registration, noise, onoise, args.folds, args.seed)
-    prog(1, 1)
+    prog = Progress("calibrate (cross-validating the candidates)", not args.quiet)
+    cal = calibrate_measurements(model, meas, campaign, args.registration, noise, onoise, args.folds, args.seed,
+                                 args.parameters, not args.no_robust, prior, prog)
     out = Path(args.out)
-    files = write_calibrated_robot(model, cal, out)
     source = getattr(model, "config_path", None) or getattr(model, "source", None)
     cal.sources.update({"robot": relative(source, out) if source else model.name,
                         "measurements": relative(args.measurements, out),
                         "campaign": (relative(args.campaign, out) if campaign is not None
-                                     and Path(args.campaign).is_file() else args.campaign),
-                        "calibrated_robot": Path(files["robot"]).name})
+                                     and Path(args.campaign).is_file() else args.campaign)})
     if hasattr(model, "tip_link"):  # a URDF chain: the links that choose it, to load the same chain again
         cal.sources.update(tip_link=model.tip_link, base_link=model.base_link)
-    files["calibration"] = str(save_calibration(cal, out / "calibration.yaml"))
+    files = {}
+    if cal.plausibility["ok"]:
+        files = write_calibrated_robot(model, cal, out)
+        cal.sources["calibrated_robot"] = Path(files["robot"]).name
+        files["calibration"] = str(save_calibration(cal, out / "calibration.yaml"))
+    else:
+        files["refused"] = str(save_calibration(cal, out / "calibration.refused.yaml"))
+        for problem in cal.plausibility["problems"]:
+            missed(args, f"calibration refused: {problem}")
     written = write_calibration_report(cal, out, files)
     files.update(report=written["report"], json=written["json"], plots=written["plots"])
-    v = cal.validation
-    if v["after"]["position_rms_m"] >= v["before"]["position_rms_m"]:
-        missed(args, f"hold-out validation: the calibrated model does not reduce the position error RMS "
-                     f"({v['before']['position_rms_m'] * 1e3:.4f} mm before, {v['after']['position_rms_m'] * 1e3:.4f} "
-                     f"mm after)")
     if args.json:
         doc = cal.to_dict()
         doc["files"] = files
         return doc
-    print(f"robot {model.name}: {cal.measurements} measurements at {cal.poses} test poses from {meas.source}; "
-          f"registration '{cal.registration}'")
-    print(f"identified {cal.unknowns - 6} parameter errors and the base correction from {cal.rows} equations; "
-          f"condition number {cal.fit_condition:.1f} (scaled); residual noise {cal.sigma * 1e6:.2f} um")
-    print("held at nominal (not identifiable from these poses): " + (", ".join(cal.held) or "none"))
-    print(table(["param", "unit", "error", "std", "|error|/std", "absorbs (first order)"], parameter_rows(cal)))
-    print(f"\nvalidation: {v['method']}")
-    print(table(["held-out poses", "before", "after"], summary_rows(v)))
-    print(f"position error RMS reduced by {v['improvement'] * 100:.1f} %")
-    for f in dict.fromkeys(files[k] for k in ("robot", "urdf", "calibration", "report", "json") if k in files):
+    print_calibration(cal, meas.source)
+    for f in dict.fromkeys(files[k] for k in ("robot", "urdf", "calibration", "refused", "report", "json")
+                           if k in files):
         print(f"wrote {f}")
     for f in files["plots"]:
         print(f"plot: {f}")
+
+
+def print_calibration(cal, source):
+    """The calibration's figures as a person reads them (mm, mrad)."""
+    from ..render.calibration_report import candidate_rows, parameter_rows, summary_rows, target_rows
+    v = cal.validation
+    print(f"robot {cal.robot}: {cal.measurements} measurements at {cal.poses} test poses from {source}; "
+          f"registration '{cal.registration}'; {'frames' if cal.has_orientation else 'points (no orientation)'}")
+    print(f"\nwhat to identify ({cal.model.get('how', '')}; {v['method']}):")
+    print(table(["candidate", "unknowns", "held-out RMS mm", "held-out max mm", ""], candidate_rows(cal)))
+    print(f"identified: {cal.model.get('label', cal.model.get('parameters'))}; {cal.unknowns} unknowns from {cal.rows} "
+          f"equations; residual noise {cal.sigma * 1e6:.2f} um")
+    if cal.held:
+        print("held at nominal (not identifiable from these poses): " + ", ".join(cal.held))
+    rows = parameter_rows(cal)
+    if rows:
+        print(table(["param", "unit", "error", "std", "|error|/std", "absorbs (first order)"], rows))
+    if cal.registration == "base+tool":
+        print("targets in the tool frame [mm]:")
+        print(table(["target", "x", "y", "z", "std"], target_rows(cal)))
+    if cal.compliance is not None:
+        print("joint compliance (elastostatic term): " + ", ".join(
+            f"{n} {c:+.4g} +- {s:.2g}" for n, c, s in zip(cal.sources.get("joint_names", []), cal.compliance,
+                                                          cal.compliance_std) if c != 0)
+              + " (rad/(N m); m/N for prismatic joints)")
+    for r in cal.rejected:
+        print(f"rejected: row {r['row']}" + (f" (pose {r['pose']})" if r.get("pose") else "")
+              + (f", target {r['target']}" if r.get("target") else "") + f": {r['reason']}")
+    print(f"\nvalidation: {v['method']}")
+    print(table(["held-out poses", "before", "after"], summary_rows(v)))
+    print(f"position error RMS reduced by {v['improvement'] * 100:.1f} %")
+    rep = cal.repeatability or {}
+    if rep.get("scatter_m") is not None:
+        print(f"what is left: residual RMS {rep['residual_rms_m'] * 1e3:.4f} mm beside the repeat scatter of repeated "
+              f"poses {rep['scatter_m'] * 1e3:.4f} mm; not explained by noise {rep['unexplained_m'] * 1e3:.4f} mm")
+    elif rep:
+        print(f"what is left: residual RMS {rep['residual_rms_m'] * 1e3:.4f} mm; no pose was repeated, so the noise "
+              f"floor is not measured (repeat poses to tell noise from model error)")
+    for problem in cal.plausibility["problems"]:
+        print(f"REFUSED: {problem}")

@@ -11,12 +11,13 @@ from ..core.jsonio import dumps
 from ..core.resources import ConfigNotFound
 from ..core.synthesis.problem import InfeasibleError
 from ..core.threads import limited
-from . import (allocate, calibrate, compensate, jacobian, paper, plan_campaign, report, robots, sensitivity,
-               verify)
+from . import (allocate, calibrate, compensate, import_table, jacobian, paper, plan_campaign, report, robots,
+               sensitivity, validate, verify)
 from .common import (EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError, Parser, UsageError,
                      common_arguments)
 
-COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, calibrate, compensate, plan_campaign, paper)
+COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, calibrate, validate, compensate, plan_campaign,
+            import_table, paper)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -92,16 +92,17 @@ def parse_number(value, field: str) -> float:
 
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Zµ]*)\s*$", re.ASCII)
-_EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad"}
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad", "time": "1s or 250ms"}
 
 
 def parse_quantity(text, kind: str = "length", field: str = "value") -> float:
-    """SI value of a length or angle written with its unit: ``'1.4mm'``, ``'0.3 mrad'``, ``'-2e-3 m'``.
+    """SI value of a length, angle or time written with its unit: ``'1.4mm'``, ``'0.3 mrad'``, ``'2 s'``.
 
     A number without a unit is an error (a bare 1.4 could be metres or millimetres), as is an unknown
     unit or a non-finite value; the UnitError names ``field`` and shows the accepted forms.
     """
-    units = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
+    units = {"length": LENGTH_UNITS, "angle": ANGLE_UNITS, "time": TIME_UNITS}[kind]
     forms = f"write it with its unit, e.g. {_EXAMPLES[kind]} ({kind} units: {', '.join(sorted(units))})"
     m = _QUANTITY.match(str(text)) if isinstance(text, str) else None
     if not m:
@@ -109,7 +110,12 @@ def parse_quantity(text, kind: str = "length", field: str = "value") -> float:
     number, unit = float(m.group(1)), m.group(2)
     if not unit:
         raise UnitError(f"{field}: {text!r} has no unit; {forms}")
-    scale = length_scale(unit, field) if kind == "length" else angle_scale(unit, field)
+    if kind == "time":
+        if unit not in TIME_UNITS:
+            raise UnitError(f"{field}: unknown time unit {unit!r}; {forms}")
+        scale = TIME_UNITS[unit]
+    else:
+        scale = length_scale(unit, field) if kind == "length" else angle_scale(unit, field)
     value = number * scale
     if not math.isfinite(value):
         raise UnitError(f"{field}: value must be finite, got {text!r}")

@@ -25,16 +25,32 @@ def write_calibration_report(cal, out_dir, files=None) -> dict:
     (out / "calibration.json").write_text(dumps(cal.to_dict(), indent=1) + "\n")
     written["json"] = str(out / "calibration.json")
     v = cal.validation
-    lines = [f"# Calibration of {cal.robot}", "",
-             f"{cal.measurements} measurements at {cal.poses} test poses ({cal.sources.get('measurements', '')}); "
-             f"registration '{cal.registration}'. Identified {cal.unknowns - 6} parameter errors and the base "
-             f"correction (6) from {cal.rows} equations; condition number of the scaled Jacobian "
-             f"{cal.fit_condition:.1f}; residual noise {cal.sigma * 1e6:.2f} um (residual RMS "
-             f"{cal.residual_rms_before * 1e3:.4f} mm before, {cal.residual_rms_after * 1e3:.4f} mm after the "
-             f"fit).", "",
-             "Held at nominal (not identifiable from these poses): " + (", ".join(cal.held) or "none") + ".", "",
-             "## Validation on held-out poses", "", v["method"] + ".", "",
-             "| | before | after |", "|---|---|---|"]
+    lines = [f"# Calibration of {cal.robot}", ""]
+    if not cal.plausibility["ok"]:
+        lines += ["**Refused** (written as `calibration.refused.yaml`, no calibrated robot file):", ""]
+        lines += [f"- {p}" for p in cal.plausibility["problems"]] + [""]
+    lines += [f"{cal.measurements} measurements at {cal.poses} test poses ({cal.sources.get('measurements', '')}); "
+              f"registration '{cal.registration}'; "
+              f"{'measured frames' if cal.has_orientation else 'measured points (no orientation)'}. Identified "
+              f"{cal.model.get('label', 'the parameters')}: {cal.unknowns} unknowns from {cal.rows} equations; "
+              f"condition number of the scaled Jacobian {cal.fit_condition:.1f}; residual noise "
+              f"{cal.sigma * 1e6:.2f} um.", "",
+              "Held at nominal (not identifiable from these poses): " + (", ".join(cal.held) or "none") + ".", "",
+              "## What to identify", "", f"{cal.model.get('how', '')}, {v['method']}.", "",
+              "| candidate | unknowns | held-out RMS [mm] | held-out max [mm] | |", "|---|---|---|---|---|"]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in candidate_rows(cal)]
+    if cal.rejected:
+        lines += ["", "Rejected measurements (left out of the fit):", ""]
+        lines += [f"- row {r['row']}" + (f", pose {r['pose']}" if r.get("pose") else "")
+                  + (f", target {r['target']}" if r.get("target") else "") + f": {r['reason']}" for r in cal.rejected]
+    rep = cal.repeatability or {}
+    if rep:
+        lines += ["", f"What is left: residual RMS {_mm(rep['residual_rms_m'])} mm"
+                  + (f" beside the repeat scatter of repeated poses {_mm(rep['scatter_m'])} mm; not explained by noise "
+                     f"{_mm(rep['unexplained_m'])} mm." if rep.get("scatter_m") is not None else
+                     "; no pose was repeated, so the noise floor is not measured.")]
+    lines += ["", "## Validation on held-out poses", "", v["method"] + ".", "",
+              "| | before | after |", "|---|---|---|"]
     lines += [f"| {a} | {b} | {c} |" for a, b, c in summary_rows(v)]
     lines += ["", f"Position error RMS reduced by {v['improvement'] * 100:.1f} %.", "",
               "![validation](validation.png)", "", "## Identified parameters", "",
@@ -78,3 +94,23 @@ def parameter_rows(cal) -> list:
         rows.append([n, "mm" if k == "length" else "mrad", f"{e * 1e3:+.5f}", f"{s * 1e3:.5f}",
                      f"{abs(e) / s:.1f}" if s > 0 else "-", al])
     return rows
+
+
+def candidate_rows(cal) -> list:
+    """[[candidate, unknowns, held-out RMS mm, held-out max mm, chosen]] of the cross-validated candidates."""
+    rows = []
+    for s in cal.model.get("candidates", []):
+        if "cv_position_rms_m" not in s:
+            rows.append([s["label"], "-", "-", "-", f"failed: {s.get('error', '')}"])
+            continue
+        rows.append([s["label"], s["unknowns"], _mm(s["cv_position_rms_m"]), _mm(s["cv_position_max_m"]),
+                     "chosen" if s["label"] == cal.model.get("label") else ""])
+    return rows
+
+
+def target_rows(cal) -> list:
+    """[[target, x, y, z, std]] of the targets' points in the tool frame, mm."""
+    std = cal.targets_std
+    return [[n or "(tool point)"] + [f"{v * 1e3:.3f}" for v in X[:3, 3]]
+            + ([", ".join(f"{s * 1e3:.3f}" for s in std[k])] if std is not None else ["-"])
+            for k, (n, X) in enumerate(zip(cal.targets.names, cal.targets.X))]

@@ -309,7 +309,8 @@ def candidates(model: Mechanism, parameters="auto", prior=PRIOR, gravity=None) -
 
 def calibrate(model: Mechanism, q, T_tracker, labels=None, registration="base", sigma_position=1e-5,
               sigma_orientation=None, folds=10, seed=0, has_orientation=True, sources=None, target_index=None,
-              target_names=("",), parameters="auto", robust=True, stamps=None, prior=PRIOR) -> Calibration:
+              target_names=("",), parameters="auto", robust=True, stamps=None, prior=PRIOR,
+              progress=None) -> Calibration:
     """Calibrate from tracker readings T_tracker (n, 4, 4) at joints q (n, dof), with k-fold validation.
 
     labels : (n,) test-pose name of each measurement, or None (measurements at equal joints form a pose).
@@ -318,6 +319,7 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, registration="base", 
     registration 'base+tool').  parameters : 'auto' (of ``candidates``, the one that predicts held-out poses
     best) or one of ``MODELS``.  prior : (length m, angle rad) prior std of origin errors of the regularised
     fits, or None.  robust : reject outliers (listed in ``rejected``).  stamps : (n,) for the rejected list.
+    progress : called with (done, total) after each candidate's cross-validation and the final fit.
     """
     q = model.check_joints(q)
     T_tracker = np.asarray(T_tracker, float)
@@ -333,7 +335,10 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, registration="base", 
     gravity = gravity_loads(model, q) if has_inertials(model) else None
     problems = _units_problems(model, q, T_tracker, idx, names)
     scores, validations = [], {}
-    for label, which, pr in candidates(model, parameters, prior, gravity):
+    todo = candidates(model, parameters, prior, gravity)
+    for step, (label, which, pr) in enumerate(todo):
+        if progress is not None:
+            progress(step, len(todo) + 1)
         try:
             validations[label] = validate(model, q, T_tracker, groups, registration, sigma_position, use_ori, folds,
                                           seed, has_orientation, pose_names, parameters=which, target_index=idx,
@@ -355,6 +360,8 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, registration="base", 
                  gravity, robust, chosen_prior)
     nominal = final if chosen == "registration" else _fit(model, q, T_tracker, registration, sigma_position, use_ori,
                                                           idx, names, has_orientation, "registration", None, robust)
+    if progress is not None:
+        progress(len(todo) + 1, len(todo) + 1)
     ident, reg = final.ident, final.reg
     rows = int(np.count_nonzero(~final.rejected)) * (6 if use_ori is not None else 3)
     cal = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), ident.dx.copy(),
@@ -438,12 +445,13 @@ def _rejected_list(fitted: _Fit, stamps, labels, names, idx) -> list:
     return out
 
 
-def repeatability(points, fitted: _Fit, groups, idx, n_targets) -> dict | None:
+def repeatability(points, fitted: _Fit, groups, idx, n_targets) -> dict:
     """The residual of a fit beside the scatter of repeated visits of one pose (same pose and target):
     ``scatter_m`` is the RMS distance of a repeated measured point (``points`` (n, 3), m) from its pose's
     mean, ``residual_rms_m`` the fit's, ``unexplained_m`` sqrt(residual^2 - scatter^2), what noise does not
     explain (0 when it explains all); None without repeats. Rejected measurements are left out."""
     keep = ~fitted.rejected
+    res = float(np.sqrt(np.mean(fitted.ident.row_residuals[keep] ** 2)))
     key = np.asarray(groups, int) * max(n_targets, 1) + np.asarray(idx, int)
     sq, count = 0.0, 0
     for k in np.unique(key[keep]):
@@ -453,9 +461,8 @@ def repeatability(points, fitted: _Fit, groups, idx, n_targets) -> dict | None:
             sq += float(np.sum(d ** 2))
             count += int(sel.sum()) - 1
     if not count:
-        return None
+        return {"repeated_measurements": 0, "scatter_m": None, "residual_rms_m": res, "unexplained_m": None}
     scatter = float(np.sqrt(sq / count))
-    res = float(np.sqrt(np.mean(fitted.ident.row_residuals[keep] ** 2)))
     return {"repeated_measurements": count, "scatter_m": scatter, "residual_rms_m": res,
             "unexplained_m": float(np.sqrt(max(res ** 2 - scatter ** 2, 0.0)))}
 
@@ -569,7 +576,7 @@ def validate(model, q, T_tracker, groups, registration="base", sigma_position=1e
 
 def calibrate_measurements(model, meas, campaign=None, registration="base", sigma_position=1e-5,
                            sigma_orientation=None, folds=10, seed=0, parameters="auto", robust=True,
-                           prior=PRIOR) -> Calibration:
+                           prior=PRIOR, progress=None) -> Calibration:
     """``calibrate`` for a ``Measurements`` (joints from its columns or from the campaign's test poses)."""
     from ..accuracy.evaluation import measurement_joints
     q = measurement_joints(model, meas, campaign)
@@ -577,7 +584,7 @@ def calibrate_measurements(model, meas, campaign=None, registration="base", sigm
     use_ori = sigma_orientation if meas.has_orientation else None
     return calibrate(model, q, meas.T, labels, registration, sigma_position, use_ori, folds, seed,
                      meas.has_orientation, {"measurements": meas.source}, meas.target_index(), meas.target_names,
-                     parameters, robust, meas.stamps, prior)
+                     parameters, robust, meas.stamps, prior, progress)
 
 
 def calibrated_mechanism(model: Mechanism, dx, base=None) -> Mechanism:

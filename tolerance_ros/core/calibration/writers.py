@@ -11,7 +11,13 @@ Calibration file (YAML; ``units`` applies to ``parameters``, ``base_correction``
     registration:
       method: base                                 # base | base+tool
       T_tracker_base: {xyz: [...], rpy: [...]}     # nominal base frame -> tracker frame
-      tool_offset: null                            # [x, y, z], tool frame (base+tool)
+      tool_offset: null                            # [x, y, z], tool frame (base+tool, one target)
+    targets:                                       # what the tracker measured, in the tool frame
+      frames: false                                # false: points; true: measured frames (with rpy)
+      by_name: {A: {xyz: [...], rpy: [0, 0, 0], std: [...]}}   # one per target ('' for the one unnamed)
+    compliance: {arm_2_joint: {value: ..., std: ...}, ...}   # rad/(N m) or m/N; null without the elastic term
+    nominal_registration: {T_tracker_base: {...}, base: {...}, targets: {...}}   # the registration-only fit
+    model: {parameters: full, prior: [0.01, 0.01], how: ..., candidates: [...]}  # what was identified, and why
     base_correction: {xyz: [...], rotation_vector: [...]}   # on the left of the model: T = B T(q, dx)
     parameters:                                    # identified - nominal, standard uncertainty
       a1: {error: 0.0123, std: 0.0011}
@@ -22,6 +28,12 @@ Calibration file (YAML; ``units`` applies to ``parameters``, ``base_correction``
     fit: {measurements: 90, poses: 30, rows: 270, unknowns: 30, rank: 28, condition: 25.2,
           fit_condition: 21.3, noise_m: 1.0e-05, residual_rms_before_m: ..., residual_rms_after_m: ...}
     validation: {method: ..., before: {position_rms_m: ...}, after: {...}, improvement: 0.93, per_pose: {...}}
+    rejected: [{row: 12, target: A, residual_m: ..., threshold_m: ..., reason: ...}]   # outliers left out
+    plausibility: {ok: true, problems: []}
+    repeatability: {repeated_measurements: 60, scatter_m: ..., residual_rms_m: ..., unexplained_m: ...}
+    training: {joint_ranges: [[lo, hi], ...], postures: [[...], ...]}   # SI: to group another campaign's poses
+
+``tolerance_ros.calibration/1`` files (one tool offset, no targets, no elastic term) are read too.
 
 Calibrated robot files: a D-H robot YAML with the identified values written in the file's own units
 (other keys and unchanged values kept as written; the base correction becomes ``base``), or a URDF
@@ -43,9 +55,11 @@ from ..models.dh import DHChain
 from ..models.loader import frame_from_dict, load_robot
 from ..models.urdf import URDFChain
 from ..units import UnitError, angle_scale, length_scale, parse_number
+from ..accuracy.targets import Targets
 from .calibrate import Calibration, calibrated_mechanism, corrected_origins
 
-FORMAT = "tolerance_ros.calibration/1"
+FORMAT = "tolerance_ros.calibration/2"
+FORMATS = ("tolerance_ros.calibration/1", FORMAT)
 UNITS = {"length": "mm", "angle": "mrad"}
 
 
@@ -90,6 +104,21 @@ def save_calibration(cal: Calibration, path, units=None) -> Path:
                 "noise_m": float(cal.sigma), "residual_rms_before_m": float(cal.residual_rms_before),
                 "residual_rms_after_m": float(cal.residual_rms_after)},
         "validation": _plain(_without_samples(cal.validation)),
+        "targets": _targets_doc(cal.targets, cal.targets_std, ls, as_),
+        "compliance": None if cal.compliance is None else {
+            n: {"value": float(c), "std": float(s)}
+            for n, c, s in zip(cal.sources.get("joint_names") or [f"joint{i + 1}" for i in range(len(cal.compliance))],
+                               cal.compliance, cal.compliance_std)},
+        "nominal_registration": None if cal.nominal_registration is None else {
+            "T_tracker_base": _frame_doc(cal.nominal_registration["T_tracker_base"], ls, as_),
+            "base": {"xyz": _floats(cal.nominal_registration["base"][:3] / ls),
+                     "rotation_vector": _floats(cal.nominal_registration["base"][3:] / as_)},
+            "targets": _targets_doc(cal.nominal_registration["targets"], None, ls, as_)},
+        "model": _plain(cal.model),
+        "rejected": _plain(cal.rejected),
+        "plausibility": _plain(cal.plausibility),
+        "repeatability": _plain(cal.repeatability),
+        "training": _plain(cal.training),
     }
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -97,6 +126,40 @@ def save_calibration(cal: Calibration, path, units=None) -> Path:
             f"tolerance_ros/core/calibration/writers.py\n")
     path.write_text(head + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=110))
     return path
+
+
+def _frame_doc(T, ls, as_) -> dict:
+    return {"xyz": _floats(T[:3, 3] / ls), "rpy": _floats(rpy_from_matrix(T[None, :3, :3])[0] / as_)}
+
+
+def _targets_doc(targets, std, ls, as_) -> dict:
+    by_name = {}
+    for k, (name, X) in enumerate(zip(targets.names, targets.X)):
+        entry = _frame_doc(X, ls, as_)
+        if std is not None:
+            entry["std"] = _floats(np.asarray(std[k]) / ls)
+        by_name[name] = entry
+    return {"frames": bool(targets.frames), "by_name": by_name}
+
+
+def _targets_from(doc, field, ls, as_):
+    """(Targets, std (K, 3) m or None) of a targets block."""
+    if not isinstance(doc, dict) or not isinstance(doc.get("frames", False), bool) or \
+            not isinstance(doc.get("by_name"), dict):
+        raise CalibrationError(f"{field}: expected frames: true|false and by_name: {{target: {{xyz, rpy}}}}")
+    names, X, std = [], [], []
+    for name, entry in doc["by_name"].items():
+        if not isinstance(entry, dict):
+            raise CalibrationError(f"{field}.{name}: expected {{xyz, rpy}}")
+        names.append("" if name is None else str(name))
+        X.append(frame_from_dict({"xyz": entry.get("xyz"), "rpy": entry.get("rpy", [0, 0, 0])}, f"{field}.{name}",
+                                 ls, as_))
+        s = entry.get("std")
+        std.append(None if s is None else [parse_number(v, f"{field}.{name}.std[{i}]") * ls for i, v in enumerate(s)])
+    if not names:
+        raise CalibrationError(f"{field}: no target")
+    stds = None if any(s is None for s in std) else np.array(std, float)
+    return Targets(tuple(names), np.array(X), bool(doc.get("frames", False))), stds
 
 
 def load_calibration(path, model: Mechanism | None = None) -> Calibration:
@@ -125,7 +188,7 @@ def _read(path):
         doc = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
         raise CalibrationError(f"{path}: not valid YAML: {exc}") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+    if not isinstance(doc, dict) or doc.get("format") not in FORMATS:
         raise CalibrationError(f"{path}: format: expected {FORMAT!r}")
     return doc
 
@@ -186,14 +249,45 @@ def _calibration_from_dict(doc, path, model):
     scale_of = _name_scales(model.param_names, model.param_kinds, ls, as_)
     aliases = {n: {h: float(c) * scale_of[n] / scale_of[h] for h, c in a.items()}
                for n, a in (doc.get("aliases") or {}).items()}
-    return Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), dx, std, base, T, tool, held,
-                       list(doc.get("unidentifiable") or []), aliases, float(fitd.get("condition", np.nan)),
-                       float(fitd.get("fit_condition", np.nan)), int(fitd.get("rank", 0)),
-                       int(fitd.get("unknowns", 0)), float(fitd.get("noise_m", np.nan)),
-                       float(fitd.get("residual_rms_before_m", np.nan)),
-                       float(fitd.get("residual_rms_after_m", np.nan)), int(fitd.get("measurements", 0)),
-                       int(fitd.get("poses", 0)), int(fitd.get("rows", 0)), str(reg.get("method", "base")),
-                       doc.get("validation"), dict(sources))
+    targets, targets_std = (None, None) if doc.get("targets") is None else _targets_from(doc["targets"], "targets",
+                                                                                          ls, as_)
+    compliance = compliance_std = None
+    if doc.get("compliance") is not None:
+        comp = doc["compliance"]
+        if not isinstance(comp, dict) or sorted(comp) != sorted(model.joint_names) or \
+                not all(isinstance(v, dict) for v in comp.values()):
+            raise CalibrationError(f"compliance: expected {{value, std}} for each joint of {model.name!r} "
+                                   f"({', '.join(model.joint_names)})")
+        compliance = np.array([parse_number(comp[j].get("value"), f"compliance.{j}.value") for j in model.joint_names])
+        compliance_std = np.array([parse_number(comp[j].get("std", 0), f"compliance.{j}.std")
+                                   for j in model.joint_names])
+    nominal = None
+    nr = doc.get("nominal_registration")
+    if nr is not None:
+        if not isinstance(nr, dict):
+            raise CalibrationError("nominal_registration: expected a mapping")
+        nb = nr.get("base") or {}
+        nominal = {"T_tracker_base": frame_from_dict(nr.get("T_tracker_base"), "nominal_registration.T_tracker_base",
+                                                     ls, as_),
+                   "base": np.r_[[parse_number(v, "nominal_registration.base.xyz") * ls
+                                  for v in nb.get("xyz", [0] * 3)],
+                                 [parse_number(v, "nominal_registration.base.rotation_vector") * as_
+                                  for v in nb.get("rotation_vector", [0] * 3)]],
+                   "targets": _targets_from(nr.get("targets"), "nominal_registration.targets", ls, as_)[0]}
+    cal = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), dx, std, base, T, tool, held,
+                      list(doc.get("unidentifiable") or []), aliases, float(fitd.get("condition", np.nan)),
+                      float(fitd.get("fit_condition", np.nan)), int(fitd.get("rank", 0)),
+                      int(fitd.get("unknowns", 0)), float(fitd.get("noise_m", np.nan)),
+                      float(fitd.get("residual_rms_before_m", np.nan)),
+                      float(fitd.get("residual_rms_after_m", np.nan)), int(fitd.get("measurements", 0)),
+                      int(fitd.get("poses", 0)), int(fitd.get("rows", 0)), str(reg.get("method", "base")),
+                      doc.get("validation"), dict(sources), targets=targets, targets_std=targets_std,
+                      compliance=compliance, compliance_std=compliance_std, nominal_registration=nominal,
+                      model=doc.get("model") or {}, rejected=list(doc.get("rejected") or []),
+                      plausibility=doc.get("plausibility") or {"ok": True, "problems": []},
+                      repeatability=doc.get("repeatability"), training=doc.get("training"),
+                      has_orientation=bool(targets.frames) if targets is not None else True)
+    return cal
 
 
 def _floats(v):

@@ -385,17 +385,19 @@ def _pack(block, spec, source, skipped):
                         targets)
 
 
-def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="deg") -> Path:
+def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="deg", joint_units=None) -> Path:
     """Write measurements in the CSV format above (positions and angles in the given units; orientation
-    columns only for measurements that have one, a target column for named targets)."""
+    columns only for measurements that have one, a target column for named targets). Joints are written in
+    SI, labelled with ``joint_units`` ('rad' or 'm' per joint; default 'rad')."""
     path = Path(path)
     ls, as_ = LENGTH_UNITS[length_unit], ANGLE_UNITS[angle_unit]
     rpy = rpy_from_matrix(m.T[:, :3, :3]) / as_ if m.has_orientation else np.zeros((len(m), 0))
     pos = m.T[:, :3, 3] / ls
     named = m.target is not None
+    path.parent.mkdir(parents=True, exist_ok=True)
     header = ["stamp[s]", "pose", "cycle"] + (["target"] if named else []) + [f"{c}[{length_unit}]" for c in "xyz"] + \
         ([f"{c}[{angle_unit}]" for c in ("roll", "pitch", "yaw")] if m.has_orientation else []) + \
-        [f"joint:{n}[rad]" for n in m.joint_names]
+        [f"joint:{n}[{u}]" for n, u in zip(m.joint_names, joint_units or ["rad"] * len(m.joint_names))]
     with path.open("w", newline="") as fh:
         for c in comments:
             fh.write(f"# {c}\n")
