@@ -295,7 +295,7 @@ def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iteratio
 def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientation=None, iterations=8,
              estimate_base=True, tol_rank=1e-6, hold=None, noise_from_residuals=False, targets=None,
              target_index=None, estimate_targets=False, gravity=None, compliance=None,
-             weights=None, estimate=None, analysis=True) -> Identification:
+             weights=None, estimate=None, analysis=True, compliance_prior=None) -> Identification:
     """Estimate parameter errors dx (and a base correction) from measured base-frame poses (n, 4, 4).
 
     Regularised Levenberg-Marquardt on the nonlinear model: minimise ``|r(dx)|^2 / sigma^2 + |dx / delta|^2``
@@ -309,7 +309,8 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     row's target (default: the tool frame itself); with ``estimate_targets`` their points (and, with
     orientation rows, their rotations) are corrected too. gravity, compliance : (n, dof) gravity load of
     each row's joints (N m, N) and the (dof,) mask of the joints whose compliance (rad/(N m), m/N) is
-    estimated: the joints deflect by ``c * g``. weights : (n,) row weights (0 leaves a row out).
+    estimated: the joints deflect by ``c * g``; ``compliance_prior`` (dof,) their prior standard deviations
+    (rad/(N m), m/N; None: none). weights : (n,) row weights (0 leaves a row out).
     analysis : False skips the identifiability analysis (rank, condition, unidentifiable, aliases), for
     fits that only predict (cross-validation).
 
@@ -334,6 +335,8 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     scale = np.concatenate([column_scale(delta, p), np.full(layout.nt + layout.nr, SCALE_WITHOUT_BUDGET),
                             _compliance_scale(gravity, layout)])
     prior = np.concatenate([_prior(delta, sigma_position, p, estimate_base), np.full(layout.n - p - 6, 1e-12)])
+    if layout.nc and compliance_prior is not None:
+        prior[layout.c] = (sigma_position / np.asarray(compliance_prior, float)[layout.cmask]) ** 2
     x = np.zeros(layout.n)
     J, r, _ = _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity, sqrt_w)
     rows_used = max(int(np.count_nonzero(w)), 1) * (6 if use_ori else 3)

@@ -10,8 +10,9 @@ at the nominal parameters; the covariance is scaled by the residual noise).
 What to identify (``parameters``): ``registration`` (nothing but the tracker and the targets),
 ``joint-offsets`` (each joint's zero offset), ``full`` (every parameter of the error model) or
 ``full+elastic`` (and, for a URDF with inertials, a compliance per joint times its gravity load, see
-``elastic``); the full sets also regularised, a Gaussian prior (``PRIOR``) on every origin error and
-none on the joint offsets and compliances, nothing held. ``auto`` cross-validates each candidate and keeps
+``elastic``); the full sets also regularised: a Gaussian prior (``PRIOR``) on every origin error, one on
+each compliance (its deflection at the largest load of the data, ``DEFLECTION``), none on the joint
+offsets; only dependent unregularised columns are held. ``auto`` cross-validates each candidate and keeps
 the simplest whose held-out position RMS is within ``PARSIMONY`` of the lowest: what predicts best, not
 what fits best.
 
@@ -21,8 +22,10 @@ by a registration and a fit made without any of its poses, and compared with its
 frames, orientation) error RMS and max, and ISO 9283 AP per test pose and target.
 
 Robust: each fit rejects the measurements whose position residual exceeds ``REJECT`` times the robust
-noise (the median residual over that of a 3-D normal error), and fits again until the set is stable;
-every rejected measurement is listed with its residual and the threshold. Plausibility: a calibration
+noise (the median residual over that of a 3-D normal error), and fits again until the set is stable,
+starting from the outliers of the registration-only fit (a flexible model can absorb an outlier that the
+stiff one shows); every rejected measurement is listed with its residual and the threshold. A row that any
+candidate's fit rejects is left out of every candidate's cross-validated score. Plausibility: a calibration
 whose measurements do not spread like the robot (a unit mistake), whose identified errors exceed
 ``PLAUSIBLE_LENGTH`` of the robot's reach or ``PLAUSIBLE_ANGLE``, or whose held-out error does not fall,
 is refused (``plausibility["ok"]`` False, with the reasons).
@@ -52,6 +55,7 @@ from .elastic import DeflectedChain, gravity_loads, has_inertials
 
 REGISTRATIONS = ("base", "base+tool")
 MODELS = ("registration", "joint-offsets", "full", "full+elastic")
+DEFLECTION = (0.01, 0.03)   # m, rad: prior std of a joint's elastic deflection at its largest load (regularised fits)
 PRIOR = (0.01, 0.01)        # m, rad: default prior std of the origin errors of a regularised fit
 PARSIMONY = 0.01            # the simplest candidate within this share of the lowest cross-validated RMS wins
 CHI3_MEDIAN = 1.5382        # median of |e| for e ~ N(0, I3): sqrt(chi2_3 median)
@@ -216,13 +220,16 @@ def prior_vector(model: Mechanism, prior) -> np.ndarray | None:
 
 def robust_identify(model, q, T_base, targets, idx, estimate_targets, sigma_position, sigma_orientation,
                     estimate, gravity=None, compliance=None, robust=True, iterations=12, prior=None,
-                    noise=None, analysis=True):
+                    noise=None, analysis=True, start=None, deflection=None):
     """(Identification, rejected (n,) mask, threshold m): ``identify`` of ``estimate`` (names) with the
     dependent parameters held, or, with a ``prior`` (p,) of standard deviations (m, rad; inf: none), the
     regularised (MAP) fit, only dependent parameters without a prior held, the data weighted by ``noise``
-    (m); refitted without the
+    (m), and the compliances regularised so that their deflection at the largest load has the prior std
+    ``deflection`` (dof,) rad or m; refitted without the
     measurements whose position residual exceeds ``REJECT`` robust sigmas until the rejected set is stable
-    (at most ``MAX_REJECTED`` of them; never one within ``REJECT`` tracker noises ``sigma_position``)."""
+    (at most ``MAX_REJECTED`` of them; never one within ``REJECT`` tracker noises ``sigma_position``),
+    starting from the rows ``start`` (n,) rejected (a stiffer model's outliers, which a flexible one can
+    absorb)."""
     kw = dict(delta=None, sigma_position=sigma_position, sigma_orientation=sigma_orientation, iterations=iterations,
               hold="dependent", noise_from_residuals=True, tol_rank=TOL_RANK, targets=targets, target_index=idx,
               estimate_targets=estimate_targets, gravity=gravity, compliance=compliance, estimate=estimate,
@@ -230,9 +237,12 @@ def robust_identify(model, q, T_base, targets, idx, estimate_targets, sigma_posi
     if prior is not None and estimate:
         kw.update(delta=prior, sigma_position=noise,
                   sigma_orientation=None if sigma_orientation is None else sigma_orientation * noise / sigma_position)
+        if compliance is not None and deflection is not None:
+            top = np.abs(gravity).max(axis=0)
+            kw["compliance_prior"] = np.asarray(deflection, float) / np.where(top > 0, top, 1.0)
     n = len(q)
-    rejected = np.zeros(n, bool)
-    ident = identify(model, q, T_base, **kw)
+    rejected = np.zeros(n, bool) if start is None else np.asarray(start, bool).copy()
+    ident = identify(model, q, T_base, weights=None if not rejected.any() else (~rejected).astype(float), **kw)
     threshold = np.inf
     if not robust:
         return ident, rejected, threshold
@@ -264,7 +274,7 @@ def fit(model: Mechanism, q, T_tracker, registration="base", sigma_position=1e-5
 
 
 def _fit(model, q, T_tracker, registration, sigma_position, sigma_orientation, idx, names, frames, which, gravity,
-         robust, prior=None, analysis=True) -> _Fit:
+         robust, prior=None, analysis=True, start=None) -> _Fit:
     if registration not in REGISTRATIONS:
         raise ValueError(f"registration: expected one of {REGISTRATIONS}, got {registration!r}")
     tool = registration == "base+tool"
@@ -272,12 +282,22 @@ def _fit(model, q, T_tracker, registration, sigma_position, sigma_orientation, i
         raise ValueError(f"registration: {len(names)} targets ({', '.join(names)}) sit at different points of the "
                          f"tool; fit their offsets with registration 'base+tool'")
     idx = np.zeros(len(q), int) if idx is None else np.asarray(idx, int)
-    reg = register(model.fk(q), T_tracker, tool=tool, index=idx, names=names, frames=frames)
+    T_tool = model.fk(q)
     estimate, cmask = _estimate(model, which, gravity)
-    noise = max(reg.rms / np.sqrt(3.0), sigma_position)  # per-axis noise the prior weighs against (an upper bound)
-    ident, rejected, thr = robust_identify(model, q, reg.to_base(T_tracker), reg.targets, idx, tool, sigma_position,
-                                           sigma_orientation, estimate, gravity, cmask, robust,
-                                           prior=prior_vector(model, prior), noise=noise, analysis=analysis)
+    deflection = None if prior is None else np.where(np.array(model.joint_types) == PRISMATIC, DEFLECTION[0],
+                                                     DEFLECTION[1])
+    out = np.zeros(len(q), bool) if start is None else np.asarray(start, bool)
+    for _ in range(4):  # the registration and the prior's noise from the rows the last fit kept
+        keep = ~out if np.count_nonzero(~out) >= 3 else np.ones(len(q), bool)
+        reg = register(T_tool[keep], T_tracker[keep], tool=tool, index=idx[keep], names=names, frames=frames)
+        noise = max(reg.rms / np.sqrt(3.0), sigma_position)  # per-axis noise the prior weighs against (an upper bound)
+        ident, rejected, thr = robust_identify(model, q, reg.to_base(T_tracker), reg.targets, idx, tool,
+                                               sigma_position, sigma_orientation, estimate, gravity, cmask, robust,
+                                               prior=prior_vector(model, prior), noise=noise, analysis=analysis,
+                                               start=out, deflection=deflection)
+        if np.array_equal(rejected, out):
+            break
+        out = rejected
     return _Fit(reg, ident, rejected, thr)
 
 
@@ -334,15 +354,29 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, registration="base", 
     use_ori = sigma_orientation if has_orientation else None
     gravity = gravity_loads(model, q) if has_inertials(model) else None
     problems = _units_problems(model, q, T_tracker, idx, names)
-    scores, validations = [], {}
+    scores, validations, fits = [], {}, {}
     todo = candidates(model, parameters, prior, gravity)
+    stiff = _fit(model, q, T_tracker, registration, sigma_position, use_ori, idx, names, has_orientation,
+                 "registration", None, robust, analysis=False)
+    for label, which, pr in todo:  # every candidate's robust fit of all the data: which rows are outliers
+        try:
+            fits[label] = _fit(model, q, T_tracker, registration, sigma_position, use_ori, idx, names,
+                               has_orientation, which, gravity, robust, pr, analysis=False, start=stiff.rejected)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+    # a row that a candidate's robust fit rejects is left out of every candidate's score, so that outliers
+    # neither dominate the comparison nor favour the model that happens to flag them
+    exclude = np.zeros(n, bool)
+    for f in fits.values():
+        exclude |= f.rejected
     for step, (label, which, pr) in enumerate(todo):
         if progress is not None:
             progress(step, len(todo) + 1)
         try:
             validations[label] = validate(model, q, T_tracker, groups, registration, sigma_position, use_ori, folds,
                                           seed, has_orientation, pose_names, parameters=which, target_index=idx,
-                                          target_names=names, gravity=gravity, robust=robust, prior=pr)
+                                          target_names=names, gravity=gravity, robust=robust, prior=pr,
+                                          exclude=exclude)
         except (ValueError, np.linalg.LinAlgError) as exc:
             scores.append({"label": label, "parameters": which, "prior": pr, "error": str(exc)})
             continue
@@ -357,9 +391,8 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, registration="base", 
     best = next(s for s in valid if s["cv_position_rms_m"] <= lowest * (1 + PARSIMONY))
     chosen, chosen_prior = best["parameters"], best["prior"]
     final = _fit(model, q, T_tracker, registration, sigma_position, use_ori, idx, names, has_orientation, chosen,
-                 gravity, robust, chosen_prior)
-    nominal = final if chosen == "registration" else _fit(model, q, T_tracker, registration, sigma_position, use_ori,
-                                                          idx, names, has_orientation, "registration", None, robust)
+                 gravity, robust, chosen_prior, start=stiff.rejected)
+    nominal = stiff
     if progress is not None:
         progress(len(todo) + 1, len(todo) + 1)
     ident, reg = final.ident, final.reg
@@ -492,15 +525,17 @@ def pose_groups(q, labels=None):
 
 def validate(model, q, T_tracker, groups, registration="base", sigma_position=1e-5, sigma_orientation=None,
              folds=10, seed=0, has_orientation=True, names=None, parameters="full", target_index=None,
-             target_names=("",), gravity=None, robust=True, prior=None) -> dict:
-    """k-fold validation by test pose (see the module docstring); a plain dict, SI.
+             target_names=("",), gravity=None, robust=True, prior=None, exclude=None) -> dict:
+    """k-fold validation by test pose (see the module docstring); a plain dict, SI. ``exclude`` (n,) marks
+    measurements left out of every figure (outliers; they still cannot enter a fold's fit as inliers).
 
     Keys: method, folds, poses, measurements, parameters, unknowns; ``before`` and ``after`` with
     position_rms_m, position_max_m, orientation_rms_rad, orientation_max_rad (None without orientations),
     AP_p_mean_m, AP_p_max_m; ``improvement`` (1 - after/before position RMS); ``per_pose`` {pose (or
     pose@target): AP before/after}; ``position_error_m`` {before, after} per measurement (for plots);
-    ``outliers``: held-out measurements beyond their fold's rejection threshold (counted in every figure:
-    a score that left out a model's worst predictions would favour the model that overfits).
+    ``outliers``: held-out measurements beyond their fold's rejection threshold (counted in the figures: a
+    score that left out a model's own worst predictions would favour the model that overfits); ``excluded``:
+    the measurements ``exclude`` left out.
     ``names`` label the test poses.
     """
     groups = np.asarray(groups, int)
@@ -525,19 +560,18 @@ def validate(model, q, T_tracker, groups, registration="base", sigma_position=1e
     for f in range(k):
         test = fold == f
         g = None if gravity is None else gravity[~test]
-        cal = _fit(model, q[~test], T_tracker[~test], registration, sigma_position, sigma_orientation, idx[~test],
-                   tnames, has_orientation, parameters, g, robust, prior, analysis=False)
-        nom = cal if parameters == "registration" else _fit(model, q[~test], T_tracker[~test], registration,
-                                                            sigma_position, sigma_orientation, idx[~test], tnames,
-                                                            has_orientation, "registration", None, robust,
-                                                            analysis=False)
+        nom = _fit(model, q[~test], T_tracker[~test], registration, sigma_position, sigma_orientation, idx[~test],
+                   tnames, has_orientation, "registration", None, robust, analysis=False)
+        cal = nom if parameters == "registration" else _fit(
+            model, q[~test], T_tracker[~test], registration, sigma_position, sigma_orientation, idx[~test], tnames,
+            has_orientation, parameters, g, robust, prior, analysis=False, start=nom.rejected)
         unknowns = unknowns or cal.ident.n_free
         Tb[test], Tc[test] = _predict(model, cal, q[test], T_tracker[test], idx[test],
                                       None if gravity is None else gravity[test])
         Tbn[test], Tn[test] = _predict(model, nom, q[test], T_tracker[test], idx[test])
         err = np.linalg.norm(Tb[test, :3, 3] - Tc[test, :3, 3], axis=1)
         outlier[np.flatnonzero(test)[err > cal.threshold]] = True
-    keep = np.ones(n, bool)
+    keep = np.ones(n, bool) if exclude is None else ~np.asarray(exclude, bool)
     out = {"method": f"{k}-fold cross-validation by test pose (seed {seed}): each fold's poses predicted by a "
                      f"registration and a fit made without them",
            "folds": k, "poses": int(len(uniq)), "measurements": int(n), "parameters": parameters,
@@ -571,6 +605,7 @@ def validate(model, q, T_tracker, groups, registration="base", sigma_position=1e
     out["per_pose"] = per_pose
     out["position_error_m"] = errs
     out["outliers"] = [int(i) for i in np.flatnonzero(outlier)]
+    out["excluded"] = [int(i) for i in np.flatnonzero(~keep)]
     return out
 
 
