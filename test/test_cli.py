@@ -490,7 +490,9 @@ def test_calibrate_without_improvement_exits_3(capsys, tmp_path, gao):
                          "--campaign", str(camp), "--out", str(tmp_path / "cal"), "--json", "--quiet")
     doc = json.loads(out)
     assert code == 3 and doc["ok"] is False and "does not reduce" in doc["failed"][0]
-    assert (tmp_path / "cal" / "calibration.yaml").exists()
+    assert doc["plausibility"]["ok"] is False and doc["model"]["parameters"] == "registration"
+    assert (tmp_path / "cal" / "calibration.refused.yaml").exists()
+    assert not (tmp_path / "cal" / "calibration.yaml").exists() and not list((tmp_path / "cal").glob("*_calibrated*"))
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -114,3 +114,36 @@ def test_hold_by_name_and_too_few_rows(gao, truth):
     assert ident.held == ["a1", "theta7"] and ident.dx[0] == 0
     with pytest.raises(ValueError, match="cannot be estimated"):
         identify(gao, q[:9], Tb[:9], None, 1e-5, hold="dependent", noise_from_residuals=True)
+
+
+def test_every_column_of_the_fit_jacobian_matches_finite_differences():
+    """Parameters, base correction, target points and rotations (measured frames) and compliances."""
+    from helpers import example_urdf
+    from tolerance_ros.core.models import URDFChain
+    from tolerance_ros.core.accuracy.identification import _Layout, _stack, _targets_with, base_matrix
+    from tolerance_ros.core.accuracy.targets import Targets
+    from tolerance_ros.core.calibration.elastic import gravity_loads
+    model = URDFChain(example_urdf("ur5_robot.urdf"), tip_link="tool0")
+    rng = np.random.default_rng(1)
+    q = model.sample_joints(6, 2)
+    g = gravity_loads(model, q)
+    tg = Targets(("A", "B"), np.array([transform([0.1, 0, 0.05], [0.2, 0, 0]), transform([0, 0.2, 0.05], [0, 0.3, 1])]),
+                 frames=True)
+    idx = np.array([0, 1, 0, 1, 1, 0])
+    cmask = np.array([False, True, True, False, False, False])
+    layout = _Layout(model.n_params, 2, True, True, cmask)
+    x = rng.normal(0, 1e-3, layout.n)
+    x[layout.c] = rng.normal(0, 1e-4, layout.nc)
+    x[layout.base] = x[layout.r] = 0.0  # rotation vectors: their columns are the derivative at the current value 0
+    c = np.zeros(model.dof)
+    c[cmask] = x[layout.c]
+    T_meas = base_matrix(x[layout.base]) @ model.fk(q + g * c, x[:model.n_params]) @ _targets_with(tg, layout, x)[idx]
+    J, r, _ = _stack(model, q, T_meas, x, layout, tg, idx, True, 0.5, g)
+    h = 1e-7
+    for j in range(layout.n):
+        e = np.zeros(layout.n)
+        e[j] = h
+        rp = _stack(model, q, T_meas, x + e, layout, tg, idx, True, 0.5, g)[1]
+        rm = _stack(model, q, T_meas, x - e, layout, tg, idx, True, 0.5, g)[1]
+        # r = measured - model, measured here the model at x: J is minus the derivative of r
+        assert np.allclose(-(rp - rm) / (2 * h), J[:, j], atol=1e-6), j

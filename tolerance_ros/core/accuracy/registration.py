@@ -209,8 +209,8 @@ def _global_points(Tn, M, idx, K, names):
             cols = [(rotated(x[:3] + h * e) - rotated(x[:3] - h * e)) / (2 * h) for e in np.eye(3)]
             return np.column_stack(cols + [-D])
 
-        sol = least_squares(resid, np.concatenate([np.zeros(3), z0]), jac=jac, method="lm", xtol=1e-15, ftol=1e-15,
-                            gtol=1e-15)
+        sol = least_squares(resid, np.concatenate([np.zeros(3), z0]), jac=jac, method="lm", xtol=1e-13, ftol=1e-13,
+                            gtol=1e-13, max_nfev=200)
         if best is None or sol.cost < best[0]:
             best = (sol.cost, R0 @ Rotation.from_rotvec(sol.x[:3]).as_matrix(), sol.x[3:])
     _, R, z = best

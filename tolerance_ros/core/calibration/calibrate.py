@@ -356,6 +356,8 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, registration="base", 
     problems = _units_problems(model, q, T_tracker, idx, names)
     scores, validations, fits = [], {}, {}
     todo = candidates(model, parameters, prior, gravity)
+    if problems:  # the units cannot be right: no fit beyond the registration's is worth its time
+        todo = [("registration", "registration", None)]
     stiff = _fit(model, q, T_tracker, registration, sigma_position, use_ori, idx, names, has_orientation,
                  "registration", None, robust, analysis=False)
     for label, which, pr in todo:  # every candidate's robust fit of all the data: which rows are outliers
