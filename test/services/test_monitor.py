@@ -125,3 +125,58 @@ def test_diagnostic_levels(gao, setup):
     assert d["level"] == ERROR and d["values"]["over_limit"] == "1"
     mon.set_budget(None)
     assert mon.diagnostic()["level"] == WARN
+
+
+def point_stamped(t, p):
+    sec, nsec = stamp_fields(t)
+    return TS.types["geometry_msgs/msg/PointStamped"](
+        header=TS.types["std_msgs/msg/Header"](stamp=TS.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                                               frame_id="tracker"),
+        point=TS.types["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]))
+
+
+def test_several_reflectors_are_judged_at_their_own_points_and_logged_by_name(gao, tmp_path):
+    from tolerance_ros.core.accuracy.simulate import measure_targets
+    from tolerance_ros.services.monitor import monitor_targets
+    targets = monitor_targets("point", "A, B", [0.2, 0.0, 0.05, 0.0, 0.2, 0.05])
+    assert targets.names == ("A", "B") and not targets.frames
+    budget = load_budget("gao2023_delta2", gao)
+    qk = gao.sample_joints(3, 2)
+    camp = Campaign("c", [TestPose(f"P{i + 1}", joints=qk[i]) for i in range(3)], cycles=2)
+    mon = MonitorLogic(gao, budget, camp, slop=0.01, max_wait=0.5, T_tracker_base=T_TB, targets=targets,
+                       log_path=tmp_path / "log.jsonl", clock=lambda: 0.0, orientation=False)
+    q = np.repeat(qk, 2, axis=0)
+    m = measure_targets(gao, q, None, targets, 0.0, 0.0, T_TB, stamps=np.arange(len(q)) + 10.0)
+    results = []
+    for i in range(len(m)):
+        if i % 2 == 0:
+            mon.on_joint_state_msg(joint_state(m.stamps[i], gao.joint_names, m.joints[i]))
+        results += mon.on_point_msg(point_stamped(m.stamps[i], m.T[i, :3, 3]), str(m.target[i]))
+    mon.on_joint_state_msg(joint_state(100.0, gao.joint_names, qk[0]))
+    results += mon.resolve()
+    assert len(results) == 12 and {r["target"] for r in results} == {"A", "B"}
+    assert max(r["position_error"] for r in results) < 1e-9 and all(r["orientation_error"] is None for r in results)
+    rep = mon.report()["summary"]
+    assert sorted(rep["test_poses"]) == sorted(f"P{i}@{t}" for i in (1, 2, 3) for t in "AB")
+    assert rep["orientation_error_rad"] is None
+    assert mon.on_point_msg(point_stamped(50.0, [0, 0, 0]), "C") == [] and mon.counts["rejected"] == 1
+    mon.close()
+    back = read_log(tmp_path / "log.jsonl")
+    assert back.has_orientation is False and sorted(set(back.target)) == ["A", "B"] and len(back) == 12
+
+
+@pytest.mark.parametrize("args, message", [
+    (("pose", "A,B", [0.0] * 3), None),
+    (("pose", "A,A", [0.0] * 3), "appears twice"),
+    (("pose", "A,2b", [0.0] * 3), "not a ROS name token"),
+    (("pose", "A,B", [0.1, 0.0, 0.0]), "expected 6 values"),
+    (("laser", "", [0.0] * 3), "expected 'pose' or 'point'"),
+    (("point", "", [0.0, 0.0, 9.0]), "more than 5 m"),
+])
+def test_the_monitors_target_parameters_are_checked(args, message):
+    from tolerance_ros.services.monitor import monitor_targets
+    if message is None:
+        assert monitor_targets(*args).names == ("A", "B")
+        return
+    with pytest.raises(ValueError, match=message):
+        monitor_targets(*args)

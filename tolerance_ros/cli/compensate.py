@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from ..render.text import table
-from .common import load_model, missed
+from .common import CLIError, load_model, missed
 
 NAME = "compensate"
 HELP = "joints that put the calibrated robot's tool at each target"
@@ -18,6 +18,8 @@ def add_arguments(p):
     p.add_argument("--targets", required=True, help="campaign file: test poses as nominal joints or as tool poses")
     p.add_argument("--match", choices=["pose", "position"], default="pose", help="match the whole pose or the position")
     p.add_argument("--seed", type=int, default=0, help="seed of the starts for tool-pose targets")
+    p.add_argument("--target", help="the calibration's target whose point is the tool point (default: its first; "
+                                    "pose targets are tool poses there)")
     p.add_argument("--out", metavar="FILE", help="write the compensated joints as a campaign file")
 
 
@@ -27,7 +29,10 @@ def run(args):
     from ..core.campaign import load_campaign
     model = load_model(args)
     cal = load_calibration(args.calibration, model)
-    calibrated = cal.mechanism(model)
+    try:
+        calibrated, nominal = cal.mechanism(model, args.target), cal.nominal_at_tool_point(model, args.target)
+    except ValueError as exc:
+        raise CLIError(f"--target: {exc}") from None
     targets = load_campaign(args.targets, model)
     by_joints = [i for i, tp in enumerate(targets.poses) if tp.joints is not None]
     by_pose = [i for i, tp in enumerate(targets.poses) if tp.joints is None]
@@ -37,9 +42,9 @@ def run(args):
             continue
         if kind == "joints":
             q = np.array([targets.poses[i].joints for i in idx])
-            comp = compensate(calibrated, model, joints=model.check_joints(q, "targets"), match=args.match)
+            comp = compensate(calibrated, nominal, joints=model.check_joints(q, "targets"), match=args.match)
         else:
-            comp = compensate(calibrated, model, poses=np.array([targets.poses[i].pose for i in idx]), match=args.match,
+            comp = compensate(calibrated, nominal, poses=np.array([targets.poses[i].pose for i in idx]), match=args.match,
                               rng=args.seed)
         d = comp.to_dict()
         for k, i in enumerate(idx):

@@ -1,27 +1,31 @@
-"""Accuracy monitor (node ``tolerance_accuracy_monitor``): pairs ``measured_pose`` (PoseStamped) with
-``joint_states``, compares with nominal FK and the current budget (``tolerance_budget`` or a budget
-file), publishes /diagnostics (DiagnosticArray, the namespace in the status name), a JSON report on
+"""Accuracy monitor (node ``tolerance_accuracy_monitor``): pairs ``measured_pose`` (PoseStamped) or
+``measured_point`` (PointStamped, parameter ``measurement: point``) with ``joint_states``, compares with
+nominal FK at each measured target and the current budget (``tolerance_budget`` or a budget file),
+publishes /diagnostics (DiagnosticArray, the namespace in the status name), a JSON report on
 ``tolerance/accuracy_report`` and RViz markers on ``tolerance/markers`` (MarkerArray), and appends every
-measurement to a campaign log as it arrives. The robot may come from ``robot_description``."""
+measurement to a campaign log as it arrives. Several targets (parameter ``targets: "A,B,C"``) each have
+their own topic, ``measured_pose/A`` ... (relative, so a namespace moves them). The registration and the
+targets' offsets come from parameters or from a calibration file. The robot may come from
+``robot_description``."""
 from __future__ import annotations
 
 import time
 from pathlib import Path
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PoseStamped
+from geometry_msgs.msg import Point, PointStamped, PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.budget import load_budget
+from ..core.calibration.writers import load_calibration
 from ..core.campaign import load_campaign
 from ..core.geometry import transform
 from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, budget_from_message
-from ..services.monitor import WARN, MonitorLogic
+from ..services.monitor import WARN, MonitorLogic, monitor_targets
 from .common import (BUDGET_QOS, MEASUREMENT_QOS, PREFIX, STATUS_QOS, declare, follow_robot, guarded,
                      robot_set, run, status_name)
 
@@ -39,7 +43,14 @@ class AccuracyMonitor(Node):
         self.max_wait = declare(self, "max_wait", 1.0, "seconds a measurement waits for a later joint state")
         base = declare(self, "tracker_to_base", [0.0] * 6,
                        "registration: pose of the robot base in the tracker frame, [x y z roll pitch yaw] (m, rad)")
-        tool = declare(self, "tool_offset", [0.0] * 3, "tool point offset in the tool frame, m")
+        self.measurement = declare(self, "measurement", "pose", "what the tracker measures: pose (PoseStamped on "
+                                                                "measured_pose) or point (PointStamped on measured_point)")
+        names = declare(self, "targets", "", "measured targets, comma-separated names (topics measured_pose/<name>); "
+                                             "empty: one target on measured_pose")
+        offsets = declare(self, "target_offsets", [0.0] * 3, "each target's point in the tool frame, m (3 per target; "
+                                                             "three zeros: every target at the tool point)")
+        self.calibration = declare(self, "calibration", "", "calibration file: its registration and targets replace "
+                                                            "tracker_to_base, targets and target_offsets")
         self.log_dir = Path(declare(self, "log_dir", str(Path.home() / ".ros" / "tolerance_ros" / "campaigns"),
                                     "directory of the campaign log (one JSON Lines file per run)")).expanduser()
         period = declare(self, "report_period", 1.0, "seconds between diagnostics and reports")
@@ -49,7 +60,7 @@ class AccuracyMonitor(Node):
         self.marker_frame = declare(self, "marker_frame", "", "RViz: frame of the markers (empty: the URDF's base "
                                                               "link, or base_link)")
         self.T_tracker_base = transform(base[:3], base[3:])
-        self.tool_offset = np.asarray(tool, float) if np.any(tool) else None
+        self.targets = monitor_targets(self.measurement, names, offsets)
         self.robots = robot_set(self, [robot], robot)
         self.logic = None
         self.budget_text = None   # the latest tolerance_budget message, applied once the robot is known
@@ -57,7 +68,10 @@ class AccuracyMonitor(Node):
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.report_pub = self.create_publisher(String, f"{PREFIX}/accuracy_report", STATUS_QOS)
         self.marker_pub = self.create_publisher(MarkerArray, f"{PREFIX}/markers", STATUS_QOS)
-        self.create_subscription(PoseStamped, "measured_pose", guarded(self, self.on_pose), MEASUREMENT_QOS)
+        kind, topic = (PointStamped, "measured_point") if self.measurement == "point" else (PoseStamped, "measured_pose")
+        for name in self.targets.names:
+            callback = guarded(self, self._on_measurement(name))
+            self.create_subscription(kind, f"{topic}/{name}" if name else topic, callback, MEASUREMENT_QOS)
         self.create_subscription(JointState, "joint_states", guarded(self, self.on_joint_state), MEASUREMENT_QOS)
         self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
         self.create_timer(period, guarded(self, self.publish_status))
@@ -80,19 +94,33 @@ class AccuracyMonitor(Node):
         if self.logic is not None:
             self.logic.close()
         log_path = self.log_dir / f"{model.name}_{time.strftime('%Y%m%d_%H%M%S')}.jsonl"
-        self.logic = MonitorLogic(model, budget, camp, self.slop, self.max_wait, self.T_tracker_base,
-                                  self.tool_offset, log_path, self.pose_tolerance,
-                                  name=status_name(self, "accuracy monitor"))
+        T_tracker_base, targets = self.T_tracker_base, self.targets
+        if self.calibration:
+            cal = load_calibration(self.calibration, model)
+            T_tracker_base, targets = cal.T_tracker_base, cal.targets
+            missing = sorted(set(self.targets.names) - set(targets.names))
+            if missing:
+                raise ValueError(f"calibration {self.calibration}: no target(s) {missing} (it has "
+                                 f"{list(targets.names)})")
+        self.logic = MonitorLogic(model, budget, camp, self.slop, self.max_wait, T_tracker_base, targets, log_path,
+                                  self.pose_tolerance, name=status_name(self, "accuracy monitor"),
+                                  orientation=self.measurement == "pose")
         if self.budget_text is not None:
             self.on_budget(String(data=self.budget_text))
         self.frame = self.marker_frame or getattr(model, "base_link", None) or "base_link"
         self.get_logger().info(f"monitoring {model.name}; campaign log {log_path}")
 
-    def on_pose(self, msg):
-        if self.logic is None:
-            self.waiting["measurements"] += 1
-            return
-        self.logic.on_pose_msg(msg)
+    def _on_measurement(self, target):
+        def on_measurement(msg):
+            if self.logic is None:
+                self.waiting["measurements"] += 1
+                return
+            if self.measurement == "point":
+                self.logic.on_point_msg(msg, target)
+            else:
+                self.logic.on_pose_msg(msg, target)
+        on_measurement.__name__ = f"on_measurement{'_' + target if target else ''}"
+        return on_measurement
 
     def on_joint_state(self, msg):
         if self.logic is None:

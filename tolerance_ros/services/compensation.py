@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.accuracy.targets import AtTarget
 from ..core.calibration.compensate import MATCHES, compensate
 from ..core.calibration.writers import load_calibration
 from ..core.geometry import quat_to_matrices
@@ -122,6 +123,8 @@ def compensate_request(req: dict, robots, calibrations: dict, limits: Limits) ->
                                                f"'calibration'); ask for \"model\": \"nominal\" to solve on the "
                                                f"nominal model")
     model = calibrations[name] if which == "calibrated" else nominal
+    if isinstance(model, AtTarget):  # the calibration's tool point: the nominal pose is taken there too
+        nominal = AtTarget(nominal, model.X, model.target)
     match = req.get("match", "pose")
     if match not in MATCHES:
         raise ContractError("invalid_request", f"match: expected one of {list(MATCHES)}, got {match[:40]!r}")

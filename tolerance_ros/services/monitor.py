@@ -10,6 +10,7 @@ reported.
 """
 from __future__ import annotations
 
+import re
 import time
 from collections import deque
 from pathlib import Path
@@ -246,3 +247,32 @@ def _fmt(v):
     if isinstance(v, float):
         return f"{v:.6g}"
     return str(v)
+
+
+_TARGET_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
+
+
+def monitor_targets(measurement: str, names: str, offsets) -> Targets:
+    """The monitor's Targets from its parameters: ``measurement`` 'pose' or 'point', ``names`` comma-separated
+    (each a ROS name token: its topic is ``measured_pose/<name>``; empty: one unnamed target), ``offsets``
+    3 per target (m, tool frame) or three zeros for all; ValueError naming the parameter."""
+    if measurement not in ("pose", "point"):
+        raise ValueError(f"measurement: expected 'pose' or 'point', got {measurement!r}")
+    listed = [n.strip() for n in str(names).split(",") if n.strip()]
+    bad = [n for n in listed if not _TARGET_NAME.match(n)]
+    if bad:
+        raise ValueError(f"targets: {bad[0]!r} is not a ROS name token (a letter, then letters, digits, _)")
+    if len(set(listed)) != len(listed):
+        raise ValueError(f"targets: a name appears twice in {listed}")
+    listed = listed or [""]
+    off = np.asarray(offsets, float).reshape(-1)
+    if not np.all(np.isfinite(off)):
+        raise ValueError("target_offsets: not finite")
+    if off.size == 3 and not np.any(off):
+        off = np.zeros(3 * len(listed))
+    if off.size != 3 * len(listed):
+        raise ValueError(f"target_offsets: expected {3 * len(listed)} values (x y z of each of {len(listed)} "
+                         f"target(s)), got {off.size}")
+    if np.abs(off).max(initial=0.0) > 5.0:
+        raise ValueError("target_offsets: a target more than 5 m from the tool frame (metres expected)")
+    return Targets.from_offsets(listed, off.reshape(-1, 3), frames=measurement == "pose")

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..models.base import ErrorJacobian, Mechanism
+
 MAX_OFFSET = 5.0  # m: a target farther from the tool frame is refused as a unit mistake
 
 
@@ -118,3 +120,33 @@ def check_offsets(targets: Targets, what="registration"):
         raise ValueError(f"{what}: target {targets.names[k] or '(unnamed)'} would sit {far[k]:.3g} m from the tool "
                          f"frame (more than {MAX_OFFSET:g} m): are the measurement units right?")
 
+
+
+class AtTarget(Mechanism):
+    """A mechanism whose tool frame is moved to a target frame ``X`` (4x4, m, in the tool frame): poses
+    ``T @ X`` and the Jacobian at the target point (``shift_jacobian``); the rest is the inner model's.
+    ``inner`` is the model, ``target`` the target's name."""
+
+    def __init__(self, inner: Mechanism, X, target=""):
+        self.inner = inner
+        self.X = np.asarray(X, float).reshape(4, 4)
+        self.target = str(target)
+        for attr in ("name", "joint_names", "joint_types", "joint_limits", "param_names", "param_kinds", "nominal"):
+            setattr(self, attr, getattr(inner, attr))
+        for attr in ("tip_link", "base_link", "source", "config_path"):
+            if hasattr(inner, attr):
+                setattr(self, attr, getattr(inner, attr))
+
+    def fk_and_jacobian(self, q, dx=None, jacobian: bool = True):
+        T, EJ = self.inner.fk_and_jacobian(q, dx, jacobian)
+        T_t = T @ self.X
+        if not jacobian:
+            return T_t, None
+        arms = np.einsum("nij,j->ni", T[:, :3, :3], self.X[:3, 3])
+        return T_t, ErrorJacobian(shift_jacobian(EJ.J, arms), EJ.names, EJ.units)
+
+    def joint_columns(self) -> np.ndarray:
+        return self.inner.joint_columns()
+
+    def with_joint_limits(self, limits) -> "AtTarget":
+        return AtTarget(self.inner.with_joint_limits(limits), self.X, self.target)

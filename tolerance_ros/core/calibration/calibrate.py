@@ -45,7 +45,7 @@ import numpy as np
 from ..accuracy.identification import BASE_NAMES, base_matrix, identify
 from ..accuracy.iso9283 import pose_characteristics
 from ..accuracy.registration import register, spread_ratio
-from ..accuracy.targets import Targets
+from ..accuracy.targets import AtTarget, Targets
 from ..accuracy.verdicts import pose_errors
 from ..geometry import axis_angle_matrix, rpy_from_matrix, transform
 from ..models.base import PRISMATIC, Mechanism, ModelError
@@ -143,13 +143,33 @@ class Calibration:
             return DeflectedChain(model, self.compliance)
         return model
 
-    def mechanism(self, model: Mechanism) -> Mechanism:
-        """The calibrated model as a Mechanism of the nominal model's kind (see ``calibrated_mechanism``),
-        its joints deflected by the elastostatic term when there is one."""
+    def tool_point(self, target=None) -> tuple:
+        """(name, 4x4 frame in the tool frame) of the target that is the tool point: ``target`` by name, or
+        the first; ValueError for a name the calibration does not have."""
+        names = self.targets.names
+        if target is None:
+            return names[0], self.targets.X[0]
+        if str(target) not in names:
+            raise ValueError(f"target: {target!r} is not one of the calibration's targets {list(names)}")
+        return str(target), self.targets.X[names.index(str(target))]
+
+    def mechanism(self, model: Mechanism, target=None) -> Mechanism:
+        """The calibrated model: a Mechanism of the nominal model's kind (see ``calibrated_mechanism``), its
+        joints deflected by the elastostatic term when there is one, its tool at the calibration's tool
+        point (``tool_point``) when that is not the tool frame itself."""
         chain = calibrated_mechanism(model, self.dx, self.base)
         if self.compliance is not None and np.any(self.compliance):
-            return DeflectedChain(chain, self.compliance)
-        return chain
+            chain = DeflectedChain(chain, self.compliance)
+        return self._at_tool_point(chain, target)
+
+    def nominal_at_tool_point(self, model: Mechanism, target=None) -> Mechanism:
+        """The nominal model with its tool at the calibration's tool point (what the calibrated one is compared
+        with)."""
+        return self._at_tool_point(model, target)
+
+    def _at_tool_point(self, chain, target):
+        name, X = self.tool_point(target)
+        return chain if np.array_equal(X, np.eye(4)) else AtTarget(chain, X, name)
 
     def to_dict(self) -> dict:
         """Plain dict, SI (m, rad)."""
