@@ -135,3 +135,35 @@ def test_bad_joints_are_rejected_with_the_joint_name(gao):
         gao.check_joints([[4.0, 0, 0, 0, 0, 0, 0]], allow_out_of_limits=False)
     with pytest.raises(ModelError, match="dx"):
         gao.fk(np.zeros(7), dx=np.zeros(5))
+
+
+def test_controller_directions_and_zero_offsets_map_the_joints_a_controller_logs(tmp_path, gao):
+    """``q_model = direction * q + offset``: a controller that counts joint 2 the other way round and joint 3
+    from 0.1 rad gives its own joints; the model, its Jacobian and the compensation take them as they are."""
+    import yaml
+
+    from tolerance_ros.core.calibration.calibrate import calibrated_mechanism
+    from tolerance_ros.core.calibration.compensate import compensate
+    from tolerance_ros.core.models import load_robot
+    from tolerance_ros.core.resources import resolve
+    data = yaml.safe_load(resolve("robots", "gao2023_7dof", suffixes=(".yaml",)).read_text())
+    data["joints"][1]["direction"] = -1
+    data["joints"][2]["offset"] = 100.0 / 1000 if data["units"]["angle"] == "rad" else 0.1
+    (tmp_path / "ctrl.yaml").write_text(yaml.safe_dump(data))
+    ctrl = load_robot(tmp_path / "ctrl.yaml")
+    q = gao.sample_joints(5, 1)
+    q_model = q.copy()
+    q_model[:, 1] *= -1
+    q_model[:, 2] += 0.1
+    T, EJ = ctrl.fk_and_jacobian(q)
+    T0, EJ0 = gao.fk_and_jacobian(q_model)
+    assert np.allclose(T, T0, atol=1e-12) and np.allclose(EJ.J, EJ0.J, atol=1e-12)
+    ctrl.backend = "numpy"
+    assert np.allclose(ctrl.fk(q), T0, atol=1e-12)
+    dx = np.random.default_rng(2).normal(0, 1e-4, gao.n_params)
+    comp = compensate(calibrated_mechanism(ctrl, dx), ctrl, joints=q)
+    assert np.all(comp.reached) and comp.residual_position.max() < 1e-9
+    data["joints"][0]["direction"] = 2
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(data))
+    with pytest.raises(Exception, match=r"joints\[0\]\.direction: expected 1 or -1"):
+        load_robot(tmp_path / "bad.yaml")

@@ -148,5 +148,9 @@ class AtTarget(Mechanism):
     def joint_columns(self) -> np.ndarray:
         return self.inner.joint_columns()
 
+    @property
+    def joint_direction(self) -> np.ndarray:
+        return self.inner.joint_direction
+
     def with_joint_limits(self, limits) -> "AtTarget":
         return AtTarget(self.inner.with_joint_limits(limits), self.X, self.target)

@@ -656,7 +656,8 @@ def calibrated_mechanism(model: Mechanism, dx, base=None) -> Mechanism:
         p = model.nominal + dx
         n = model.dof
         return DHChain(model.name, p[:n], p[2 * n:3 * n], p[n:2 * n], p[3 * n:], model.joint_types,
-                       model.joint_limits, model.joint_names, model.convention, B @ model.base, model.tool)
+                       model.joint_limits, model.joint_names, model.convention, B @ model.base, model.tool,
+                       model.direction, model.joint_offset)
     if isinstance(model, URDFChain):
         xyz_rpy, _ = corrected_origins(model, dx, B)
         out = copy.copy(model)

@@ -74,7 +74,7 @@ def joint_jacobian(model: Mechanism, q):
     """(T (n, 4, 4), J (n, 6, dof)): tool poses and their derivative in the joints (base frame; position
     rows m per rad or m per m, orientation rows rad per unit)."""
     T, EJ = model.fk_and_jacobian(q)
-    return T, EJ.J[:, :, joint_columns(model)]
+    return T, EJ.J[:, :, joint_columns(model)] * model.joint_direction
 
 
 def _errors(T_target, T, match):

@@ -64,6 +64,10 @@ class DeflectedChain(Mechanism):
     def joint_columns(self) -> np.ndarray:
         return self.inner.joint_columns()
 
+    @property
+    def joint_direction(self) -> np.ndarray:
+        return self.inner.joint_direction
+
     def with_joint_limits(self, limits) -> "DeflectedChain":
         out = copy.copy(self)
         out.inner = self.inner.with_joint_limits(limits)

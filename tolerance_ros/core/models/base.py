@@ -230,6 +230,12 @@ class Mechanism(ABC):
         dx = self.check_dx(dx, n)
         return np.array(dx.reshape(-1, self.n_params), order="C")
 
+    @property
+    def joint_direction(self) -> np.ndarray:
+        """(dof,) +1 or -1: the sign of each joint as the caller gives it in the model's joint (a D-H
+        robot's controller convention; +1 elsewhere)."""
+        return np.ones(self.dof)
+
     def joint_columns(self) -> np.ndarray:
         """(dof,) column of each joint's zero offset in the parameter-error Jacobian: the derivative of the
         pose in that joint. ModelError for mechanisms whose joints are not such parameters."""

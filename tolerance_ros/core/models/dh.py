@@ -29,12 +29,15 @@ class DHChain(CompiledChain):
 
     a, alpha, d, theta : (dof,) link lengths (m), twists (rad), offsets (m) and joint-angle offsets (rad).
     joint_types : 'revolute' or 'prismatic' per joint.  joint_limits : (dof, 2), rad or m.
-    base, tool : 4x4 transforms (m).  convention : 'standard' or 'modified'.
+    base, tool : 4x4 transforms (m).  convention : 'standard' or 'modified'.  direction, offset : (dof,)
+    each joint's direction (+1 or -1) and zero offset (rad or m) as its controller reports it: the joints
+    ``q`` of every call are the controller's, and the model turns them into ``direction * q + offset``
+    (limits are the controller's too).
     ``fk_and_jacobian`` runs the compiled kernel (``kernels.dh_chain``) unless ``backend`` is 'numpy'.
     """
 
     def __init__(self, name, a, alpha, d, theta, joint_types=None, joint_limits=None, joint_names=None,
-                 convention="standard", base=None, tool=None):
+                 convention="standard", base=None, tool=None, direction=None, offset=None):
         self.name = str(name)
         cols = {}
         for field, values in (("a", a), ("alpha", alpha), ("d", d), ("theta", theta)):
@@ -84,6 +87,23 @@ class DHChain(CompiledChain):
         self.param_kinds = ("length",) * (2 * dof) + ("angle",) * (2 * dof)
         self.nominal = np.concatenate([self.a, self.d, self.alpha, self.theta])
         self._revolute = np.array([t == REVOLUTE for t in types])
+        self.direction = np.ones(dof) if direction is None else np.asarray(direction, float).reshape(-1)
+        self.joint_offset = np.zeros(dof) if offset is None else np.asarray(offset, float).reshape(-1)
+        if self.direction.shape != (dof,) or not np.all(np.abs(self.direction) == 1):
+            raise ModelError(f"direction: expected +1 or -1 for each of the {dof} joints, got {self.direction.tolist()}")
+        if self.joint_offset.shape != (dof,) or not np.all(np.isfinite(self.joint_offset)):
+            raise ModelError(f"offset: expected a finite zero offset for each of the {dof} joints")
+        self._controller = bool(np.any(self.direction != 1) or np.any(self.joint_offset != 0))
+
+    @property
+    def joint_direction(self) -> np.ndarray:
+        """(dof,) +1 or -1: the sign of each controller joint in the model."""
+        return self.direction
+
+    def fk_and_jacobian(self, q, dx=None, jacobian: bool = True):
+        if self._controller:
+            q = self.check_joints(q) * self.direction + self.joint_offset
+        return super().fk_and_jacobian(q, dx, jacobian)
 
     def joint_columns(self) -> np.ndarray:
         """(dof,) column of each joint's zero offset: d_i for a prismatic joint, theta_i for a revolute one."""

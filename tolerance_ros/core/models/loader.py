@@ -14,7 +14,7 @@ from .dh import DHChain
 from .urdf import URDFChain
 
 _DH_KEYS = {"name", "kind", "convention", "units", "joints", "base", "tool", "description", "source", "notes"}
-_DH_JOINT_KEYS = {"name", "type", "a", "alpha", "d", "theta", "limits"}
+_DH_JOINT_KEYS = {"name", "type", "a", "alpha", "d", "theta", "limits", "direction", "offset"}
 _URDF_KEYS = {"name", "kind", "urdf", "tip_link", "base_link", "description", "source", "notes"}
 
 
@@ -104,7 +104,7 @@ def dh_from_dict(data: dict, path=None) -> DHChain:
     if not isinstance(joints, list) or not joints:
         raise ModelError("joints: expected a non-empty list")
     cols = {k: [] for k in ("a", "alpha", "d", "theta")}
-    types, limits, names = [], [], []
+    types, limits, names, direction, offset = [], [], [], [], []
     for i, j in enumerate(joints):
         field = f"joints[{i}]"
         if not isinstance(j, dict):
@@ -122,6 +122,11 @@ def dh_from_dict(data: dict, path=None) -> DHChain:
                     continue
                 raise ModelError(f"{field}.{k}: missing")
             cols[k].append(parse_number(j[k], f"{field}.{k}") * scale)
+        sign = j.get("direction", 1)
+        if isinstance(sign, bool) or sign not in (1, -1):
+            raise ModelError(f"{field}.direction: expected 1 or -1 (the controller's sign of the joint), got {sign!r}")
+        direction.append(float(sign))
+        offset.append(parse_number(j.get("offset", 0), f"{field}.offset") * (ascale if t == REVOLUTE else lscale))
         lim = j.get("limits")
         if lim is None:
             if t == PRISMATIC:
@@ -137,7 +142,8 @@ def dh_from_dict(data: dict, path=None) -> DHChain:
     tool = frame_from_dict(data.get("tool"), "tool", lscale, ascale)
     name = data.get("name") or (Path(path).stem if path else "dh_robot")
     return DHChain(name, cols["a"], cols["alpha"], cols["d"], cols["theta"], types, limits, names,
-                   convention=data.get("convention", "standard"), base=base, tool=tool)
+                   convention=data.get("convention", "standard"), base=base, tool=tool, direction=direction,
+                   offset=offset)
 
 
 def urdf_from_dict(data: dict, path=None) -> URDFChain:
