@@ -102,7 +102,8 @@ def print_calibration(cal, source):
     from ..render.calibration_report import candidate_rows, parameter_rows, summary_rows, target_rows
     v = cal.validation
     print(f"robot {cal.robot}: {cal.measurements} measurements at {cal.poses} test poses from {source}; "
-          f"registration '{cal.registration}'; {'frames' if cal.has_orientation else 'points (no orientation)'}")
+          f"registration '{cal.registration}'; " + ("frames (their orientation fitted with --orientation-noise)"
+                                                    if cal.has_orientation else "points (no orientation)"))
     print(f"\nwhat to identify ({cal.model.get('how', '')}; {v['method']}):")
     print(table(["candidate", "unknowns", "held-out RMS mm", "held-out max mm", ""], candidate_rows(cal)))
     print(f"identified: {cal.model.get('label', cal.model.get('parameters'))}; {cal.unknowns} unknowns from {cal.rows} "
