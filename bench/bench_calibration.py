@@ -2,7 +2,7 @@
 
 For each robot: plan 30 poses (O1, 2000 candidates), draw an as-built robot within its tolerances
 (gao2023_7dof: gao2023_delta2; UR5: 0.1 mm / 0.5 mrad per origin component), measure every pose
-3 times with the simulated tracker (10 um, 10 urad; position rows fitted), calibrate with 5-fold
+3 times with the simulated tracker (10 um, 10 urad; position rows fitted), calibrate with 10-fold
 validation by test pose. Printed per robot over ``--draws`` as-built robots: the held-out position
 RMS before and after and its reduction, the largest |identified - true| / std over the identified
 parameters (true: in the identified parametrisation), the spread of those normalised errors over
