@@ -384,3 +384,51 @@ def test_a_ctrl_c_wrapped_by_a_binding_stops_cleanly_and_a_bug_still_shows(spin,
         assert out.returncode == 0 and "stopped cleanly" in out.stdout and "Traceback" not in out.stderr, out.stderr
     else:
         assert out.returncode != 0 and "a real bug" in out.stderr
+
+
+def test_the_monitor_judges_reflectors_on_their_own_topics_from_a_calibration(graph, ns, tmp_path):
+    """Two reflectors, positions only, on ``measured_point/A`` and ``measured_point/B`` (relative, in the
+    test's namespace); registration and offsets from a calibration file; errors at each reflector."""
+    from geometry_msgs.msg import PointStamped
+    from sensor_msgs.msg import JointState
+    from tolerance_ros.core.accuracy.simulate import measure_targets
+    from tolerance_ros.core.accuracy.targets import Targets
+    from tolerance_ros.core.calibration.calibrate import calibrate_measurements
+    from tolerance_ros.core.calibration.writers import save_calibration
+    from tolerance_ros.core.geometry import transform
+    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
+    gao = load_robot("gao2023_7dof")
+    tg = Targets.from_offsets(["A", "B"], [[0.2, 0.0, 0.05], [0.0, 0.2, 0.05]])
+    A = transform([1.5, 0.2, 0.0], [0.0, 0.0, 0.5])
+    q = np.repeat(gao.sample_joints(20, 1), 2, axis=0)
+    train = measure_targets(gao, q, None, tg, 1e-6, 0.0, A, seed=1, labels=[f"P{i // 2}" for i in range(40)])
+    cal = calibrate_measurements(gao, train, registration="base+tool", sigma_position=1e-6, parameters="registration")
+    save_calibration(cal, tmp_path / "calibration.yaml")
+    graph.start(AccuracyMonitor, ns, measurement="point", targets="A,B", calibration=str(tmp_path / "calibration.yaml"),
+                log_dir=str(tmp_path), report_period=0.3)
+    talker = graph.node("tracker", ns)
+    pubs = {t: talker.create_publisher(PointStamped, f"measured_point/{t}", MEASUREMENT_QOS) for t in "AB"}
+    joints = talker.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+    reports = collect(graph, graph.node("listener", ns), String, "tolerance/accuracy_report")
+    assert wait_for(lambda: talker.count_subscribers("measured_point/A") and talker.count_subscribers("joint_states"))
+    seen = measure_targets(gao, q[:6:2], None, tg, 0.0, 0.0, A, stamps=np.arange(3) + 1.0)
+    for k in range(3):
+        stamp = talker.get_clock().now().to_msg()
+        stamp.sec, stamp.nanosec = k + 1, 0
+        js = JointState(name=list(gao.joint_names), position=[float(v) for v in q[2 * k]])
+        js.header.stamp = stamp
+        joints.publish(js)
+        for i in (2 * k, 2 * k + 1):
+            msg = PointStamped()
+            msg.header.stamp, msg.header.frame_id = stamp, "tracker"
+            msg.point.x, msg.point.y, msg.point.z = (float(v) for v in seen.T[i, :3, 3])
+            pubs[str(seen.target[i])].publish(msg)
+        time.sleep(0.05)
+    stamp.sec = 10
+    js.header.stamp = stamp
+    joints.publish(js)
+    assert wait_for(lambda: reports and json.loads(reports[-1].data)["counts"]["paired"] == 6, 20)
+    rep = json.loads(reports[-1].data)
+    assert rep["summary"]["orientation_error_rad"] is None
+    assert rep["summary"]["position_error_m"]["max"] < 1e-4        # at the reflectors, not 0.2 m off
+    assert rep["last"]["target"] in ("A", "B") and rep["last"]["orientation_error"] is None
