@@ -25,6 +25,9 @@ def add_arguments(p):
     p.add_argument("--orientation", metavar="A,B,C[unit] | QX,QY,QZ,QW",
                    help="orientation of the one measured frame: roll,pitch,yaw columns with an angle unit, or four "
                         "quaternion columns x,y,z,w")
+    p.add_argument("--marker", action="append", default=[], metavar="NAME=X,Y,Z[unit]",
+                   help="with --orientation: the measured frame is a rigid body's pose, and this is one of its "
+                        "markers in the body frame; each row becomes one point per marker (repeat for each)")
     p.add_argument("--pose", metavar="COLUMN", help="the test-pose label column")
     p.add_argument("--cycle", metavar="COLUMN", help="the cycle column")
     p.add_argument("--ignore", action="append", default=[], metavar="COLUMN[,COLUMN...]",
@@ -59,7 +62,13 @@ def run(args):
         _, cols, unit = parse_spec(args.orientation, "--orientation")
         orientation = (tuple(cols), unit)
     ignore = [c.strip() for item in args.ignore for c in item.split(",") if c.strip()]
-    cmap = ColumnMap(joints, points, stamp, period, orientation, args.pose, args.cycle, ignore)
+    markers = []
+    for text in args.marker:
+        name, values, unit = parse_spec(text, "--marker")
+        if not name or len(values) != 3:
+            raise CLIError(f"--marker: expected NAME=X,Y,Z[unit] (the marker in the body frame), got {text!r}")
+        markers.append((name, [quantity(f"{v}{unit}", "length", "--marker", positive=False) for v in values]))
+    cmap = ColumnMap(joints, points, stamp, period, orientation, args.pose, args.cycle, ignore, markers)
     cols, n = read_table(args.input, args.delimiter)
     meas = to_measurements(cols, n, cmap, str(args.input))
     out = write_csv(Path(args.out), meas, comments=[f"imported from {args.input} by tolerance-ros import"],
@@ -71,7 +80,7 @@ def run(args):
     if args.json:
         return doc
     print(f"imported {n} rows of {args.input} as {len(meas)} measurements"
-          + (f" of {len(points)} targets ({', '.join(doc['targets'])})" if len(points) > 1 else "")
-          + f", {len(joints)} joints" + (", with orientation" if orientation else ", points (no orientation)")
+          + (f" of {len(doc['targets'])} targets ({', '.join(doc['targets'])})" if len(doc["targets"]) > 1 else "")
+          + f", {len(joints)} joints" + (", with orientation" if meas.has_orientation else ", points (no orientation)")
           + (f"; ignored: {', '.join(ignore)}" if ignore else ""))
     print(f"wrote {out}")

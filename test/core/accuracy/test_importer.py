@@ -75,3 +75,45 @@ def test_text_where_a_number_belongs_and_the_command_line_spec():
     assert parse_spec("arm_1_joint[rad]", "--joint") == (None, ["arm_1_joint"], "rad")
     with pytest.raises(MeasurementError, match="expected"):
         parse_spec("a=b=c", "--point")
+
+
+def test_a_rigid_bodys_pose_with_its_markers_is_the_same_campaign_as_the_markers(tmp_path, capsys):
+    """TIAGo's four points are one rigid body: written as the body's pose (position + quaternion per row)
+    with the markers' coordinates in the body frame, the import gives the same four points, and the same
+    calibration, as the four points imported directly."""
+    from tolerance_ros.cli import main
+    from tolerance_ros.core.accuracy.registration import kabsch
+    from tolerance_ros.core.geometry import matrices_to_quat
+    cols, n = read_table(TIAGO)
+    P = np.stack([np.column_stack([cols[f"{c}{k}"] for c in "xyz"]) for k in range(1, 5)], axis=1)  # (n, 4, 3)
+    body = P[0] - P[0].mean(axis=0)                         # the markers in a body frame at row 0's pose
+    rows = []
+    for i in range(n):
+        R, tr, _ = kabsch(body, P[i])
+        rows.append(np.r_[tr, matrices_to_quat(R[None])[0]])
+    assert np.abs(np.einsum("nij,mj->nmi", [kabsch(body, P[i])[0] for i in range(n)], body)
+                  + np.array(rows)[:, None, :3] - P).max() < 2e-5   # rigid to a few um
+    joints = [c for c in cols if "joint" in c]
+    pose_csv = tmp_path / "pose.csv"
+    pose_csv.write_text("t," + ",".join(joints) + ",bx,by,bz,qx,qy,qz,qw\n" + "".join(
+        f"{float(cols['t_start_robot'][i])!r}," + ",".join(repr(float(cols[j][i])) for j in joints) + ","
+        + ",".join(repr(float(v)) for v in rows[i]) + "\n" for i in range(n)))
+    J = [a for j in joints for a in ("--joint", f"{j}[{'m' if j.startswith('torso') else 'rad'}]")]
+    names = ("BL", "BR", "TR", "TL")
+    assert main(["import", "--input", str(pose_csv), "--out", str(tmp_path / "from_pose.csv"), "--stamp", "t[s]", *J,
+                 "--point", "bx,by,bz[m]", "--orientation", "qx,qy,qz,qw", "--quiet"]
+                + [a for k, nm in enumerate(names) for a in ("--marker", f"{nm}={','.join(repr(float(v)) for v in body[k])}[m]")]) == 0
+    points = [a for k, nm in enumerate(names, 1) for a in ("--point", f"{nm}=x{k},y{k},z{k}[m]")]
+    assert main(["import", "--input", str(TIAGO), "--out", str(tmp_path / "points.csv"), "--stamp", "t_start_robot[s]",
+                 *J, *points, "--ignore", "t_end_robot,marker_std_mm,shipped_row", "--quiet"]) == 0
+    a, b = read_csv(tmp_path / "from_pose.csv"), read_csv(tmp_path / "points.csv")
+    assert a.target.tolist() == b.target.tolist() and not a.has_orientation
+    assert np.abs(a.T[:, :3, 3] - b.T[:, :3, 3]).max() < 2e-5
+    from tolerance_ros.core.calibration.calibrate import calibrate_measurements
+    from tolerance_ros.core.models import load_robot
+    model = load_robot(TIAGO.parent / "tiago_48_schunk.urdf", tip_link="wrist_ft_tool_link")
+    ca, cb = (calibrate_measurements(model, m, registration="base+tool", sigma_position=1e-3,
+                                     parameters="joint-offsets", folds=4) for m in (a, b))
+    assert ca.validation["after"]["position_rms_m"] == pytest.approx(cb.validation["after"]["position_rms_m"], rel=1e-3)
+    assert np.allclose(ca.dx, cb.dx, atol=1e-5) and np.allclose(ca.targets.offsets, cb.targets.offsets, atol=2e-5)
+    capsys.readouterr()

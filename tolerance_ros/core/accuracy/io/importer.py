@@ -111,6 +111,9 @@ class ColumnMap:
     unnamed target).  orientation : (columns, unit) of roll, pitch, yaw (3 columns, an angle unit) or of a
     quaternion qx qy qz qw (4 columns, unit ''), for a single point entry.  pose, cycle : columns of the
     test-pose label and cycle, or None.  ignore : columns that are deliberately not imported.
+    markers : [(name, (x, y, z) m)]: the measured frame is a rigid body's pose and these are its markers'
+    coordinates in the body frame: each row becomes one point per marker, ``p = t + R b`` (the points
+    the body's markers were, so the two forms of one campaign are the same measurements).
     """
 
     joints: list
@@ -121,6 +124,7 @@ class ColumnMap:
     pose: str | None = None
     cycle: str | None = None
     ignore: list = field(default_factory=list)
+    markers: list = field(default_factory=list)
 
     def used(self) -> list:
         cols = [c for _, c, _ in self.joints] + [c for _, xyz, _ in self.points for c in xyz]
@@ -183,6 +187,16 @@ def to_measurements(cols: dict, n: int, cmap: ColumnMap, source="") -> Measureme
             raise MeasurementError(f"{source}: orientation: three columns (roll, pitch, yaw) or four (qx, qy, qz, "
                                    f"qw), got {list(ocols)}")
     names = [name for name, _, _ in cmap.points]
+    if cmap.markers:
+        if not cmap.orientation:
+            raise MeasurementError(f"{source}: markers belong to a rigid body's pose: give its orientation too")
+        B = np.array([b for _, b in cmap.markers], float).reshape(-1, 3)
+        if not np.all(np.isfinite(B)):
+            raise MeasurementError(f"{source}: a marker's coordinates are not finite")
+        frames = T[:, 0]
+        T = np.tile(np.eye(4), (n, len(B), 1, 1))
+        T[:, :, :3, 3] = frames[:, None, :3, 3] + np.einsum("nij,mj->nmi", frames[:, :3, :3], B)
+        names, K = [name for name, _ in cmap.markers], len(B)
     if len(set(names)) != K or (K > 1 and not all(names)):
         raise MeasurementError(f"{source}: several targets need distinct names, got {names}")
     pose = None if cmap.pose is None else np.array([str(v) for v in cols[cmap.pose]], dtype=object)
@@ -195,7 +209,8 @@ def to_measurements(cols: dict, n: int, cmap: ColumnMap, source="") -> Measureme
     rows = np.repeat(np.arange(n), K)
     return Measurements(stamps[rows], T.reshape(n * K, 4, 4), None if joints is None else joints[rows],
                         tuple(j for j, _, _ in cmap.joints), None if pose is None else pose[rows],
-                        np.full(n * K, -1) if cycle is None else cycle[rows], cmap.orientation is not None, source, [],
+                        np.full(n * K, -1) if cycle is None else cycle[rows],
+                        cmap.orientation is not None and not cmap.markers, source, [],
                         np.array(names * n, dtype=object) if K > 1 or names[0] else None)
 
 
