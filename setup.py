@@ -45,6 +45,7 @@ setup(
             "tolerance_allocator = tolerance_ros.nodes.tolerance_allocator:main",
             "accuracy_monitor = tolerance_ros.nodes.accuracy_monitor:main",
             "simulated_tracker = tolerance_ros.nodes.simulated_tracker:main",
+            "trajectory_compensator = tolerance_ros.nodes.trajectory_compensator:main",
         ],
     },
 )

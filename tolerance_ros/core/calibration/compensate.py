@@ -196,8 +196,9 @@ def compensate(calibrated: Mechanism, nominal: Mechanism, joints=None, poses=Non
     q = into_limits(calibrated, q, q_nom)
     _, J = joint_jacobian(calibrated, q)
     Js = J[:, :3] if match == "position" else np.concatenate([J[:, :3], LENGTH * J[:, 3:]], axis=1)
-    s = np.linalg.svd(Js, compute_uv=False)
-    ratio = s[:, -1] / np.maximum(s[:, 0], 1e-300)
+    s2 = np.linalg.eigvalsh(np.einsum("nij,nkj->nik", Js, Js) if Js.shape[1] <= Js.shape[2]
+                            else np.einsum("nji,njk->nik", Js, Js))          # squared singular values, ascending
+    ratio = np.sqrt(np.maximum(s2[:, 0], 0.0) / np.maximum(s2[:, -1], 1e-300))
     reached = (rp <= tol_position) & (ro <= tol_orientation)
     return Compensation(tuple(calibrated.joint_names), q, q_nom, rp, ro, reached, ratio < singular_ratio,
                         calibrated.out_of_limits(q).any(axis=1), it, match,

@@ -45,7 +45,11 @@ def rate_map(calibrated: Mechanism, nominal: Mechanism, q_c, q_n, match="pose") 
         Jc, Jn = Jc.copy(), Jn.copy()
         Jc[:, 3:] *= LENGTH
         Jn[:, 3:] *= LENGTH
-    return np.eye(Jc.shape[2]) + np.linalg.pinv(Jc) @ (Jn - Jc)
+    rows, dof = Jc.shape[1:]
+    if rows <= dof:   # full row rank away from singularities: J^+ = J^T (J J^T)^-1, damped a hair
+        G = np.einsum("mij,mkj->mik", Jc, Jc) + 1e-12 * np.eye(rows)
+        return np.eye(dof) + np.einsum("mji,mjk->mik", Jc, np.linalg.solve(G, Jn - Jc))
+    return np.eye(dof) + np.linalg.pinv(Jc) @ (Jn - Jc)
 
 
 def compensate_trajectory(calibrated: Mechanism, nominal: Mechanism, positions, velocities=None, accelerations=None,

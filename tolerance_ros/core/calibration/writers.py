@@ -79,6 +79,45 @@ def _name_scales(names, kinds, ls, as_) -> dict:
 
 def save_calibration(cal: Calibration, path, units=None) -> Path:
     """Write the calibration file (format in the module docstring); lengths and angles in ``units``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(calibration_text(cal, units))
+    return path
+
+
+SI = {"length": "m", "angle": "rad"}
+MAX_TEXT = 4 << 20  # characters of a calibration received as text
+
+
+def calibration_text(cal: Calibration, units=None) -> str:
+    """The calibration file's content (``units``, default mm and mrad; ``SI`` for the graph's
+    ``tolerance_calibration`` topic)."""
+    head = (f"# Calibration of {cal.robot} by tolerance-ros calibrate; format: "
+            f"tolerance_ros/core/calibration/writers.py\n")
+    return head + yaml.safe_dump(_document(cal, units), sort_keys=False, default_flow_style=None, width=110)
+
+
+def calibration_from_text(text, model: Mechanism, source="tolerance_calibration") -> Calibration:
+    """A Calibration from the content of a calibration file (as ``calibration_text`` writes it), checked
+    against ``model``; CalibrationError naming ``source`` and the field."""
+    if not isinstance(text, str):
+        raise CalibrationError(f"{source}: expected the calibration file's text")
+    if len(text) > MAX_TEXT:
+        raise CalibrationError(f"{source}: longer than {MAX_TEXT} characters")
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise CalibrationError(f"{source}: not valid YAML: {str(exc)[:200]}") from None
+    if not isinstance(doc, dict) or doc.get("format") not in FORMATS:
+        raise CalibrationError(f"{source}: format: expected {FORMAT!r}")
+    try:
+        return _calibration_from_dict(doc, Path("."), model)
+    except (UnitError, ModelError, CalibrationError, KeyError, TypeError, ValueError) as exc:
+        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        raise CalibrationError(f"{source}: {msg}") from None
+
+
+def _document(cal: Calibration, units=None) -> dict:
     units = dict(units or UNITS)
     ls, as_ = length_scale(units["length"]), angle_scale(units["angle"])
     kind_scale = {"length": ls, "angle": as_}
@@ -120,12 +159,7 @@ def save_calibration(cal: Calibration, path, units=None) -> Path:
         "repeatability": _plain(cal.repeatability),
         "training": _plain(cal.training),
     }
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    head = (f"# Calibration of {cal.robot} by tolerance-ros calibrate; format: "
-            f"tolerance_ros/core/calibration/writers.py\n")
-    path.write_text(head + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=110))
-    return path
+    return doc
 
 
 def _frame_doc(T, ls, as_) -> dict:

@@ -1,0 +1,93 @@
+"""The trajectory compensator's logic with real ROS 2 Jazzy message shapes (from the rosbags package):
+the compensated points are what ``tolerance-ros compensate`` gives for the same targets."""
+import json
+
+import numpy as np
+import pytest
+import yaml
+from rosbags.typesys import Stores, get_typestore
+
+from tolerance_ros.cli import main
+from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_targets
+from tolerance_ros.core.budget import load_budget
+from tolerance_ros.core.calibration.calibrate import calibrate_measurements
+from tolerance_ros.core.calibration.planning import campaign_dict
+from tolerance_ros.core.calibration.writers import calibration_from_text, calibration_text, save_calibration
+from tolerance_ros.core.geometry import transform
+from tolerance_ros.services.trajectory import TrajectoryError, TrajectoryLogic
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+
+
+@pytest.fixture(scope="module")
+def calibration(gao):
+    dx = as_built_errors(load_budget("gao2023_delta2", gao).vector_for(gao), 7)
+    q = np.repeat(gao.sample_joints(30, 7), 2, axis=0)
+    m = measure_targets(gao, q, dx, None, 1e-5, 0.0, transform([1.5, 0.2, 0.0], [0, 0, 0.5]), seed=3,
+                        labels=[f"P{i // 2}" for i in range(60)])
+    return calibrate_measurements(gao, m, sigma_position=1e-5)
+
+
+def trajectory(names, P, V=None):
+    Pt = TS.types["trajectory_msgs/msg/JointTrajectoryPoint"]
+    Dur = TS.types["builtin_interfaces/msg/Duration"]
+    pts = [Pt(positions=np.asarray(p, float), velocities=np.asarray(V[i] if V is not None else [], float),
+              accelerations=np.zeros(0), effort=np.zeros(0), time_from_start=Dur(sec=i, nanosec=0))
+           for i, p in enumerate(P)]
+    return TS.types["trajectory_msgs/msg/JointTrajectory"](
+        header=TS.types["std_msgs/msg/Header"](stamp=TS.types["builtin_interfaces/msg/Time"](sec=0, nanosec=0),
+                                               frame_id=""), joint_names=list(names), points=pts)
+
+
+def test_the_points_are_what_compensate_gives_in_any_joint_order_extra_joints_untouched(gao, calibration, tmp_path,
+                                                                                         capsys):
+    q = gao.sample_joints(8, 4) * 0.6
+    cal_path = save_calibration(calibration, tmp_path / "calibration.yaml")
+    (tmp_path / "targets.yaml").write_text(yaml.safe_dump(campaign_dict(gao, q, "t", 1)))
+    assert main(["compensate", "--robot", "gao2023_7dof", "--calibration", str(cal_path), "--targets",
+                 str(tmp_path / "targets.yaml"), "--json", "--quiet"]) == 0
+    cli = np.array([r["joints"] for r in json.loads(capsys.readouterr().out)["targets"]])
+    order = [3, 0, 6, 1, 5, 2, 4]
+    names = [gao.joint_names[i] for i in order] + ["gripper"]
+    P = np.c_[q[:, order], np.full(len(q), 0.02)]
+    logic = TrajectoryLogic(gao, calibration_from_text(calibration_text(calibration, {"length": "m", "angle": "rad"}),
+                                                       gao))
+    res = logic.compensate_msg(trajectory(names, P, np.ones_like(P) * 0.1))
+    assert res["ok"] and not res["flagged"]
+    assert np.abs(res["positions"][:, :7] - cli[:, order]).max() < 1e-9
+    assert np.array_equal(res["positions"][:, 7], P[:, 7]) and np.array_equal(res["velocities"][:, 7], P[:, 7] * 0 + 0.1)
+    assert 0 < np.abs(res["positions"][:, :7] - P[:, :7]).max() < 0.1
+
+
+def test_flagged_points_reject_the_trajectory_or_go_as_planned(gao, calibration):
+    q = gao.sample_joints(4, 5) * 0.6
+    q[2] = 0.0                                             # stretched out: near a singularity
+    for on_flag in ("reject", "nominal"):
+        logic = TrajectoryLogic(gao, calibration, on_flag=on_flag)
+        res = logic.compensate(gao.joint_names, q)
+        assert res["flagged"] == [2] and "singularity" in res["reasons"][2]
+        if on_flag == "reject":
+            assert not res["ok"] and "rejected" in res["message"] and logic.counts["rejected"] == 1
+        else:
+            assert res["ok"] and np.array_equal(res["positions"][2], q[2]) and not np.array_equal(res["positions"][0], q[0])
+
+
+def test_without_a_calibration_trajectories_pass_through_and_bad_ones_are_refused(gao):
+    logic = TrajectoryLogic(gao)
+    q = gao.sample_joints(3, 1)
+    res = logic.compensate(gao.joint_names, q)
+    assert res["ok"] and np.array_equal(res["positions"], q) and "passed through" in res["message"]
+    assert logic.diagnostic()["level"] == 1
+    with pytest.raises(TrajectoryError, match=r"no \['joint7'\]"):
+        logic.compensate(gao.joint_names[:6], q[:, :6])
+    with pytest.raises(TrajectoryError, match="point 1: not finite"):
+        logic.compensate(gao.joint_names, np.where(np.arange(3)[:, None] == 1, np.nan, q))
+    with pytest.raises(TrajectoryError, match="given for some points"):
+        logic.compensate_msg(_mixed(gao, q))
+
+
+def _mixed(gao, q):
+    a = trajectory(gao.joint_names, q[:1], np.zeros((1, 7)))
+    b = trajectory(gao.joint_names, q[1:2])
+    a.points.append(b.points[0])
+    return a

@@ -1,0 +1,114 @@
+"""Trajectory compensator (node ``tolerance_trajectory_compensator``): ``joint_trajectory_in``
+(trajectory_msgs/JointTrajectory) in, the compensated trajectory out on ``joint_trajectory`` (remap it
+onto a ros2_control JointTrajectoryController's ``~/joint_trajectory``); both relative, so a namespace
+moves them. The calibration comes from the ``calibration`` file parameter or from the latched
+``tolerance_calibration`` topic (the calibration file's content, SI), and can be swapped without a restart;
+without one, trajectories pass through and the node says so. Flagged points follow ``on_flag``; every
+refusal is logged and reported on /diagnostics. The logic is ``services.trajectory``."""
+from __future__ import annotations
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.node import Node
+from std_msgs.msg import String
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from ..core.calibration.writers import CalibrationError, calibration_from_text, load_calibration
+from ..services.trajectory import ON_FLAG, TrajectoryError, TrajectoryLogic
+from .common import LATCHED_QOS, STATUS_QOS, declare, follow_robot, guarded, robot_set, run, status_name
+
+CALIBRATION_TOPIC = "tolerance_calibration"
+
+
+class TrajectoryCompensator(Node):
+    def __init__(self, **node_options):
+        super().__init__("tolerance_trajectory_compensator", **node_options)
+        robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
+        self.calibration_file = declare(self, "calibration", "", "calibration file (tolerance-ros calibrate); empty "
+                                                                 "waits for tolerance_calibration")
+        self.on_flag = declare(self, "on_flag", "reject", "a point out of reach, near a singularity or out of limits: "
+                                                          "reject (the whole trajectory is not sent) or nominal (that "
+                                                          "point is sent as planned)")
+        self.match = declare(self, "match", "pose", "match the tool's pose (pose) or its point (position)")
+        if self.on_flag not in ON_FLAG:
+            raise ValueError(f"on_flag: expected one of {list(ON_FLAG)}, got {self.on_flag!r}")
+        if self.match not in ("pose", "position"):
+            raise ValueError(f"match: expected pose or position, got {self.match!r}")
+        period = declare(self, "report_period", 1.0, "seconds between diagnostics")
+        self.robots = robot_set(self, [robot], robot)
+        self.logic = None
+        self.calibration_text = None
+        self.out = self.create_publisher(JointTrajectory, "joint_trajectory", STATUS_QOS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_subscription(JointTrajectory, "joint_trajectory_in", guarded(self, self.on_trajectory), STATUS_QOS)
+        self.create_subscription(String, CALIBRATION_TOPIC, guarded(self, self.on_calibration), LATCHED_QOS)
+        self.create_timer(period, guarded(self, self.publish_status))
+        follow_robot(self, self.robots, self.start)
+
+    def start(self, model):
+        self.logic = TrajectoryLogic(model, on_flag=self.on_flag, match=self.match)
+        if self.calibration_file:
+            self.logic.set_calibration(load_calibration(self.calibration_file, model), self.calibration_file)
+        if self.calibration_text is not None:
+            self.on_calibration(String(data=self.calibration_text))
+        self.get_logger().info(f"compensating trajectories of {model.name}: "
+                               + (self.logic.source or "no calibration yet, passing them through"))
+
+    def on_calibration(self, msg):
+        """A calibration from the graph replaces the current one; one that does not fit the robot is refused."""
+        self.calibration_text = msg.data
+        if self.logic is None:
+            return
+        try:
+            cal = calibration_from_text(msg.data, self.logic.model)
+        except CalibrationError as exc:
+            self.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused, the current one stays: {exc}")
+            return
+        self.logic.set_calibration(cal, CALIBRATION_TOPIC)
+        self.get_logger().info(f"calibration from {CALIBRATION_TOPIC}: {cal.model.get('label', 'identified')}")
+
+    def on_trajectory(self, msg):
+        if self.logic is None:
+            self.get_logger().error("trajectory refused: the robot is not known yet (robot_description)")
+            return
+        try:
+            res = self.logic.compensate_msg(msg)
+        except TrajectoryError as exc:
+            self.get_logger().error(f"trajectory refused: {exc}")
+            self.logic.counts["rejected"] += 1
+            return
+        if not res["ok"]:
+            self.get_logger().error(res["message"])
+            return
+        if res["flagged"]:
+            self.get_logger().warning(res["message"] + ": " + "; ".join(f"point {i}: {r}" for i, r in
+                                                                     list(res["reasons"].items())[:5]))
+        out = JointTrajectory()
+        out.header = msg.header
+        out.joint_names = list(msg.joint_names)
+        for i, p in enumerate(msg.points):
+            q = JointTrajectoryPoint()
+            q.positions = [float(v) for v in res["positions"][i]]
+            q.velocities = [] if res["velocities"] is None else [float(v) for v in res["velocities"][i]]
+            q.accelerations = [] if res["accelerations"] is None else [float(v) for v in res["accelerations"][i]]
+            q.effort = list(p.effort)
+            q.time_from_start = p.time_from_start
+            out.points.append(q)
+        self.out.publish(out)
+
+    def publish_status(self):
+        d = self.logic.diagnostic() if self.logic is not None else \
+            {"level": 1, "message": "waiting for robot_description", "values": {}}
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status = [DiagnosticStatus(level=bytes([d["level"]]), name=status_name(self, "trajectory compensator"),
+                                       message=d["message"], hardware_id=self.logic.model.name if self.logic else "",
+                                       values=[KeyValue(key=k, value=v) for k, v in d["values"].items()])]
+        self.diag_pub.publish(arr)
+
+
+def main(args=None):
+    run(TrajectoryCompensator, args)
+
+
+if __name__ == "__main__":
+    main()
