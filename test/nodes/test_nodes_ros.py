@@ -432,3 +432,51 @@ def test_the_monitor_judges_reflectors_on_their_own_topics_from_a_calibration(gr
     assert rep["summary"]["orientation_error_rad"] is None
     assert rep["summary"]["position_error_m"]["max"] < 1e-4        # at the reflectors, not 0.2 m off
     assert rep["last"]["target"] in ("A", "B") and rep["last"]["orientation_error"] is None
+
+
+def test_the_trajectory_compensator_corrects_motion_and_swaps_its_calibration_live(graph, ns, tmp_path):
+    """A 7-joint trajectory (joint names shuffled, a gripper joint extra) through the node: compensated as
+    ``compensate`` does, gripper and stamps untouched; a calibration published on tolerance_calibration
+    replaces the file's without a restart."""
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    from tolerance_ros.core.accuracy.simulate import as_built_errors
+    from tolerance_ros.core.calibration.calibrate import Calibration
+    from tolerance_ros.core.calibration.compensate import compensate
+    from tolerance_ros.core.calibration.writers import calibration_text, save_calibration
+    from tolerance_ros.nodes.trajectory_compensator import TrajectoryCompensator
+    gao = load_robot("gao2023_7dof")
+
+    def calibration(seed):
+        dx = as_built_errors(load_budget("gao2023_delta2", gao).vector_for(gao), seed)
+        return Calibration(gao.name, gao.param_names, gao.param_kinds, dx, np.zeros_like(dx), np.zeros(6), np.eye(4),
+                           None, [], [], {}, 1.0, 1.0, 28, 34, 1e-5, 0.0, 0.0, 1, 1, 3)
+    save_calibration(calibration(1), tmp_path / "calibration.yaml")
+    graph.start(TrajectoryCompensator, ns, calibration=str(tmp_path / "calibration.yaml"))
+    node = graph.node("controller", ns)
+    pub = node.create_publisher(JointTrajectory, "joint_trajectory_in", 10)
+    cal_pub = node.create_publisher(String, "tolerance_calibration", LATCHED_QOS)
+    got = collect(graph, node, JointTrajectory, "joint_trajectory")
+    assert wait_for(lambda: pub.get_subscription_count() and node.count_publishers("joint_trajectory"))
+    q = gao.sample_joints(5, 3) * 0.6
+    order = [2, 0, 1, 6, 5, 4, 3]
+
+    def send():
+        msg = JointTrajectory(joint_names=[gao.joint_names[i] for i in order] + ["gripper"])
+        for k, row in enumerate(q):
+            msg.points.append(JointTrajectoryPoint(positions=[float(v) for v in row[order]] + [0.04],
+                                                   time_from_start=Duration(sec=k, nanosec=500)))
+        pub.publish(msg)
+
+    send()
+    assert wait_for(lambda: len(got) == 1)
+    expect = compensate(calibration(1).mechanism(gao), gao, joints=q).q
+    out = np.array([p.positions for p in got[0].points])
+    assert np.abs(out[:, :7] - expect[:, order]).max() < 1e-9 and np.all(out[:, 7] == 0.04)
+    assert [p.time_from_start.sec for p in got[0].points] == list(range(5)) and got[0].points[0].time_from_start.nanosec == 500
+    cal_pub.publish(String(data=calibration_text(calibration(2), {"length": "m", "angle": "rad"})))
+    time.sleep(0.5)
+    send()
+    assert wait_for(lambda: len(got) == 2)
+    expect2 = compensate(calibration(2).mechanism(gao), gao, joints=q).q
+    assert np.abs(np.array([p.positions for p in got[1].points])[:, :7] - expect2[:, order]).max() < 1e-9

@@ -91,3 +91,33 @@ def _mixed(gao, q):
     b = trajectory(gao.joint_names, q[1:2])
     a.points.append(b.points[0])
     return a
+
+
+def test_the_cdr_codec_reads_and_writes_what_ros_serializes(gao):
+    from tolerance_ros.services.trajectory_cdr import CdrError, decode, encode
+    rng = np.random.default_rng(0)
+    q = rng.normal(size=(5, 7))
+    msg = trajectory(list(gao.joint_names), q, rng.normal(size=(5, 7)))
+    msg.header.frame_id = "bäse"
+    msg.points[2].effort = rng.normal(size=3)
+    raw = bytes(TS.serialize_cdr(msg, "trajectory_msgs/msg/JointTrajectory"))
+    t = decode(raw)
+    assert t.joint_names == list(gao.joint_names) and t.frame_id == "bäse"
+    assert np.array_equal(np.array(t.positions), q) and len(t.effort[2]) == 3 and len(t.accelerations[0]) == 0
+    assert encode(t) == raw
+    back = TS.deserialize_cdr(encode(t), "trajectory_msgs/msg/JointTrajectory")
+    assert np.array_equal(back.points[4].velocities, msg.points[4].velocities)
+    assert [p.time_from_start.sec for p in back.points] == list(range(5))
+    with pytest.raises(CdrError, match="does not fit|truncated"):
+        decode(raw[:-9])
+
+
+def test_a_serialized_trajectory_in_gives_the_same_compensation_out(gao, calibration):
+    q = gao.sample_joints(6, 8) * 0.6
+    msg = trajectory(list(gao.joint_names), q, np.full_like(q, 0.2))
+    logic = TrajectoryLogic(gao, calibration)
+    raw, res = logic.compensate_raw(bytes(TS.serialize_cdr(msg, "trajectory_msgs/msg/JointTrajectory")))
+    ref = logic.compensate_msg(msg)
+    back = TS.deserialize_cdr(raw, "trajectory_msgs/msg/JointTrajectory")
+    assert np.array_equal(np.array([p.positions for p in back.points]), ref["positions"])
+    assert np.array_equal(np.array([p.velocities for p in back.points]), ref["velocities"])

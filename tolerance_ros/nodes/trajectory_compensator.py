@@ -10,7 +10,7 @@ from __future__ import annotations
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from std_msgs.msg import String
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 
 from ..core.calibration.writers import CalibrationError, calibration_from_text, load_calibration
 from ..services.trajectory import ON_FLAG, TrajectoryError, TrajectoryLogic
@@ -39,7 +39,8 @@ class TrajectoryCompensator(Node):
         self.calibration_text = None
         self.out = self.create_publisher(JointTrajectory, "joint_trajectory", STATUS_QOS)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.create_subscription(JointTrajectory, "joint_trajectory_in", guarded(self, self.on_trajectory), STATUS_QOS)
+        self.create_subscription(JointTrajectory, "joint_trajectory_in", guarded(self, self.on_trajectory), STATUS_QOS,
+                                 raw=True)
         self.create_subscription(String, CALIBRATION_TOPIC, guarded(self, self.on_calibration), LATCHED_QOS)
         self.create_timer(period, guarded(self, self.publish_status))
         follow_robot(self, self.robots, self.start)
@@ -66,33 +67,23 @@ class TrajectoryCompensator(Node):
         self.logic.set_calibration(cal, CALIBRATION_TOPIC)
         self.get_logger().info(f"calibration from {CALIBRATION_TOPIC}: {cal.model.get('label', 'identified')}")
 
-    def on_trajectory(self, msg):
+    def on_trajectory(self, raw):
+        """A serialized JointTrajectory in, its compensation out (both as bytes: ``services.trajectory_cdr``)."""
         if self.logic is None:
             self.get_logger().error("trajectory refused: the robot is not known yet (robot_description)")
             return
         try:
-            res = self.logic.compensate_msg(msg)
+            out, res = self.logic.compensate_raw(raw)
         except TrajectoryError as exc:
             self.get_logger().error(f"trajectory refused: {exc}")
             self.logic.counts["rejected"] += 1
             return
-        if not res["ok"]:
+        if out is None:
             self.get_logger().error(res["message"])
             return
         if res["flagged"]:
             self.get_logger().warning(res["message"] + ": " + "; ".join(f"point {i}: {r}" for i, r in
                                                                      list(res["reasons"].items())[:5]))
-        out = JointTrajectory()
-        out.header = msg.header
-        out.joint_names = list(msg.joint_names)
-        for i, p in enumerate(msg.points):
-            q = JointTrajectoryPoint()
-            q.positions = [float(v) for v in res["positions"][i]]
-            q.velocities = [] if res["velocities"] is None else [float(v) for v in res["velocities"][i]]
-            q.accelerations = [] if res["accelerations"] is None else [float(v) for v in res["accelerations"][i]]
-            q.effort = list(p.effort)
-            q.time_from_start = p.time_from_start
-            out.points.append(q)
         self.out.publish(out)
 
     def publish_status(self):

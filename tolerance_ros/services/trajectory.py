@@ -14,6 +14,7 @@ import numpy as np
 
 from ..core.calibration.trajectory import compensate_trajectory
 from ..core.models.base import ModelError
+from .trajectory_cdr import CdrError, decode, replaced
 
 ON_FLAG = ("reject", "nominal")
 MAX_POINTS = 10_000
@@ -100,10 +101,26 @@ class TrajectoryLogic:
         """``compensate`` of a duck-typed JointTrajectory: points with empty velocities or accelerations
         keep them empty (all points must agree)."""
         pts = list(msg.points)
-        P = [list(p.positions) for p in pts]
-        V = _rates([list(p.velocities) for p in pts], "velocities")
-        A = _rates([list(p.accelerations) for p in pts], "accelerations")
+        P = [p.positions for p in pts]
+        V = _rates([p.velocities for p in pts], "velocities")
+        A = _rates([p.accelerations for p in pts], "accelerations")
         return self.compensate(list(msg.joint_names), P, V, A)
+
+    def compensate_raw(self, raw):
+        """(serialized compensated JointTrajectory or None when refused, the ``compensate`` result) of a
+        serialized JointTrajectory (``trajectory_cdr``); header, effort and time stamps kept."""
+        try:
+            t = decode(raw)
+        except CdrError as exc:
+            raise TrajectoryError(f"not a JointTrajectory: {exc}") from None
+        P = _matrix(np.array(t.positions, float) if t.positions else np.zeros((0, len(t.joint_names))),
+                    len(t.joint_names), "positions")
+        V = _rates(t.velocities, "velocities")
+        A = _rates(t.accelerations, "accelerations")
+        res = self.compensate(t.joint_names, P, V, A)
+        if not res["ok"]:
+            return None, res
+        return replaced(raw, t, res["positions"], res["velocities"], res["accelerations"]), res
 
     def diagnostic(self) -> dict:
         level = 0 if self.calibrated is not None else 1
@@ -130,9 +147,12 @@ def _matrix(values, k, field, m=None) -> np.ndarray:
 
 
 def _rates(rows, field):
-    """None when every point leaves the rates empty; else the rows (all must be given)."""
-    if all(len(r) == 0 for r in rows):
+    """None when every point leaves the rates empty; else the rows as one array (all must be given)."""
+    sizes = {len(r) for r in rows}
+    if sizes <= {0}:
         return None
-    if any(len(r) == 0 for r in rows):
+    if 0 in sizes:
         raise TrajectoryError(f"{field}: given for some points and not for others")
-    return rows
+    if len(sizes) > 1:
+        raise TrajectoryError(f"{field}: points with different numbers of values {sorted(sizes)}")
+    return np.array(rows, float)

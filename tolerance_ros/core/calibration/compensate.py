@@ -42,6 +42,7 @@ class Compensation:
     iterations: np.ndarray
     match: str = "pose"
     revolute: np.ndarray | None = None
+    jacobians: tuple | None = None   # (calibrated at q, nominal at q_nominal) joint Jacobians (n, 6, dof)
 
     @property
     def correction(self) -> np.ndarray:
@@ -184,9 +185,10 @@ def compensate(calibrated: Mechanism, nominal: Mechanism, joints=None, poses=Non
     if calibrated.joint_names != nominal.joint_names:
         raise ModelError("compensate: the calibrated and nominal models have different joints")
     kw = {"tol_position": tol_position, "tol_orientation": tol_orientation, "max_iter": max_iter}
+    J_nom = None
     if joints is not None:
         q_nom = nominal.check_joints(joints)
-        T_target = nominal.fk(q_nom)
+        T_target, J_nom = joint_jacobian(nominal, q_nom)
     else:
         T_target = np.asarray(poses, float)
         if T_target.ndim != 3 or T_target.shape[1:] != (4, 4):
@@ -200,6 +202,8 @@ def compensate(calibrated: Mechanism, nominal: Mechanism, joints=None, poses=Non
                             else np.einsum("nji,njk->nik", Js, Js))          # squared singular values, ascending
     ratio = np.sqrt(np.maximum(s2[:, 0], 0.0) / np.maximum(s2[:, -1], 1e-300))
     reached = (rp <= tol_position) & (ro <= tol_orientation)
-    return Compensation(tuple(calibrated.joint_names), q, q_nom, rp, ro, reached, ratio < singular_ratio,
+    comp = Compensation(tuple(calibrated.joint_names), q, q_nom, rp, ro, reached, ratio < singular_ratio,
                         calibrated.out_of_limits(q).any(axis=1), it, match,
                         np.array([t != PRISMATIC for t in calibrated.joint_types]))
+    comp.jacobians = (J, J_nom)
+    return comp

@@ -34,11 +34,13 @@ class CompensatedTrajectory:
     reasons: dict
 
 
-def rate_map(calibrated: Mechanism, nominal: Mechanism, q_c, q_n, match="pose") -> np.ndarray:
+def rate_map(calibrated: Mechanism, nominal: Mechanism, q_c, q_n, match="pose", jacobians=None) -> np.ndarray:
     """(m, dof, dof) ``I + J_c(q_c)^+ (J_n(q_n) - J_c(q_c))``: a joint rate of the nominal path to the
-    calibrated one."""
-    _, Jc = joint_jacobian(calibrated, q_c)
-    _, Jn = joint_jacobian(nominal, q_n)
+    calibrated one (``jacobians``: (J_c, J_n) when already known)."""
+    if jacobians is not None and jacobians[1] is not None:
+        Jc, Jn = jacobians
+    else:
+        Jc, Jn = joint_jacobian(calibrated, q_c)[1], joint_jacobian(nominal, q_n)[1]
     if match == "position":
         Jc, Jn = Jc[:, :3], Jn[:, :3]
     else:
@@ -57,8 +59,8 @@ def compensate_trajectory(calibrated: Mechanism, nominal: Mechanism, positions, 
     """Compensate a trajectory's points (m, dof) with their rates (see the module docstring)."""
     q_n = nominal.check_joints(positions, "positions")
     comp = compensate(calibrated, nominal, joints=q_n, match=match)
-    M = rate_map(calibrated, nominal, comp.q, q_n, match) if velocities is not None or accelerations is not None \
-        else None
+    M = (rate_map(calibrated, nominal, comp.q, q_n, match, comp.jacobians)
+         if velocities is not None or accelerations is not None else None)
 
     def mapped(rates, field):
         if rates is None:
