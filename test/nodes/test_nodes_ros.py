@@ -432,6 +432,14 @@ def test_the_monitor_judges_reflectors_on_their_own_topics_from_a_calibration(gr
     assert rep["summary"]["orientation_error_rad"] is None
     assert rep["summary"]["position_error_m"]["max"] < 1e-4        # at the reflectors, not 0.2 m off
     assert rep["last"]["target"] in ("A", "B") and rep["last"]["orientation_error"] is None
+    from tf2_msgs.msg import TFMessage
+    tfs = collect(graph, graph.node("tf_listener"), TFMessage, "/tf_static", LATCHED_QOS)   # a late subscriber
+    assert wait_for(lambda: tfs)
+    tf = tfs[-1].transforms[0]
+    assert (tf.header.frame_id, tf.child_frame_id) == ("base_link", "tracker")
+    expect = np.linalg.inv(cal.T_tracker_base)[:3, 3]
+    assert np.allclose([tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z], expect,
+                       atol=1e-9)
 
 
 def test_the_trajectory_compensator_corrects_motion_and_swaps_its_calibration_live(graph, ns, tmp_path):

@@ -13,10 +13,11 @@ import time
 from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PointStamped, PoseStamped
+from geometry_msgs.msg import Point, PointStamped, PoseStamped, TransformStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.budget import load_budget
@@ -25,8 +26,8 @@ from ..core.campaign import load_campaign
 from ..core.geometry import transform
 from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, budget_from_message
-from ..services.monitor import WARN, MonitorLogic, monitor_targets
-from .common import (BUDGET_QOS, MEASUREMENT_QOS, PREFIX, STATUS_QOS, declare, follow_robot, guarded,
+from ..services.monitor import WARN, MonitorLogic, monitor_targets, tracker_frame
+from .common import (BUDGET_QOS, LATCHED_QOS, MEASUREMENT_QOS, PREFIX, STATUS_QOS, declare, follow_robot, guarded,
                      robot_set, run, status_name)
 
 MARKER_TYPES = {"sphere": Marker.SPHERE, "arrow": Marker.ARROW, "text": Marker.TEXT_VIEW_FACING}
@@ -59,6 +60,10 @@ class AccuracyMonitor(Node):
         self.marker_scale = declare(self, "marker_scale", 100.0, "RViz: error lengths drawn this many times enlarged")
         self.marker_frame = declare(self, "marker_frame", "", "RViz: frame of the markers (empty: the URDF's base "
                                                               "link, or base_link)")
+        self.tf_base = declare(self, "tf_base_frame", "", "/tf_static: the robot's base frame (empty: the URDF's base "
+                                                          "link, or base_link as REP 105 names it)")
+        self.tf_tracker = declare(self, "tf_tracker_frame", "tracker", "/tf_static: the tracker's frame, registered "
+                                                                       "to the base")
         self.T_tracker_base = transform(base[:3], base[3:])
         self.targets = monitor_targets(self.measurement, names, offsets)
         self.robots = robot_set(self, [robot], robot)
@@ -68,6 +73,7 @@ class AccuracyMonitor(Node):
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.report_pub = self.create_publisher(String, f"{PREFIX}/accuracy_report", STATUS_QOS)
         self.marker_pub = self.create_publisher(MarkerArray, f"{PREFIX}/markers", STATUS_QOS)
+        self.tf_pub = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
         kind, topic = (PointStamped, "measured_point") if self.measurement == "point" else (PoseStamped, "measured_pose")
         for name in self.targets.names:
             callback = guarded(self, self._on_measurement(name))
@@ -108,7 +114,20 @@ class AccuracyMonitor(Node):
         if self.budget_text is not None:
             self.on_budget(String(data=self.budget_text))
         self.frame = self.marker_frame or getattr(model, "base_link", None) or "base_link"
+        self.publish_tracker_frame(T_tracker_base)
         self.get_logger().info(f"monitoring {model.name}; campaign log {log_path}")
+
+    def publish_tracker_frame(self, T_tracker_base):
+        """The registered tracker frame on /tf_static (latched), so RViz shows tracker, robot and markers."""
+        xyz, quat = tracker_frame(T_tracker_base)
+        tf = TransformStamped()
+        tf.header.stamp = self.get_clock().now().to_msg()
+        tf.header.frame_id = self.tf_base or self.frame
+        tf.child_frame_id = self.tf_tracker
+        tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = (float(v) for v in xyz)
+        r = tf.transform.rotation
+        r.x, r.y, r.z, r.w = (float(v) for v in quat)
+        self.tf_pub.publish(TFMessage(transforms=[tf]))
 
     def _on_measurement(self, target):
         def on_measurement(msg):

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.geometry import matrices_to_quat
 from ..core.ingest import IngestError, JointOrder, StateBuffer, pose_from_values, stamp_seconds
 from ..core.jsonio import dumps_fast
 from . import markers
@@ -276,3 +277,10 @@ def monitor_targets(measurement: str, names: str, offsets) -> Targets:
     if np.abs(off).max(initial=0.0) > 5.0:
         raise ValueError("target_offsets: a target more than 5 m from the tool frame (metres expected)")
     return Targets.from_offsets(listed, off.reshape(-1, 3), frames=measurement == "pose")
+
+
+def tracker_frame(T_tracker_base) -> tuple:
+    """(translation (3,) m, quaternion x y z w) of the tracker frame in the robot's base frame: the static
+    transform base -> tracker that ``T_tracker_base`` (base -> tracker coordinates) implies."""
+    T = np.linalg.inv(np.asarray(T_tracker_base, float))
+    return T[:3, 3].copy(), matrices_to_quat(T[None, :3, :3])[0]
