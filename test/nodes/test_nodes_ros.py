@@ -488,3 +488,42 @@ def test_the_trajectory_compensator_corrects_motion_and_swaps_its_calibration_li
     assert wait_for(lambda: len(got) == 2)
     expect2 = compensate(calibration(2).mechanism(gao), gao, joints=q).q
     assert np.abs(np.array([p.positions for p in got[1].points])[:, :7] - expect2[:, order]).max() < 1e-9
+
+
+def _transition(graph, node_name, ns, transition_id):
+    from lifecycle_msgs.srv import ChangeState
+    client_node = graph.node(f"lc_{uuid.uuid4().hex[:6]}", ns)
+    cli = client_node.create_client(ChangeState, f"{node_name}/change_state")
+    assert cli.wait_for_service(timeout_sec=10.0)
+    req = ChangeState.Request()
+    req.transition.id = transition_id
+    fut = cli.call_async(req)
+    assert wait_for(fut.done, 20)
+    return fut.result().success
+
+
+def test_a_managed_error_model_serves_only_while_active_and_keeps_its_state(graph, ns):
+    """configure loads the robots and kernels, activate serves, deactivate stops (requests unanswered),
+    activate again serves with the budget it had; cleanup destroys what configure made."""
+    from lifecycle_msgs.msg import Transition
+    from tolerance_ros.nodes.error_model_server import ErrorModelServer
+    from tolerance_ros.nodes.lifecycle import managed
+    node = graph.start(managed(ErrorModelServer), ns)
+    client = graph.client(ns)
+    assert not hasattr(node, "service")                        # unconfigured: nothing loaded
+    assert _transition(graph, "tolerance_error_model", ns, Transition.TRANSITION_CONFIGURE)
+    assert hasattr(node, "service") and node.service.models    # configured: robots loaded, not serving
+    with pytest.raises(TimeoutError):
+        client.compute_error_jacobian(Q, timeout=1.5)
+    assert _transition(graph, "tolerance_error_model", ns, Transition.TRANSITION_ACTIVATE)
+    client.wait_for_server("compute_error_jacobian", timeout=10.0)
+    assert client.compute_error_jacobian(Q)["ok"]
+    node.service.current_budget = load_budget("gao2023_delta2", load_robot("gao2023_7dof"))
+    assert _transition(graph, "tolerance_error_model", ns, Transition.TRANSITION_DEACTIVATE)
+    with pytest.raises(TimeoutError):
+        client.compute_error_jacobian(Q, timeout=1.5)
+    assert _transition(graph, "tolerance_error_model", ns, Transition.TRANSITION_ACTIVATE)
+    assert client.compute_error_jacobian(Q, tolerances="current")["ok"]   # the budget it had is still there
+    assert _transition(graph, "tolerance_error_model", ns, Transition.TRANSITION_DEACTIVATE)
+    assert _transition(graph, "tolerance_error_model", ns, Transition.TRANSITION_CLEANUP)
+    assert node._made is None

@@ -64,10 +64,11 @@ def workspace(tmp_path_factory):
 def test_colcon_install_layout(workspace):
     out = sh("source $WS/install/setup.bash && ros2 pkg executables tolerance_ros", workspace).stdout
     for exe in ("joint_state_source", "error_model_server", "tolerance_allocator", "accuracy_monitor",
-                "simulated_tracker"):
+                "simulated_tracker", "trajectory_compensator"):
         assert f"tolerance_ros {exe}" in out
     share = Path(workspace["WS"]) / "install" / "tolerance_ros" / "share" / "tolerance_ros"
     for rel in ("package.xml", "launch/accuracy_suite.launch.py", "launch/two_arms.launch.py",
+                "launch/managed_suite.launch.py",
                 "config/accuracy_suite.yaml", "config/two_arms.yaml", "config/tolerance.rviz",
                 "config/robots/gao2023_7dof.yaml", "schemas/compute_error_jacobian.request.json"):
         assert (share / rel).exists(), rel
@@ -133,3 +134,23 @@ def test_two_arms_in_one_graph(workspace):
             assert pub.returncode == 0, pub.stderr
             out, _ = echo.communicate(timeout=30)
             assert f'"id":"{arm}","ok":true' in out
+
+
+def test_the_managed_launch_configures_and_activates_and_ros2_lifecycle_drives_them(workspace):
+    with launched(workspace, "managed_suite.launch.py"):
+        src = "source $WS/install/setup.bash && "
+        state = ""
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            state = sh(src + "ros2 lifecycle get /tolerance_error_model", workspace, check=False).stdout
+            if state.startswith("active"):
+                break
+            time.sleep(1)
+        assert state.startswith("active"), state
+        nodes = sh(src + "ros2 lifecycle nodes", workspace).stdout
+        for name in ("tolerance_accuracy_monitor", "tolerance_trajectory_compensator", "tolerance_allocator"):
+            assert f"/{name}" in nodes
+        assert "successful" in sh(src + "ros2 lifecycle set /tolerance_error_model deactivate", workspace).stdout.lower()
+        assert sh(src + "ros2 lifecycle get /tolerance_error_model", workspace).stdout.startswith("inactive")
+        assert "successful" in sh(src + "ros2 lifecycle set /tolerance_error_model activate", workspace).stdout.lower()
+        assert sh(src + "ros2 lifecycle get /tolerance_error_model", workspace).stdout.startswith("active")

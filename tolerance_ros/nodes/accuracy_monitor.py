@@ -34,8 +34,14 @@ MARKER_TYPES = {"sphere": Marker.SPHERE, "arrow": Marker.ARROW, "text": Marker.T
 
 
 class AccuracyMonitor(Node):
+    NODE_NAME = "tolerance_accuracy_monitor"
+
     def __init__(self, **node_options):
-        super().__init__("tolerance_accuracy_monitor", **node_options)
+        super().__init__(self.NODE_NAME, **node_options)
+        self.setup()
+
+    def setup(self):
+        """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
         robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
         self.budget_spec = declare(self, "budget", "", "budget file or shipped name; empty waits for tolerance_budget")
         self.campaign_spec = declare(self, "campaign", "", "campaign config for per-test-pose ISO 9283 statistics")

@@ -12,12 +12,14 @@ robot_state_publisher publishes it); /diagnostics uses the default profile, as t
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
 
 from ..core.budget import BudgetError
@@ -124,8 +126,13 @@ def _interrupt_once(signum, frame):
 
 
 def run(node_factory, args=None):
-    """Initialise rclpy, spin the node until Ctrl-C or an external shutdown, clean up."""
+    """Initialise rclpy, spin the node until Ctrl-C or an external shutdown, clean up. With ``--managed``
+    among the program's own arguments the node is its lifecycle-managed version (``nodes.lifecycle``)."""
     signal.signal(signal.SIGINT, _interrupt_once)  # rclpy's own handler, installed by init, calls it after its own
+    argv = sys.argv if args is None else list(args)
+    if "--managed" in remove_ros_args(argv):
+        from .lifecycle import managed
+        node_factory = managed(node_factory)
     rclpy.init(args=args)
     node = None
     try:

@@ -30,8 +30,14 @@ from .common import (BUDGET_QOS, JACOBIAN_TOPIC, MEASUREMENT_QOS, PREFIX, SERVIC
 
 
 class ErrorModelServer(Node):
+    NODE_NAME = "tolerance_error_model"
+
     def __init__(self, **node_options):
-        super().__init__("tolerance_error_model", **node_options)
+        super().__init__(self.NODE_NAME, **node_options)
+        self.setup()
+
+    def setup(self):
+        """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
         specs = declare(self, "robots", ["gao2023_7dof"], "robots served: shipped names, robot files, or "
                                                           "robot_description (the URDF on that topic)")
         default = declare(self, "default_robot", "gao2023_7dof", "robot used when a request names none")

@@ -12,8 +12,14 @@ from .common import MEASUREMENT_QOS, declare, follow_robot, guarded, robot_set, 
 
 
 class JointStateSource(Node):
+    NODE_NAME = "tolerance_joint_state_source"
+
     def __init__(self, **node_options):
-        super().__init__("tolerance_joint_state_source", **node_options)
+        super().__init__(self.NODE_NAME, **node_options)
+        self.setup()
+
+    def setup(self):
+        """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
         robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
         self.mode = declare(self, "mode", "random", "campaign | random | selected (highest pose-selection index F)")
         self.campaign = declare(self, "campaign", "", "campaign config (mode 'campaign'): shipped name or path")

@@ -16,8 +16,14 @@ from .common import MEASUREMENT_QOS, declare, follow_robot, guarded, robot_set, 
 
 
 class SimulatedTrackerNode(Node):
+    NODE_NAME = "tolerance_simulated_tracker"
+
     def __init__(self, **node_options):
-        super().__init__("tolerance_simulated_tracker", **node_options)
+        super().__init__(self.NODE_NAME, **node_options)
+        self.setup()
+
+    def setup(self):
+        """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
         robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
         self.budget_spec = declare(self, "budget", "gao2023_delta2", "budget within which the as-built errors are "
                                                                      "drawn")

@@ -21,8 +21,14 @@ from .common import (ALLOCATE_TOPIC, BUDGET_QOS, SERVICE_REQUEST_QOS, SERVICE_RE
 
 
 class ToleranceAllocator(Node):
+    NODE_NAME = "tolerance_allocator"
+
     def __init__(self, **node_options):
-        super().__init__("tolerance_allocator", **node_options)
+        super().__init__(self.NODE_NAME, **node_options)
+        self.setup()
+
+    def setup(self):
+        """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
         specs = declare(self, "robots", ["gao2023_7dof"], "robots served: shipped names, robot files, or "
                                                           "robot_description (the URDF on that topic)")
         default = declare(self, "default_robot", "gao2023_7dof", "robot used when a request names none")

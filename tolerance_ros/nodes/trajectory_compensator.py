@@ -20,8 +20,14 @@ CALIBRATION_TOPIC = "tolerance_calibration"
 
 
 class TrajectoryCompensator(Node):
+    NODE_NAME = "tolerance_trajectory_compensator"
+
     def __init__(self, **node_options):
-        super().__init__("tolerance_trajectory_compensator", **node_options)
+        super().__init__(self.NODE_NAME, **node_options)
+        self.setup()
+
+    def setup(self):
+        """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
         robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
         self.calibration_file = declare(self, "calibration", "", "calibration file (tolerance-ros calibrate); empty "
                                                                  "waits for tolerance_calibration")
