@@ -20,12 +20,11 @@ indices; see ``core.calibration.compensate``). Errors: ``invalid_request`` (a fi
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
 from ..core.calibration.compensate import MATCHES, compensate
-from ..core.calibration.writers import load_calibration
+from ..core.calibration.writers import calibration_robot_name, load_calibration
 from ..core.geometry import quat_to_matrices
 from ..core.models.base import ModelError
 from .contracts import ContractError, Limits
@@ -38,10 +37,9 @@ MODELS = ("calibrated", "nominal")
 def load_calibrations(paths, models: dict) -> dict:
     """{robot: calibrated Mechanism} from calibration files, each checked against the served model of
     its robot (a file for a robot that is not served raises ValueError)."""
-    import yaml
     out = {}
     for path in paths:
-        robot = (yaml.safe_load(Path(path).read_text()) or {}).get("robot")
+        robot = calibration_robot_name(path)
         if robot not in models:
             raise ValueError(f"calibration {path}: robot {robot!r} is not served ({sorted(models)})")
         out[robot] = load_calibration(path, models[robot]).mechanism(models[robot])

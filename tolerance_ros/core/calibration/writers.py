@@ -43,6 +43,7 @@ from ..models.dh import DHChain
 from ..models.loader import frame_from_dict, load_robot
 from ..models.urdf import URDFChain
 from ..units import UnitError, angle_scale, length_scale, parse_number
+from ..yamlio import read_yaml
 from .calibrate import Calibration, calibrated_mechanism, corrected_origins
 
 FORMAT = "tolerance_ros.calibration/1"
@@ -117,17 +118,38 @@ def load_calibrated_model(path, model: Mechanism | None = None) -> Mechanism:
     return load_calibration(path, model).mechanism(model)
 
 
+_SECTIONS = {"units": dict, "sources": dict, "registration": dict, "base_correction": dict, "parameters": dict,
+             "held": list, "unidentifiable": list, "aliases": dict, "fit": dict, "validation": dict}
+
+
 def _read(path):
+    """The calibration file's document (bounded reader, ``core.yamlio``), its format and the type of each
+    section checked."""
     path = Path(path)
     if not path.is_file():
         raise CalibrationError(f"calibration {str(path)!r}: file not found")
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise CalibrationError(f"{path}: not valid YAML: {exc}") from None
+    doc = read_yaml(path, CalibrationError)
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise CalibrationError(f"{path}: format: expected {FORMAT!r}")
+    for key, kind in _SECTIONS.items():
+        if doc.get(key) is not None and not isinstance(doc[key], kind):
+            raise CalibrationError(f"{path}: {key}: expected {'a mapping' if kind is dict else 'a list'}, got "
+                                   f"{type(doc[key]).__name__}")
+    for key in ("parameters", "aliases"):
+        for name, entry in (doc.get(key) or {}).items():
+            if not isinstance(entry, dict):
+                raise CalibrationError(f"{path}: {key}.{name}: expected a mapping")
+    for key, value in (doc.get("fit") or {}).items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise CalibrationError(f"{path}: fit.{key}: expected a number, got {type(value).__name__}")
+    if not isinstance(doc.get("robot"), str):
+        raise CalibrationError(f"{path}: robot: expected the robot's name")
     return doc
+
+
+def calibration_robot_name(path) -> str:
+    """The name of the robot a calibration file is for (the file read and checked as ``load_calibration`` does)."""
+    return _read(path)["robot"]
 
 
 def calibration_robot(path) -> Mechanism:
