@@ -130,6 +130,25 @@ def test_bound_at_a_joint_state_uses_the_current_budget(gao):
     assert svc.bound_at(["joint1"], [0.0]) is None                   # joints missing
 
 
+@pytest.mark.parametrize("field, value, needle", [
+    ("criterion", ["paper"], "budget.criterion: expected one of"), ("criterion", "banana", "budget.criterion"),
+    ("limit_position", float("nan"), "budget.limit_position"), ("robot", "ur5", "budget for robot 'ur5'"),
+])
+def test_a_budget_that_would_fail_every_bound_is_refused_when_it_arrives(gao, field, value, needle):
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.services.contracts import ContractError
+    svc = ErrorModelService({"gao2023_7dof": gao}, "gao2023_7dof")
+    good = load_budget("gao2023_delta2", gao)
+    svc.current_budget = good
+    bad = load_budget("gao2023_delta2", gao)
+    setattr(bad, field, value)
+    with pytest.raises(ContractError, match=needle):
+        svc.current_budget = bad
+    assert svc.current_budget is good and svc.bound_at(gao.joint_names, Q)["criterion"] == "paper"
+    with pytest.raises(ValueError, match="criterion: expected one of"):
+        svc.bound_at(gao.joint_names, Q, criterion="banana")
+
+
 def test_compact_arrays_are_the_same_numbers(service):
     plain = ask(service, {"id": "p", "joints": [Q, Q], "tolerances": {"default": 0, "a1": 1e-4},
                           "criteria": ["paper"]})

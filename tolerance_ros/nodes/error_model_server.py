@@ -21,6 +21,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
+from ..core.errors import CRITERIA
 from ..core.jsonio import dumps_fast, warm_up_base64
 from ..services.contracts import ContractError, Limits, budget_from_message
 from ..services.compensation import load_calibrations
@@ -47,6 +48,8 @@ class ErrorModelServer(Node):
                                                  "a second (Hz), from the latest joint state")
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and 0.0 < rate <= 10_000.0):
             raise ValueError(f"bound_rate: expected a rate in (0, 10000] Hz, got {rate!r}")
+        if self.criterion and self.criterion not in CRITERIA:
+            raise ValueError(f"bound_criterion: expected one of {list(CRITERIA)} or empty, got {self.criterion!r}")
         self.service = ErrorModelService(robot_set(self, specs, default), limits=Limits(max_bytes, max_poses, max_worst))
         warm_up_base64()
         self.load_calibration()

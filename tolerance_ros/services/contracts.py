@@ -31,7 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.budget import BudgetError, budget_from_dict
+from ..core.budget import Budget, BudgetError, budget_from_dict
+from ..core.errors import LIMIT_CRITERIA
 from ..core.ingest import IngestError
 from ..core.jsonio import loads_strict
 from ..core.models.base import ModelError
@@ -251,11 +252,41 @@ def budget_from_message(text, models: dict):
     model = models[robot]
     try:
         budget = budget_from_dict(doc["budget"], dict(zip(model.param_names, model.param_kinds)), "budget.")
-        delta = budget.vector_for(model)
     except BudgetError as exc:
         raise ContractError("invalid_request", str(exc)[:MAX_MESSAGE_CHARS]) from None
+    budget.robot = budget.robot or robot
+    check_budget(budget, model)
+    return robot, budget
+
+
+def check_budget(budget, model) -> np.ndarray:
+    """The (p,) tolerances (SI) of a budget a service is given for ``model``, once, when it arrives: a Budget
+    for that robot, a criterion of ``LIMIT_CRITERIA``, limits that are None or finite and > 0, every
+    tolerance finite within [0, ``MAX_TOLERANCE``]. ContractError 'invalid_request' naming the field
+    otherwise (so that nothing fails later at every bound)."""
+    if not isinstance(budget, Budget):
+        raise ContractError("invalid_request", f"budget: expected a Budget, got {type(budget).__name__}")
+    if budget.robot is not None and budget.robot != model.name:
+        shown = budget.robot[:80] if isinstance(budget.robot, str) else _kind(budget.robot)
+        raise ContractError("invalid_request", f"budget.robot: the budget is for robot {shown!r}, not {model.name!r}")
+    if not isinstance(budget.criterion, str) or budget.criterion not in LIMIT_CRITERIA:
+        shown = budget.criterion[:40] if isinstance(budget.criterion, str) else _kind(budget.criterion)
+        raise ContractError("invalid_request", f"budget.criterion: expected one of {list(LIMIT_CRITERIA)}, got "
+                                               f"{shown!r}")
+    for name in ("limit_position", "limit_orientation"):
+        value = getattr(budget, name)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                  or not math.isfinite(value) or value <= 0):
+            raise ContractError("invalid_request", f"budget.{name}: expected None or a finite number > 0, got "
+                                                   f"{value!r:.40}")
+    try:
+        delta = np.asarray(budget.vector_for(model), dtype=float)
+    except BudgetError as exc:
+        raise ContractError("invalid_request", str(exc)[:MAX_MESSAGE_CHARS]) from None
+    except (TypeError, ValueError):
+        raise ContractError("invalid_request", "budget.tolerances: expected numbers") from None
     for name, kind, value in zip(model.param_names, model.param_kinds, delta):
-        if value > MAX_TOLERANCE[kind]:
+        if not 0 <= value <= MAX_TOLERANCE[kind]:  # False for NaN too
             raise ContractError("invalid_request", f"budget.tolerances.{name}: {value:.6g} is outside "
                                                    f"[0, {MAX_TOLERANCE[kind]:g}]")
-    return robot, budget
+    return delta

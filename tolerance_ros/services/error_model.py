@@ -21,7 +21,8 @@ from ..core.ingest import IngestError, JointOrder, stamp_seconds
 from ..core.jsonio import compact_array, dumps_fast, encode_arrays
 from ..core.models.base import ModelError
 from .compensation import compensate_request, jacobian_model
-from .contracts import MAX_TOLERANCE, ContractError, Limits, error_response, number, parse_request, request_id_of
+from .contracts import (MAX_TOLERANCE, ContractError, Limits, check_budget, error_response, number, parse_request,
+                        request_id_of)
 from .robots import RobotSet
 
 ROWS = ("dx", "dy", "dz", "drx", "dry", "drz")
@@ -151,13 +152,30 @@ class ErrorModelService:
         self.robots = robots
         self.calibrations = dict(calibrations or {})
         self.limits = limits or Limits()
-        self.current_budget = None
+        self._budget = None
         self.joint_orders = {}
         self._per_model = {}
 
     @property
     def models(self) -> dict:
         return self.robots.models
+
+    @property
+    def current_budget(self):
+        """The latest budget (``tolerances: "current"`` and the predicted bound), or None."""
+        return self._budget
+
+    @current_budget.setter
+    def current_budget(self, budget):
+        """Checked when it arrives (``contracts.check_budget`` against its robot, which must be served):
+        ContractError 'invalid_request' or 'unknown_robot' otherwise, and the previous budget stays."""
+        if budget is not None:
+            robot = getattr(budget, "robot", None)
+            if robot not in self.models:
+                shown = robot[:80] if isinstance(robot, str) else type(robot).__name__
+                raise ContractError("unknown_robot", f"budget for robot {shown!r}, not one of {sorted(self.models)}")
+            check_budget(budget, self.models[robot])
+        self._budget = budget
 
     def handle(self, text) -> dict:
         rid = None
@@ -176,6 +194,8 @@ class ErrorModelService:
         """The current budget's predicted bound at a joint state (names in any order, stamp s), as the
         ``predicted_bound`` message: {stamp, robot, criterion, position_bound_m, orientation_bound_rad};
         None without a budget or when the state is unusable (missing joints, non-finite values)."""
+        if criterion is not None and criterion not in CRITERIA:
+            raise ValueError(f"criterion: expected one of {list(CRITERIA)}, got {criterion!r:.40}")
         budget = self.current_budget
         if budget is None or budget.robot not in self.models:
             return None

@@ -20,6 +20,7 @@ from ..core.ingest import IngestError, JointOrder, StateBuffer, pose_from_values
 from ..core.jsonio import dumps_fast
 from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
+from .contracts import check_budget
 
 OK, WARN, ERROR = 0, 1, 2
 MAX_FRAME_CHARS = 100  # of a measurement's frame_id in the campaign log
@@ -59,11 +60,14 @@ class MonitorLogic:
         self.set_budget(budget)
 
     def set_budget(self, budget):
-        """Use a new budget (Budget or None) from now on; statistics restart with it."""
+        """Use a new budget (Budget or None) from now on; statistics restart with it. A budget that does not
+        fit the robot (``contracts.check_budget``: its robot, criterion, limits, tolerances) raises
+        ContractError when it arrives, and the previous budget stays."""
+        delta = check_budget(budget, self.model) if budget is not None else None
         self.acc = AccuracyAccumulator.from_budget(self.model, budget, self.campaign, self.T_tracker_base,
                                                    self.tool_offset, self.pose_tolerance, identify=False)
         self.budget = budget
-        self.delta = budget.vector_for(self.model) if budget is not None else None
+        self.delta = delta
         self.generation += 1
         self.recent.clear()
         if self.log:
@@ -98,10 +102,13 @@ class MonitorLogic:
         self.counts["received"] += 1
         seq = self.seq
         self.seq += 1
-        rec = {"event": "measurement", "seq": seq, "stamp": None, "frame": str(frame_id)[:MAX_FRAME_CHARS],
+        frame, frame_ok = _frame(frame_id)
+        rec = {"event": "measurement", "seq": seq, "stamp": None, "frame": frame,
                "position": _numbers(position), "quaternion": _numbers(quaternion)}
         try:
             rec["stamp"] = t = stamp_seconds(stamp)
+            if not frame_ok:
+                raise IngestError("frame_id: not UTF-8 text (a lone surrogate); written to the log escaped")
             T = pose_from_values(position, quaternion)
         except IngestError as exc:
             self.counts["rejected"] += 1
@@ -205,6 +212,17 @@ class MonitorLogic:
                 "budget": None if self.budget is None else {"source": self.budget.source,
                                                              "criterion": self.budget.criterion,
                                                              "limit_position_m": self.budget.limit_position}}
+
+
+def _frame(frame_id) -> tuple:
+    """(text for the log, whether it is valid UTF-8): the frame_id cut to ``MAX_FRAME_CHARS``, lone surrogates
+    escaped."""
+    text = str(frame_id)[:MAX_FRAME_CHARS]
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "backslashreplace").decode("utf-8"), False
+    return text, True
 
 
 def _numbers(values):
