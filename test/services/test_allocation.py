@@ -160,3 +160,17 @@ def test_a_request_that_cannot_be_parsed_never_escapes(robots):
         assert [d["id"] for d in answers] == [None] * 6
     finally:
         service.close()
+
+
+def test_the_answer_carries_the_top_level_id_never_a_nested_one(robots):
+    out = Outbox()
+    service = AllocatorService(robots, out)
+    try:
+        for text in ('{"floors": {"id": "inner", "zz": 1}, "id": "abc", "limit": 0.0014}',
+                     '{"zz": {"id": "inner"}, "id": "abc", "limit": 0.0014}', None):
+            service.handle(text)
+        answers = [d for k, d in out.items if k == "response"]
+        assert [(d["id"], d["error"]["code"]) for d in answers] == [("abc", "invalid_request")] * 2 + \
+            [(None, "invalid_request")]
+    finally:
+        service.close()

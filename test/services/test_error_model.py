@@ -87,6 +87,21 @@ def test_id_is_echoed_even_when_the_json_is_broken(service):
     assert r["id"] == "abc" and r["error"]["code"] == "invalid_json"
 
 
+def test_the_answer_carries_the_top_level_id_never_a_nested_one(service):
+    for req in ('{"zz": {"id": "inner"}, "id": "abc", "joints": [0, 0, 0, 0, 0, 0, 0]}',
+                '{"tolerances": {"id": "inner", "a1": -1}, "id": "abc", "joints": [0, 0, 0, 0, 0, 0, 0]}',
+                '{"zz": {"id": "inner"}, "id": "abc", "joints": [NaN]}'):
+        assert ask(service, req)["id"] == "abc"
+    assert ask(service, '{"zz": {"id": "inner"}, "joints": [0, 0, 0, 0, 0, 0, 0]}')["id"] is None
+
+
+@pytest.mark.parametrize("payload", [None, 5, ["{}"], {"id": 1, "joints": Q}])
+def test_a_payload_that_is_not_text_is_an_invalid_request_not_internal(service, payload):
+    r = json.loads(service.handle_text(payload))
+    jsonschema.validate(r, schema("compute_error_jacobian.response"))
+    assert r["id"] is None and r["error"]["code"] == "invalid_request"
+
+
 def test_out_of_limits_can_be_allowed_and_is_reported(service):
     r = ask(service, {"id": 2, "joints": [Q, [0, 0, 0, 0, 0, 0, 4]], "allow_out_of_limits": True})
     assert r["ok"] and r["out_of_limits"] == [1]

@@ -22,7 +22,7 @@ from ..core import interrupt, threads
 from ..core.errors import LIMIT_CRITERIA, k_for_confidence
 from ..core.models.base import Mechanism
 from ..core.synthesis import MODELS, PHYSICAL, SOLVERS, allocate
-from .contracts import ContractError, Limits, error_response, number, parse_request, request_id_of, valid_id
+from .contracts import ContractError, Limits, answer_id, answering, error_response, number, parse_request, valid_id
 
 COMMANDS = ("allocate", "status", "cancel")
 ALLOCATE_FIELDS = {"command": ((str,), False), "robot": ((str,), False), "limit": ((int, float), False),
@@ -70,6 +70,11 @@ def parse_allocate_request(text, robots, limits: Limits, max_time_limit_s: float
     """An AllocationJob or a Command; raises ContractError naming the field. ``robots`` is a RobotSet.
     A request without ``time_limit`` gets the default, or ``max_time_limit_s`` when that is smaller."""
     req = parse_request(text, ALLOCATE_FIELDS, limits)
+    with answering(req["id"]):
+        return _job(req, robots, limits, max_time_limit_s)
+
+
+def _job(req, robots, limits, max_time_limit_s):
     command = req.get("command", "allocate")
     if command not in COMMANDS:
         raise ContractError("invalid_request", f"command: expected one of {list(COMMANDS)}, got {command[:40]!r}")
@@ -166,7 +171,7 @@ class AllocatorService:
         try:
             job = parse_allocate_request(text, self.robots, self.limits, self.max_time_limit_s)
         except Exception as exc:  # every failure becomes a response
-            self.emit("response", error_response(request_id_of(text), exc))
+            self.emit("response", error_response(answer_id(exc, text), exc))
             return
         if isinstance(job, Command):
             self._command(job)

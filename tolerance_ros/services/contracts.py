@@ -27,6 +27,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,8 +114,6 @@ def _text(text) -> str:
             return bytes(text).decode("utf-8")
         except UnicodeDecodeError as exc:
             raise ContractError("invalid_json", f"not UTF-8 text: byte {exc.start} is invalid") from None
-    if not isinstance(text, str):
-        raise ContractError("invalid_json", f"expected text, got {type(text).__name__}")
     return text
 
 
@@ -144,7 +143,11 @@ def nesting_depth(text: str) -> int:
 
 
 def loads(text, limits: "Limits") -> object:
-    """Parse a request text safely: size, UTF-8, nesting depth, then strict JSON (ContractError on any)."""
+    """Parse a request text safely: its type (text), size, UTF-8, nesting depth, then strict JSON (ContractError
+    on any)."""
+    if not isinstance(text, (str, bytes, bytearray, memoryview)):
+        raise ContractError("invalid_request", f"expected the request as text (str, or bytes of UTF-8), got "
+                                               f"{type(text).__name__}")
     size = len(text)
     if size > limits.max_bytes or (isinstance(text, str) and size * 4 > limits.max_bytes
                                    and _utf8_size(text) > limits.max_bytes):
@@ -165,6 +168,13 @@ def parse_request(text, fields: dict, limits: Limits) -> dict:
     fields : name -> (types tuple, required bool).
     """
     req = loads(text, limits)
+    rid = req.get("id") if isinstance(req, dict) else None
+    with answering(rid if valid_id(rid) else None):
+        _check_envelope(req, fields)
+    return req
+
+
+def _check_envelope(req, fields):
     if not isinstance(req, dict):
         raise ContractError("invalid_request", f"expected a JSON object, got {_kind(req)}")
     rid = req.get("id")
@@ -189,7 +199,29 @@ def parse_request(text, fields: dict, limits: Limits) -> dict:
             raise ContractError("invalid_request", f"{name}: expected {_names(types)}, got {_kind(v)}")
         if isinstance(v, float) and not math.isfinite(v):
             raise ContractError("invalid_request", f"{name}: not a finite number")
-    return req
+
+
+@contextmanager
+def answering(request_id):
+    """Within the body, an exception raised about a parsed request carries ``request_id`` (the id its answer
+    echoes, ``answer_id``), unless it already carries one."""
+    try:
+        yield
+    except Exception as exc:
+        if not hasattr(exc, "request_id"):
+            try:
+                exc.request_id = request_id
+            except AttributeError:  # an exception type without a __dict__; its answer gets the id from the text
+                pass
+        raise
+
+
+def answer_id(exc, text):
+    """The id the answer to a failed request echoes: the parsed request's own top-level id (None when it has
+    no valid one), or for text that could not be parsed the best guess of ``request_id_of``."""
+    if hasattr(exc, "request_id"):
+        return exc.request_id
+    return request_id_of(text)
 
 
 def _names(types):
@@ -217,22 +249,33 @@ def number(value, field: str, lo: float | None = None, hi: float | None = None, 
     return value
 
 
-_ID = re.compile(r'"id"\s*:\s*(?:"((?:[^"\\]|\\.){0,256})"|(-?\d{1,19})(?![\d.eE]))')
+_ID = re.compile(r'\s*:\s*(?:"((?:[^"\\]|\\.){0,256})"|(-?\d{1,19})(?![\d.eE]))')
+_TOKEN = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
 
 
 def request_id_of(text):
-    """Best-effort id of a request that could not be parsed, from its first 64 KB (never parsed), else None."""
+    """Best-effort id of a request that could not be parsed, from its first 64 KB (never parsed), else None:
+    the value of an ``"id"`` key of the top-level object only (an ``"id"`` inside a nested object is another
+    object's)."""
     try:
         head = text[:65536]
         if not isinstance(head, str):
             head = bytes(head).decode("utf-8", errors="replace")
-        m = _ID.search(head)
-        if not m:
-            return None
-        rid = json.loads(f'"{m.group(1)}"') if m.group(1) is not None else int(m.group(2))
+        depth = 0
+        for token in _TOKEN.finditer(head):
+            t = token.group()
+            if t in "[{":
+                depth += 1
+            elif t in "]}":
+                depth -= 1
+            elif depth == 1 and t == '"id"':
+                m = _ID.match(head, token.end())
+                if m:
+                    rid = json.loads(f'"{m.group(1)}"') if m.group(1) is not None else int(m.group(2))
+                    return rid if valid_id(rid) else None
     except (ValueError, TypeError):
         return None
-    return rid if valid_id(rid) else None
+    return None
 
 
 def budget_from_message(text, models: dict):

@@ -21,8 +21,8 @@ from ..core.ingest import IngestError, JointOrder, stamp_seconds
 from ..core.jsonio import compact_array, dumps_fast, encode_arrays
 from ..core.models.base import ModelError
 from .compensation import compensate_request, jacobian_model
-from .contracts import (MAX_TOLERANCE, ContractError, Limits, check_budget, error_response, number, parse_request,
-                        request_id_of)
+from .contracts import (MAX_TOLERANCE, ContractError, Limits, answer_id, check_budget, error_response, number,
+                        parse_request)
 from .robots import RobotSet
 
 ROWS = ("dx", "dy", "dz", "drx", "dry", "drz")
@@ -184,7 +184,7 @@ class ErrorModelService:
             rid = req["id"]
             return self._serve(req)
         except Exception as exc:  # every failure becomes a response
-            return error_response(rid if rid is not None else request_id_of(text), exc)
+            return error_response(rid if rid is not None else answer_id(exc, text), exc)
 
     def handle_text(self, text) -> str:
         """The response to a request, as JSON text (arrays as base64 objects when the request asked)."""
