@@ -107,6 +107,10 @@ def parse_tolerances(value, model, current_budget=None) -> tuple:
         free = value.get("free", [])
         if not isinstance(free, list) or not all(isinstance(n, str) for n in free):
             raise ContractError("invalid_request", "tolerances.free: expected a list of parameter names")
+        if not tol and not free:
+            field = "tolerances.tolerances" if nested else "tolerances"
+            raise ContractError("invalid_request", f"{field}: no parameter has a tolerance; give parameter -> "
+                                                   f"tolerance (m or rad), with 'default': 0 for the others")
         data = {"tolerances": tol, "free": free}
         if "default" in value:
             data["default"] = number(value["default"], "tolerances.default")
