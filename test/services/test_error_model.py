@@ -168,6 +168,16 @@ def test_a_budget_that_would_fail_every_bound_is_refused_when_it_arrives(gao, fi
         svc.bound_at(gao.joint_names, Q, criterion="banana")
 
 
+def test_a_3pups_joint_at_1e10_with_allow_out_of_limits_is_a_clear_error_not_internal():
+    from tolerance_ros.core.models import load_robot
+    pups = load_robot("rong2018_3pups")
+    svc = ErrorModelService({pups.name: pups}, pups.name)
+    q = pups.joint_limits.mean(axis=1)
+    q[0] = 1e10
+    r = ask(svc, {"id": 1, "joints": q.tolist(), "allow_out_of_limits": True})
+    assert r["error"]["code"] == "invalid_request" and "cannot close the platform triangle" in r["error"]["message"]
+
+
 def test_compact_arrays_are_the_same_numbers(service):
     plain = ask(service, {"id": "p", "joints": [Q, Q], "tolerances": {"default": 0, "a1": 1e-4},
                           "criteria": ["paper"]})
