@@ -60,12 +60,16 @@ class ContractError(Exception):
 
 @dataclass
 class Limits:
-    """Size caps of a service (configurable per node): request bytes, configurations per request, and
-    configurations per request with the 'worst-case' criterion (O(p^3) per pose)."""
+    """Size caps of a service (configurable per node): request bytes, configurations per request,
+    configurations per request with the 'worst-case' criterion (O(p^3) per pose), and the targets of a
+    ``compensate`` request given as joints or as tool poses (each pose is first solved from 9 starts);
+    the compensate caps apply within ``max_poses``."""
 
     max_bytes: int = 1_000_000
     max_poses: int = 10_000
     max_worst_case_poses: int = 1_000
+    max_compensate_joints: int = 1_000
+    max_compensate_poses: int = 100
 
 
 def error_code(exc) -> str:
