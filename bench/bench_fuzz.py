@@ -138,8 +138,7 @@ class Target:
         return getattr(self.node, "callback_errors", 0) if self.use_ros else 0
 
     def busy(self):
-        logic = self.node.service if self.use_ros else self.logic
-        return logic.running is not None or logic.jobs.qsize() > 0
+        return (self.node.service if self.use_ros else self.logic).busy()
 
     def close(self):
         if self.service == "allocate_tolerances":
