@@ -7,6 +7,8 @@ otherwise the last configuration is held once it has run out.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 MODES = ("campaign", "random", "selected")
@@ -48,6 +50,8 @@ class JointStateSequence:
         return len(self.q)
 
     def at(self, t: float):
+        if not math.isfinite(t):
+            raise ValueError(f"t: expected a finite time in s, got {t!r}")
         k = int(max(t, 0.0) // self.dwell)
         finished = False
         if k >= len(self.q):

@@ -92,3 +92,11 @@ def test_files_that_would_trace_back_or_change_are_the_models_error(tmp_path, co
     p.write_bytes(content if isinstance(content, bytes) else content.encode())
     with pytest.raises(ModelError, match=rf"^{p}{message}"):
         load_robot(p)
+
+
+def test_an_error_of_a_urdf_robot_file_names_the_file(tmp_path):
+    from helpers import example_urdf
+    p = tmp_path / "panda.urdf"
+    p.write_text(example_urdf("panda.urdf").read_text())
+    with pytest.raises(ModelError, match=rf"^{p}: urdf branches: its chains end in the links"):
+        load_robot(p)

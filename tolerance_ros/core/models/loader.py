@@ -29,7 +29,10 @@ def load_robot(spec, tip_link=None, base_link=None) -> Mechanism:
         return spec
     path = resolve("robots", spec, suffixes=(".yaml", ".yml", ".urdf"))
     if path.suffix == ".urdf":
-        return URDFChain(path, tip_link=tip_link, base_link=base_link)
+        try:
+            return URDFChain(path, tip_link=tip_link, base_link=base_link)
+        except ModelError as exc:  # every error names the file
+            raise ModelError(str(exc) if str(path) in str(exc) else f"{path}: {exc}") from None
     data = read_yaml(path, ModelError)
     if not isinstance(data, dict):
         raise ModelError(f"{path}: expected a mapping at the top level")
