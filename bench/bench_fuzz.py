@@ -21,6 +21,7 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import math  # noqa: E402
 import multiprocessing  # noqa: E402
 import platform  # noqa: E402
 import signal  # noqa: E402
@@ -37,11 +38,13 @@ from hypothesis import strategies as st  # noqa: E402
 
 from fuzz_corpus import ENCODINGS, allocate_request, encode, jacobian_request  # noqa: E402
 from schemas_helpers import validator  # noqa: E402
-from tolerance_ros.core.jsonio import loads_strict  # noqa: E402
+from tolerance_ros.core.jsonio import dumps_fast, loads_strict  # noqa: E402
 from tolerance_ros.services.contracts import CODES  # noqa: E402
 
 SERVICES = ("compute_error_jacobian", "allocate_tolerances")
 SLOW_S = 1.0
+LATE_S = 0.5   # a final allocation answer may come at most this long after its time_limit
+WARM = 500     # requests of a batch before its memory is taken as warmed up
 EXAMPLES = 3  # failures kept per kind and batch, to show
 
 
@@ -153,7 +156,9 @@ def run_batch(service, n, batch_seed, use_ros, conn):
     """Child process: ``n`` generated requests through one fresh node (or service); sends its counts."""
     schema = validator(f"{service}.response")
     stats = {"requests": 0, "escaped": 0, "internal": 0, "slow": 0, "max_s": 0.0, "schema": 0, "unanswered": 0,
-             "accepted": 0, "solved": 0, "examples": {}}
+             "accepted": 0, "solved": 0, "late": 0, "max_late_s": -math.inf, "rss_warm": None, "rss_end": None,
+             "examples": {}}
+    deadlines = {}  # id of a solved job -> [deadline of its final answer (monotonic s)], in acceptance order
 
     def keep(kind, text, detail):
         shown = stats["examples"].setdefault(kind, [])
@@ -182,6 +187,24 @@ def run_batch(service, n, batch_seed, use_ros, conn):
                                                               "target": doc["id"]})))
                 else:
                     stats["solved"] += 1
+                    asked = loads_strict(text).get("time_limit", ARGS.time_limit)
+                    deadlines.setdefault(json.dumps(doc["id"]), []).append(time.monotonic() + asked)
+            elif doc.get("status") in ("done", "timeout") or (not doc["ok"] and doc.get("error", {}).get("code") in
+                                                              ("infeasible", "invalid_request", "internal")):
+                waiting = deadlines.get(json.dumps(doc["id"]))
+                if waiting and text.startswith("(a solve"):
+                    late = time.monotonic() - waiting.pop(0)
+                    stats["max_late_s"] = max(stats["max_late_s"], late)
+                    if late > LATE_S:
+                        stats["late"] += 1
+                        keep("late", doc["id"], f"{late:.3f} s after its time_limit")
+
+    def rss_mb():
+        try:
+            return next(int(line.split()[1]) / 1024 for line in Path("/proc/self/status").read_text().splitlines()
+                        if line.startswith("VmRSS"))
+        except (OSError, StopIteration):
+            return None
 
     with tempfile.TemporaryDirectory() as tmp:
         target = Target(service, use_ros, tmp)
@@ -217,6 +240,9 @@ def run_batch(service, n, batch_seed, use_ros, conn):
                 stats["unanswered"] += 1
                 keep("unanswered", text, "no answer")
             check(text, answers)
+            check("(a solve of this batch)", target.later())
+            if stats["requests"] == WARM:
+                stats["rss_warm"] = rss_mb()
 
         fuzz()
         deadline = time.monotonic() + 4 * ARGS.time_limit * max(ARGS.solve, 1) + 30
@@ -225,9 +251,240 @@ def run_batch(service, n, batch_seed, use_ros, conn):
                 check("(a solve of this batch)", target.later())
                 time.sleep(0.05)
             check("(a solve of this batch)", target.later())
+        stats["rss_end"] = rss_mb()
         target.close()
     conn.send(stats)
     conn.close()
+
+
+OUTCOMES = ("accepted", "refused", "escaped", "unusable")
+"""What a reader or entry point did with one input: took it (and what it gave is usable), refused it with its
+own error (a reader's naming the file), let another exception out (or an error that does not name the file),
+or took it and gave something unusable (non-finite numbers, a broken log)."""
+
+
+def entry_points():
+    """name -> (strategy of inputs, make() -> handle(case) returning 'accepted' or 'refused'): every entry point
+    of the services besides the two JSON requests, as the nodes call them."""
+    import numpy as np
+    from fuzz_corpus import (PAYLOADS, budget_messages, joint_states, measured_poses, urdf_text)
+    from helpers import example_urdf
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.ingest import IngestError
+    from tolerance_ros.core.models import ModelError, load_robot
+    from tolerance_ros.services.contracts import ContractError, budget_from_message
+    from tolerance_ros.services.error_model import ErrorModelService
+    from tolerance_ros.services.joint_source import JointStateSequence
+    from tolerance_ros.services.monitor import MonitorLogic
+    from tolerance_ros.services.robots import RobotSet
+    from tolerance_ros.services.tracker import SimulatedTracker
+
+    gao = load_robot("gao2023_7dof")
+    budget = load_budget("gao2023_delta2", gao)
+
+    def monitor():
+        tmp = tempfile.mkdtemp()
+        mon = MonitorLogic(gao, budget, None, slop=0.05, max_wait=0.0, log_path=Path(tmp) / "log.jsonl")
+
+        def handle(case):
+            state, pose = case
+            before = dict(mon.counts)
+            mon.on_joint_state(*state)
+            mon.on_pose(*pose)
+            mon.resolve()
+            dumps_fast(mon.report())
+            c = mon.counts
+            if c["received"] != c["paired"] + c["unpaired"] + c["rejected"] + len(mon.pending):
+                return "unusable"
+            return "refused" if c["rejected"] > before["rejected"] or \
+                c["joint_states_rejected"] > before["joint_states_rejected"] else "accepted"
+        return handle
+
+    def budgets():
+        svc = ErrorModelService({gao.name: gao}, gao.name)
+        mon = MonitorLogic(gao, None, None)
+
+        def handle(case):
+            text, state = case
+            try:
+                _, b = budget_from_message(text, svc.models)
+            except ContractError:
+                return "refused"
+            svc.current_budget = b
+            mon.set_budget(b)
+            bound = svc.bound_at(*state[1:], stamp=state[0])
+            finite = bound is None or np.isfinite([bound["position_bound_m"], bound["orientation_bound_rad"]]).all()
+            return "accepted" if finite else "unusable"
+        return handle
+
+    def bound():
+        svc = ErrorModelService({gao.name: gao}, gao.name)
+        svc.current_budget = budget
+
+        def handle(state):
+            b = svc.bound_at(state[1], state[2], stamp=state[0])
+            if b is None:
+                return "refused"
+            return "accepted" if np.isfinite([b["position_bound_m"], b["orientation_bound_rad"]]).all() else "unusable"
+        return handle
+
+    def tracker():
+        sim = SimulatedTracker(gao, budget.vector_for(gao))
+
+        def handle(state):
+            try:
+                T = sim.on_joint_state(state[1], state[2])
+            except IngestError:
+                return "refused"
+            return "accepted" if np.isfinite(T).all() else "unusable"
+        return handle
+
+    def description():
+        robots = RobotSet(["robot_description"], "robot_description", tip_link="tool0")
+
+        def handle(text):
+            try:
+                robots.on_description(text)
+            except (ModelError, ContractError):
+                return "refused"
+            m = robots.single()
+            return "accepted" if np.isfinite(m.fk(m.joint_limits.mean(axis=1)[None])).all() else "unusable"
+        return handle
+
+    def source():
+        seq = JointStateSequence(gao, "random", count=5, dwell=0.5, loop=True)
+
+        def handle(t):
+            try:
+                return "accepted" if np.isfinite(seq.at(t)[2]).all() else "unusable"
+            except ValueError:
+                return "refused" if not math.isfinite(t) else "escaped"
+        return handle
+
+    def payloads():
+        svc = ErrorModelService({gao.name: gao}, gao.name)
+
+        def handle(payload):
+            code = loads_strict(svc.handle_text(payload))["error"]["code"]
+            return "refused" if code in ("invalid_request", "invalid_json") else "escaped"
+        return handle
+
+    doc = budget.to_dict()
+    return {"monitor: joint state + measured pose": (st.tuples(joint_states(), measured_poses()), monitor),
+            "tolerance_budget message, then a bound": (st.tuples(budget_messages(doc), joint_states()), budgets),
+            "predicted bound at a joint state": (joint_states(), bound),
+            "simulated tracker: joint state": (joint_states(), tracker),
+            "robot_description (URDF text)": (urdf_text(example_urdf("ur5_robot.urdf").read_text()), description),
+            "joint-state source: time": (st.floats(), source),
+            "request that is not text": (st.sampled_from(PAYLOADS), payloads)}
+
+
+def run_cases(kind, name, n, batch_seed, conn):
+    """Child process: ``n`` generated inputs of one file reader (kind 'reader') or entry point ('entry')."""
+    from tolerance_ros.core.models import warm_up_kernels
+    warm_up_kernels()  # as every node does at start
+    stats = {"inputs": 0, "slow": 0, "max_s": 0.0, "examples": {}, **{o: 0 for o in OUTCOMES}}
+    with tempfile.TemporaryDirectory() as tmp:
+        if kind == "reader":
+            from fuzz_corpus import readers
+            reader = readers()[name]
+            strategy, path = reader.files, Path(tmp) / f"input{reader.suffix}"
+
+            def handle(data):
+                path.write_bytes(data)
+                try:
+                    result = reader.read(path)
+                except reader.error as exc:
+                    return "refused" if str(path) in str(exc) else "escaped"
+                try:
+                    reader.check(result)
+                except Exception:  # what it read is not usable
+                    return "unusable"
+                return "accepted"
+        else:
+            strategy, make = entry_points()[name]
+            handle = make()
+
+        @seed(batch_seed)
+        @settings(max_examples=n, database=None, phases=[Phase.generate], deadline=None,
+                  suppress_health_check=list(HealthCheck))
+        @given(strategy)
+        def fuzz(case):
+            stats["inputs"] += 1
+            t0 = time.perf_counter()
+            try:
+                outcome = handle(case)
+            except Exception as exc:  # escaped the reader or the entry point
+                outcome, detail = "escaped", f"{type(exc).__name__}: {exc}"
+            else:
+                detail = outcome
+            elapsed = time.perf_counter() - t0
+            stats[outcome] += 1
+            if outcome in ("escaped", "unusable"):
+                shown = stats["examples"].setdefault(outcome, [])
+                if len(shown) < EXAMPLES:
+                    shown.append({"input": repr(case)[:300], "detail": detail[:300]})
+            stats["max_s"] = max(stats["max_s"], elapsed)
+            if elapsed > SLOW_S:
+                stats["slow"] += 1
+
+        fuzz()
+    conn.send(stats)
+    conn.close()
+
+
+def fuzz_cases(kind, name, n, batch, ctx):
+    """All batches of one reader or entry point; the summed counts, crashes and hangs."""
+    total = {"inputs": 0, "slow": 0, "max_s": 0.0, "crashes": [], "hangs": 0, "examples": {}, **{o: 0 for o in OUTCOMES}}
+    left, index, started = n, 0, time.monotonic()
+    while left > 0:
+        m = min(batch, left)
+        receive, send = ctx.Pipe(duplex=False)
+        child = ctx.Process(target=run_cases, args=(kind, name, m, ARGS.seed * 1000 + index, send))
+        child.start()
+        send.close()
+        try:
+            stats = receive.recv() if receive.poll(60 + m * 1.0) else None
+        except EOFError:
+            stats = None
+        if child.is_alive() and stats is None:
+            total["hangs"] += 1
+            child.kill()
+        child.join(30)
+        if stats is None:
+            total["inputs"] += m
+            total["crashes"].append(f"batch {index}: {child.exitcode}")
+        else:
+            for key in ("inputs", "slow", *OUTCOMES):
+                total[key] += stats[key]
+            total["max_s"] = max(total["max_s"], stats["max_s"])
+            for k, shown in stats["examples"].items():
+                total["examples"].setdefault(k, []).extend(shown)
+        left -= m
+        index += 1
+    total["wall_s"] = time.monotonic() - started
+    print(f"  {name}: {total['inputs']} inputs, {total['wall_s']:.0f} s", file=sys.stderr, flush=True)
+    return total
+
+
+def print_cases(title, results) -> bool:
+    """A table of readers or entry points; True when any input escaped, crashed, hung or gave something
+    unusable, or took longer than SLOW_S."""
+    width = max(len(name) for name in results)
+    slow = f"slower than {SLOW_S:g} s (max)"
+    print(f"\n| {title:{width}} | inputs | accepted | refused | escaped | unusable | crashes / hangs | {slow} |")
+    print(f"|{'-' * (width + 2)}|-------:|---------:|--------:|--------:|---------:|----------------:|"
+          f"{'-' * (len(slow) + 1)}:|")
+    bad = False
+    for name, r in results.items():
+        print(f"| {name:{width}} | {r['inputs']:6d} | {r['accepted']:8d} | {r['refused']:7d} | {r['escaped']:7d} | "
+              f"{r['unusable']:8d} | {len(r['crashes']) :>7d} / {r['hangs']:<5d} | "
+              f"{str(r['slow']) + ' (' + format(r['max_s'] * 1e3, '.1f') + ' ms)':>{len(slow)}} |")
+        bad = bad or bool(r["escaped"] or r["unusable"] or r["crashes"] or r["hangs"] or r["slow"])
+        for k, shown in r["examples"].items():
+            for example in shown[:EXAMPLES]:
+                print(f"{name}: {k}: {json.dumps(example)}")
+    return bad
 
 
 def machine() -> str:
@@ -247,7 +504,8 @@ def load() -> str:
 def fuzz_service(service, use_ros, ctx):
     """All batches of one service; returns the summed counts, crashes and hangs."""
     total = {"requests": 0, "escaped": 0, "internal": 0, "slow": 0, "max_s": 0.0, "schema": 0, "unanswered": 0,
-             "accepted": 0, "solved": 0, "crashes": [], "hangs": 0, "examples": {}}
+             "accepted": 0, "solved": 0, "late": 0, "max_late_s": -math.inf, "rss": [], "crashes": [], "hangs": 0,
+             "examples": {}}
     left, index, started = ARGS.requests, 0, time.monotonic()
     while left > 0:
         n = min(ARGS.batch, left)
@@ -270,9 +528,12 @@ def fuzz_service(service, use_ros, ctx):
             elif child.exitcode:
                 total["crashes"].append(f"batch {index}: exit {child.exitcode}")
         else:
-            for key in ("requests", "escaped", "internal", "slow", "schema", "unanswered", "accepted", "solved"):
+            for key in ("requests", "escaped", "internal", "slow", "schema", "unanswered", "accepted", "solved", "late"):
                 total[key] += stats[key]
             total["max_s"] = max(total["max_s"], stats["max_s"])
+            total["max_late_s"] = max(total["max_late_s"], stats["max_late_s"])
+            if stats["rss_warm"] is not None and stats["rss_end"] is not None:
+                total["rss"].append((stats["rss_warm"], stats["rss_end"]))
             for kind, shown in stats["examples"].items():
                 total["examples"].setdefault(kind, []).extend(shown)
         left -= n
@@ -292,7 +553,12 @@ def main():
     print(f"corpus: test/fuzz_corpus.py, {ARGS.requests} requests per service in batches of {ARGS.batch} "
           f"(one child process each), seed {ARGS.seed}; allocator: {ARGS.solve} accepted job(s) per batch solved "
           f"with a {ARGS.time_limit:g} s limit, the others cancelled")
-    results = {s: fuzz_service(s, use_ros, ctx) for s in SERVICES}
+    results = {s: fuzz_service(s, use_ros, ctx) for s in SERVICES} if ARGS.requests else {}
+    from fuzz_corpus import readers
+    files = {name: fuzz_cases("reader", name, ARGS.files // (5 if name.startswith("URDF") else 1), ARGS.batch, ctx)
+             for name in readers()} if ARGS.files else {}
+    entries = {name: fuzz_cases("entry", name, ARGS.entries // (5 if name.startswith("robot_desc") else 1),
+                                ARGS.batch, ctx) for name in entry_points()} if ARGS.entries else {}
     rows = [("requests", lambda r: f"{r['requests']}"),
             ("process crashes (signals)", lambda r: f"{len(r['crashes'])}"),
             ("batches that hung (killed)", lambda r: f"{r['hangs']}"),
@@ -302,17 +568,22 @@ def main():
             ("schema violations", lambda r: f"{r['schema']}"),
             ("requests without an answer", lambda r: f"{r['unanswered']}"),
             ("allocations accepted / solved", lambda r: f"{r['accepted']} / {r['solved']}" if r["accepted"] else "-"),
+            (f"solved answers > time_limit + {LATE_S:g} s (max)",
+             lambda r: f"{r['late']} ({r['max_late_s'] * 1e3:+.0f} ms)" if r["max_late_s"] > -math.inf else "-"),
+            (f"memory per batch, MB (after {WARM} -> end)", _memory),
             ("wall time", lambda r: f"{r['wall_s']:.0f} s")]
     width = max(len(name) for name, _ in rows)
-    print()
-    print(f"| {'':{width}} | {SERVICES[0]:>22} | {SERVICES[1]:>22} |")
-    print(f"|{'-' * (width + 2)}|{'-' * 23}:|{'-' * 23}:|")
-    for name, cell in rows:
-        print(f"| {name:{width}} | {cell(results[SERVICES[0]]):>22} | {cell(results[SERVICES[1]]):>22} |")
+    if results:
+        print()
+        print(f"| {'':{width}} | {SERVICES[0]:>22} | {SERVICES[1]:>22} |")
+        print(f"|{'-' * (width + 2)}|{'-' * 23}:|{'-' * 23}:|")
+        for name, cell in rows:
+            print(f"| {name:{width}} | {cell(results[SERVICES[0]]):>22} | {cell(results[SERVICES[1]]):>22} |")
+    failed = bool(files) and print_cases("file reader", files)
+    failed = (bool(entries) and print_cases("entry point", entries)) or failed
     print(f"\n{load()} at the end")
-    failed = False
     for service, r in results.items():
-        bad = r["crashes"] or r["hangs"] or r["escaped"] or r["internal"] or r["schema"] or r["unanswered"]
+        bad = r["crashes"] or r["hangs"] or r["escaped"] or r["internal"] or r["schema"] or r["unanswered"] or r["late"]
         failed = failed or bool(bad)
         for crash in r["crashes"]:
             print(f"{service}: crash in {crash}")
@@ -322,9 +593,21 @@ def main():
     return 1 if failed else 0
 
 
+def _memory(r) -> str:
+    """RSS after the warm-up of a batch -> at its end, the largest and the median growth over the batches."""
+    if not r["rss"]:
+        return "-"
+    growth = sorted(end - warm for warm, end in r["rss"])
+    warm, end = max(r["rss"], key=lambda pair: pair[1] - pair[0])
+    return f"{warm:.0f} -> {end:.0f} (median {growth[len(growth) // 2]:+.1f})"
+
+
 def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--requests", type=int, default=20_000, help="generated requests per service")
+    p.add_argument("--files", type=int, default=2_000, help="generated files per reader (a fifth for URDFs)")
+    p.add_argument("--entries", type=int, default=5_000, help="generated inputs per other entry point (a fifth "
+                                                               "for robot_description)")
     p.add_argument("--batch", type=int, default=2_500, help="requests per child process")
     p.add_argument("--solve", type=int, default=2, help="accepted allocations solved per batch (others cancelled)")
     p.add_argument("--time-limit", type=float, default=2.0, help="wall-clock limit of each solve, s")

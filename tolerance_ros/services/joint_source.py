@@ -52,11 +52,10 @@ class JointStateSequence:
     def at(self, t: float):
         if not math.isfinite(t):
             raise ValueError(f"t: expected a finite time in s, got {t!r}")
-        k = int(max(t, 0.0) // self.dwell)
-        finished = False
-        if k >= len(self.q):
-            if self.loop:
-                k %= len(self.q)
-            else:
-                k, finished = len(self.q) - 1, True
-        return k, self.labels[k], self.q[k], finished
+        t, n = max(t, 0.0), len(self.q)
+        if t >= n * self.dwell:
+            if not self.loop:
+                return n - 1, self.labels[-1], self.q[-1], True
+            t %= n * self.dwell  # a time of any size: its steps need not fit an integer
+        k = min(int(t // self.dwell), n - 1)
+        return k, self.labels[k], self.q[k], False
