@@ -257,6 +257,10 @@ def run_batch(service, n, batch_seed, use_ros, conn):
     conn.close()
 
 
+class Unusable(Exception):
+    """An input taken although it had to be refused, or that gave something unusable."""
+
+
 OUTCOMES = ("accepted", "refused", "escaped", "unusable")
 """What a reader or entry point did with one input: took it (and what it gave is usable), refused it with its
 own error (a reader's naming the file), let another exception out (or an error that does not name the file),
@@ -267,7 +271,7 @@ def entry_points():
     """name -> (strategy of inputs, make() -> handle(case) returning 'accepted' or 'refused'): every entry point
     of the services besides the two JSON requests, as the nodes call them."""
     import numpy as np
-    from fuzz_corpus import (PAYLOADS, budget_messages, joint_states, measured_poses, urdf_text)
+    from fuzz_corpus import PAYLOADS, budget_messages, joint_states, measured_poses, names_twice, urdf_text
     from helpers import example_urdf
     from tolerance_ros.core.budget import load_budget
     from tolerance_ros.core.ingest import IngestError
@@ -295,7 +299,9 @@ def entry_points():
             dumps_fast(mon.report())
             c = mon.counts
             if c["received"] != c["paired"] + c["unpaired"] + c["rejected"] + len(mon.pending):
-                return "unusable"
+                raise Unusable("the counts do not add up")
+            if names_twice(state[1]) and c["joint_states"] > before["joint_states"]:
+                raise Unusable("took a joint state that names a joint twice")
             return "refused" if c["rejected"] > before["rejected"] or \
                 c["joint_states_rejected"] > before["joint_states_rejected"] else "accepted"
         return handle
@@ -325,6 +331,8 @@ def entry_points():
             b = svc.bound_at(state[1], state[2], stamp=state[0])
             if b is None:
                 return "refused"
+            if names_twice(state[1]):
+                raise Unusable("bound at a joint state that names a joint twice")
             return "accepted" if np.isfinite([b["position_bound_m"], b["orientation_bound_rad"]]).all() else "unusable"
         return handle
 
@@ -336,6 +344,8 @@ def entry_points():
                 T = sim.on_joint_state(state[1], state[2])
             except IngestError:
                 return "refused"
+            if names_twice(state[1]):
+                raise Unusable("measured at a joint state that names a joint twice")
             return "accepted" if np.isfinite(T).all() else "unusable"
         return handle
 
@@ -396,10 +406,12 @@ def run_cases(kind, name, n, batch_seed, conn):
                     result = reader.read(path)
                 except reader.error as exc:
                     return "refused" if str(path) in str(exc) else "escaped"
+                if reader.refuse(data):  # read what it had to refuse
+                    raise Unusable(f"accepted {reader.refuse(data)}")
                 try:
                     reader.check(result)
-                except Exception:  # what it read is not usable
-                    return "unusable"
+                except Exception as exc:  # what it read is not usable
+                    raise Unusable(f"{type(exc).__name__}: {exc}") from None
                 return "accepted"
         else:
             strategy, make = entry_points()[name]
@@ -414,6 +426,8 @@ def run_cases(kind, name, n, batch_seed, conn):
             t0 = time.perf_counter()
             try:
                 outcome = handle(case)
+            except Unusable as exc:
+                outcome, detail = "unusable", str(exc)
             except Exception as exc:  # escaped the reader or the entry point
                 outcome, detail = "escaped", f"{type(exc).__name__}: {exc}"
             else:
@@ -435,7 +449,8 @@ def run_cases(kind, name, n, batch_seed, conn):
 
 def fuzz_cases(kind, name, n, batch, ctx):
     """All batches of one reader or entry point; the summed counts, crashes and hangs."""
-    total = {"inputs": 0, "slow": 0, "max_s": 0.0, "crashes": [], "hangs": 0, "examples": {}, **{o: 0 for o in OUTCOMES}}
+    total = {"inputs": 0, "slow": 0, "max_s": 0.0, "crashes": [], "hangs": 0, "examples": {},
+             **{o: 0 for o in OUTCOMES}}
     left, index, started = n, 0, time.monotonic()
     while left > 0:
         m = min(batch, left)
@@ -528,7 +543,8 @@ def fuzz_service(service, use_ros, ctx):
             elif child.exitcode:
                 total["crashes"].append(f"batch {index}: exit {child.exitcode}")
         else:
-            for key in ("requests", "escaped", "internal", "slow", "schema", "unanswered", "accepted", "solved", "late"):
+            for key in ("requests", "escaped", "internal", "slow", "schema", "unanswered", "accepted", "solved",
+                        "late"):
                 total[key] += stats[key]
             total["max_s"] = max(total["max_s"], stats["max_s"])
             total["max_late_s"] = max(total["max_late_s"], stats["max_late_s"])

@@ -374,6 +374,11 @@ def joint_states():
     return st.tuples(stamp, names, positions)
 
 
+def names_twice(names) -> bool:
+    """True for joint names that name one of the arm's joints more than once (such a state must be refused)."""
+    return isinstance(names, (list, tuple)) and any(list(names).count(n) > 1 for n in NAMES)
+
+
 def measured_poses():
     """(stamp, frame_id, position, quaternion) of a measured pose, valid about a third of the time."""
     frame = st.one_of(st.just("tracker"), st.text(max_size=8), st.just("tracker\ud800"), st.just("\udfff"),
@@ -399,13 +404,71 @@ PAYLOADS = [None, 0, 1.5, [], ["{}"], {"id": 1}, object(), b"\xff", bytearray(b'
 
 # ------------------------------------------------------------------ the readers, their inputs and their oracles
 
+import re  # noqa: E402
+
+_DISPUTED = re.compile(rb"(?:(?<=: )|(?<=\[)|(?<=, )|(?<=- ))(1_000|1:30|017|0x1F|0b11)(?=[,\]}\s]|$)")
+_TOP_KEY = re.compile(rb"^([A-Za-z_]\w*):", re.M)
+
+
+def must_refuse(data: bytes, kind: str):
+    """Why a reader must refuse this input whatever else it holds (None when it may read it): a YAML 1.1
+    number form as a plain scalar, a key given twice, a URDF limit whose lower is above its upper, a link
+    with two parent joints or a kinematic cycle. An oracle of its own, independent of the readers."""
+    if kind == "yaml":
+        if _DISPUTED.search(data):
+            return "a YAML 1.1 number form (1_000, 1:30, 017, 0x1F, 0b11) read as a number"
+        keys = _TOP_KEY.findall(data)
+        if len(keys) != len(set(keys)):
+            return "a top-level key given twice"
+    if kind == "json":
+        def pairs(items):
+            names = [k for k, _ in items]
+            if len(names) != len(set(names)):
+                raise KeyError("twice")
+            return dict(items)
+        try:
+            json.loads(data.decode("utf-8-sig"), object_pairs_hook=pairs)
+        except KeyError:
+            return "a key given twice in one object"
+        except ValueError:
+            return None
+    if kind == "urdf":
+        import xml.etree.ElementTree as ET
+        try:
+            root = ET.fromstring(data.decode("utf-8-sig").lstrip())
+        except (ET.ParseError, UnicodeDecodeError, ValueError):
+            return None
+        parent = {}
+        for j in root.findall("joint"):
+            lim, p, c = j.find("limit"), j.find("parent"), j.find("child")
+            try:
+                if j.get("type") == "revolute" and lim is not None and float(lim.get("lower", 0)) > float(
+                        lim.get("upper", 0)):
+                    return "a revolute limit whose lower is above its upper"
+            except ValueError:
+                pass
+            if p is not None and c is not None:
+                if c.get("link") in parent:
+                    return "a link with two parent joints"
+                parent[c.get("link")] = p.get("link")
+        for link in parent:
+            seen = set()
+            while link in parent:
+                if link in seen:
+                    return "a kinematic cycle"
+                seen.add(link)
+                link = parent[link]
+    return None
+
+
 class Reader:
     """One file reader: ``files`` generates the bytes of its input, ``read(path)`` reads one, ``error`` is its
     own exception class (every failure must be one, naming the file), ``check(result)`` asserts that what
-    it accepted is usable (finite numbers)."""
+    it accepted is usable (finite numbers), ``refuse(data)`` says why an input must be refused (or None)."""
 
-    def __init__(self, name, suffix, files, read, error, check):
+    def __init__(self, name, suffix, files, read, error, check, kind):
         self.name, self.suffix, self.files, self.read, self.error, self.check = name, suffix, files, read, error, check
+        self.refuse = lambda data: must_refuse(data, kind)
 
 
 def _calibration_doc(model):
@@ -469,14 +532,16 @@ def _build_readers():
 
     return {r.name: r for r in [
         Reader("robot YAML", ".yaml", st.one_of(yaml_file(robot_doc), yaml_file(pups_doc)), load_robot, ModelError,
-               finite_model),
-        Reader("URDF file", ".urdf", urdf_file(ur5), lambda p: load_robot(p, tip_link="tool0"), ModelError, finite_model),
-        Reader("budget YAML", ".yaml", yaml_file(budget_doc), lambda p: load_budget(p, gao), BudgetError, budget_ok),
+               finite_model, "yaml"),
+        Reader("URDF file", ".urdf", urdf_file(ur5), lambda p: load_robot(p, tip_link="tool0"), ModelError,
+               finite_model, "urdf"),
+        Reader("budget YAML", ".yaml", yaml_file(budget_doc), lambda p: load_budget(p, gao), BudgetError, budget_ok,
+               "yaml"),
         Reader("budget JSON", ".json", yaml_file(budget_doc, json_like=True), lambda p: load_budget(p, gao),
-               BudgetError, budget_ok),
+               BudgetError, budget_ok, "json"),
         Reader("campaign", ".yaml", yaml_file(campaign_doc), lambda p: load_campaign(p, gao), CampaignError,
-               campaign_ok),
+               campaign_ok, "yaml"),
         Reader("calibration", ".yaml", yaml_file(_calibration_doc(gao)),
-               lambda p: load_calibration(p, gao).mechanism(gao), CalibrationError, finite_model),
-        Reader("measurement CSV", ".csv", csv_file(csv), read_csv, MeasurementError, measurements_ok),
+               lambda p: load_calibration(p, gao).mechanism(gao), CalibrationError, finite_model, "yaml"),
+        Reader("measurement CSV", ".csv", csv_file(csv), read_csv, MeasurementError, measurements_ok, "csv"),
     ]}

@@ -54,7 +54,8 @@ def test_units_that_are_not_a_mapping_are_the_campaigns_error(tmp_path, units):
 
 def test_a_joint_outside_its_limits_is_refused_in_the_files_units(gao, tmp_path):
     p = tmp_path / "c.yaml"
-    p.write_text(yaml.safe_dump({**GOOD, "poses": [GOOD["poses"][0], {"name": "P2", "joints": [0, 720, 0, 0, 0, 0, 0]}]}))
+    far = {"name": "P2", "joints": [0, 720, 0, 0, 0, 0, 0]}
+    p.write_text(yaml.safe_dump({**GOOD, "poses": [GOOD["poses"][0], far]}))
     with pytest.raises(CampaignError, match=rf"^{p}: poses\[1\].joints\[1\] \(joint2\) = 720 deg is outside the "
                                             rf"joint's limits \[-180, 180\] deg on robot 'gao2023_7dof'"):
         load_campaign(p, gao)

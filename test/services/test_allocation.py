@@ -53,7 +53,8 @@ def test_allocate_request_parsing(robots, gao):
     ('{"id": 1, "limit": 0.001, "ga_rounds": 1000000000}', "invalid_request", "ga_rounds"),
     ('{"id": 1, "limit": 0.001, "ga_tol": 1000000000}', "invalid_request", "ga_tol"),
     ('{"id": 1, "limit": 0.001, "time_limit": 1e9}', "invalid_request", "time_limit"),
-    ('{"id": 1, "limit": 0.001, "time_limit": 4.9e-324}', "invalid_request", "time_limit: 4.94066e-324 is outside [0.1, 3600]"),
+    ('{"id": 1, "limit": 0.001, "time_limit": 4.9e-324}', "invalid_request",
+     "time_limit: 4.94066e-324 is outside [0.1, 3600]"),
     ('{"id": 1, "limit": 0.001, "time_limit": 0}', "invalid_request", "time_limit: 0 is outside [0.1, 3600]"),
     ('{"id": 1, "limit": 0.001, "solver": "ga", "orientation_limit": 0.001}', "invalid_request", "GA handles"),
 ])

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fuzz_corpus import (ENCODINGS, PAYLOADS, allocate_request, budget_messages, encode, jacobian_request,
-                         joint_states, measured_poses, readers, urdf_text)
+                         joint_states, measured_poses, names_twice, readers, urdf_text)
 from helpers import example_urdf
 from schemas_helpers import validator
 from tolerance_ros.core import interrupt
@@ -141,6 +141,7 @@ def test_every_file_reader_answers_hostile_files_with_its_own_error_naming_the_f
         except reader.error as exc:
             assert str(path) in str(exc), str(exc)
         else:
+            assert reader.refuse(data) is None, f"accepted {reader.refuse(data)}"
             reader.check(result)
         assert time.perf_counter() - t0 < 1.0
 
@@ -166,12 +167,13 @@ def test_the_monitor_takes_or_refuses_every_joint_state_and_measurement(gao, tmp
     @settings(max_examples=300, deadline=None, suppress_health_check=list(HealthCheck), database=None)
     @given(state=joint_states(), pose=measured_poses())
     def fuzz(state, pose):
-        states = mon.counts["joint_states"] + mon.counts["joint_states_rejected"]
+        taken, states = mon.counts["joint_states"], mon.counts["joint_states"] + mon.counts["joint_states_rejected"]
         mon.on_joint_state(*state)
         mon.on_pose(*pose)
         mon.resolve()
         c = mon.counts
         assert c["joint_states"] + c["joint_states_rejected"] == states + 1
+        assert not (names_twice(state[1]) and c["joint_states"] > taken), "took a joint state naming a joint twice"
         assert c["received"] == c["paired"] + c["unpaired"] + c["rejected"] + len(mon.pending)
 
     fuzz()
@@ -211,7 +213,7 @@ def test_the_tracker_measures_or_refuses_every_joint_state(gao, state):
         T = SimulatedTracker(gao, np.full(gao.n_params, 1e-5)).on_joint_state(state[1], state[2])
     except IngestError:
         return
-    assert np.isfinite(T).all()
+    assert np.isfinite(T).all() and not names_twice(state[1])
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck), database=None)

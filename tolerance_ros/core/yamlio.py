@@ -152,7 +152,8 @@ def loads_yaml(text: str, source="<text>", error=ValueError):
         raise error(f"{source}{where}: not valid YAML: {what}") from None
     except yaml.reader.ReaderError as exc:
         line = text.count("\n", 0, exc.position) + 1
-        raise error(f"{source}, line {line}: not valid YAML: character {_shown(exc.character)} is not allowed") from None
+        raise error(f"{source}, line {line}: not valid YAML: character {_shown(exc.character)} is not "
+                    f"allowed") from None
     except yaml.YAMLError as exc:
         raise error(f"{source}: not valid YAML: {str(exc)[:200]}") from None
     finally:
@@ -242,8 +243,8 @@ def _build(loader, source, error):
         elif kind is SequenceStartEvent or kind is MappingStartEvent:
             mapping = kind is MappingStartEvent
             if ev.tag is not None and ev.tag not in ("!", _CORE + ("map" if mapping else "seq")):
-                raise error(f"{source}, line {_line(ev)}: tag {ev.tag[:60]!r} is not supported (only the core tags str, "
-                            f"int, float, bool, null, seq, map)")
+                raise error(f"{source}, line {_line(ev)}: tag {ev.tag[:60]!r} is not supported (only the core "
+                            f"tags str, int, float, bool, null, seq, map)")
             if stack and stack[-1][1] and stack[-1][2] is _MISSING:
                 raise error(f"{source}, line {_line(ev)}: a mapping key that is a collection; keys are text")
             if len(stack) >= MAX_DEPTH:

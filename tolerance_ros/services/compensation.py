@@ -155,7 +155,8 @@ def compensate_request(req: dict, robots, calibrations: dict, limits: Limits) ->
             far = np.flatnonzero(~(reach <= MAX_POSITION_M))
             if far.size:
                 raise ContractError("invalid_request", f"joints[{far[0]}]: the target's tool point is "
-                                                       f"{reach[far[0]]:.3g} m from the base, beyond {MAX_POSITION_M:g} m")
+                                                       f"{reach[far[0]]:.3g} m from the base, beyond "
+                                                       f"{MAX_POSITION_M:g} m")
             comp = compensate(model, nominal, joints=q, match=match)
         else:
             poses = parse_poses(req["poses"], limits)
