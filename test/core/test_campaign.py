@@ -83,5 +83,5 @@ def test_a_campaign_of_20000_poses_loads_fast(gao, tmp_path):
         f"  - {{name: P{i}, joints: [10, 20, 30, 40, 50, 60, {i % 90}]}}\n" for i in range(20_000)))
     t0 = time.perf_counter()
     c = load_campaign(p, gao)
-    assert time.perf_counter() - t0 < 4.0  # about 0.5 s on an idle core; PyYAML's Python loader took 12 s
+    assert time.perf_counter() - t0 < 8.0  # 1 s on an idle core, 5 s at load average 5; PyYAML's Python loader: 12-18 s
     assert len(c.poses) == 20_000 and c.poses[-1].joints[-1] == pytest.approx(np.deg2rad(19_999 % 90))
