@@ -271,11 +271,12 @@ def entry_points():
     """name -> (strategy of inputs, make() -> handle(case) returning 'accepted' or 'refused'): every entry point
     of the services besides the two JSON requests, as the nodes call them."""
     import numpy as np
-    from fuzz_corpus import PAYLOADS, budget_messages, joint_states, measured_poses, names_twice, urdf_text
+    from fuzz_corpus import (PAYLOADS, budget_messages, joint_states, measured_poses, must_refuse, names_twice,
+                             urdf_text)
     from helpers import example_urdf
     from tolerance_ros.core.budget import load_budget
     from tolerance_ros.core.ingest import IngestError
-    from tolerance_ros.core.models import ModelError, load_robot
+    from tolerance_ros.core.models import ModelError, URDFChain, load_robot
     from tolerance_ros.services.contracts import ContractError, budget_from_message
     from tolerance_ros.services.error_model import ErrorModelService
     from tolerance_ros.services.joint_source import JointStateSequence
@@ -351,14 +352,29 @@ def entry_points():
 
     def description():
         robots = RobotSet(["robot_description"], "robot_description", tip_link="tool0")
+        same = Path(tempfile.mkdtemp()) / "same.urdf"
 
         def handle(text):
+            same.write_text(text, encoding="utf-8", errors="surrogatepass")
+            try:
+                URDFChain(same, tip_link="tool0")
+                from_file = "accepted"
+            except ModelError:
+                from_file = "refused"
             try:
                 robots.on_description(text)
             except (ModelError, ContractError):
-                return "refused"
-            m = robots.single()
-            return "accepted" if np.isfinite(m.fk(m.joint_limits.mean(axis=1)[None])).all() else "unusable"
+                outcome = "refused"
+            else:
+                m = robots.single()
+                if not np.isfinite(m.fk(m.joint_limits.mean(axis=1)[None])).all():
+                    raise Unusable("non-finite poses")
+                if must_refuse(text.encode("utf-8", "surrogatepass"), "urdf"):
+                    raise Unusable(f"accepted {must_refuse(text.encode('utf-8', 'surrogatepass'), 'urdf')}")
+                outcome = "accepted"
+            if outcome != from_file:
+                raise Unusable(f"robot_description {outcome}, the same text from a file {from_file}")
+            return outcome
         return handle
 
     def source():

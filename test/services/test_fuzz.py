@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fuzz_corpus import (ENCODINGS, PAYLOADS, allocate_request, budget_messages, encode, jacobian_request,
-                         joint_states, measured_poses, names_twice, readers, urdf_text)
+                         joint_states, measured_poses, must_refuse, names_twice, readers, urdf_text)
 from helpers import example_urdf
 from schemas_helpers import validator
 from tolerance_ros.core import interrupt
@@ -218,15 +218,23 @@ def test_the_tracker_measures_or_refuses_every_joint_state(gao, state):
 
 @settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck), database=None)
 @given(text=urdf_text(example_urdf("ur5_robot.urdf").read_text()))
-def test_every_robot_description_is_taken_or_refused_quickly(text):
+def test_every_robot_description_is_taken_or_refused_quickly_as_the_same_text_from_a_file(text, tmp_path_factory):
+    from tolerance_ros.core.models import URDFChain
+    same = tmp_path_factory.mktemp("urdf") / "same.urdf"
+    same.write_text(text, encoding="utf-8", errors="surrogatepass")
+    try:
+        from_file = URDFChain(same, tip_link="tool0") is not None
+    except ModelError:
+        from_file = False
     robots = RobotSet(["robot_description"], "robot_description", tip_link="tool0")
     t0 = time.perf_counter()
     try:
         robots.on_description(text)
     except (ModelError, ContractError):
-        assert robots.single() is None
+        assert robots.single() is None and not from_file
     else:
         assert np.isfinite(robots.single().fk(robots.single().joint_limits.mean(axis=1)[None])).all()
+        assert from_file and must_refuse(text.encode("utf-8", "surrogatepass"), "urdf") is None
     assert time.perf_counter() - t0 < 1.0
 
 
