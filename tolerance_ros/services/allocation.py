@@ -214,14 +214,13 @@ class AllocatorService:
                 return
             self.queue.append(_Entry(job, interrupt.StopToken(job.time_limit_s)))
             self.emit("response", {"id": job.id, "ok": True, "status": "accepted", "queued": len(self.queue),
-                                   "running": self.current.job.id if self.current else None})
+                                   "running": self._running_id()})
             self.lock.notify_all()
 
     def _command(self, cmd: Command):
         with self.lock:
             if cmd.command == "status":
-                self.emit("response", {"id": cmd.id, "ok": True, "status": "status",
-                                       "running": self.current.job.id if self.current else None,
+                self.emit("response", {"id": cmd.id, "ok": True, "status": "status", "running": self._running_id(),
                                        "queued": len(self.queue), "finished": list(self.done)[-10:]})
                 return
             for entry in ([self.current] if self.current else []) + list(self.queue):
@@ -235,6 +234,11 @@ class AllocatorService:
                     return
         self.emit("response", error_response(cmd.id, ContractError(
             "invalid_request", f"target: no queued or running allocation has id {cmd.target!r}")))
+
+    def _running_id(self):
+        """Id of the job being solved, None when there is none or it is already answered (still stopping)."""
+        entry = self.current
+        return entry.job.id if entry is not None and not entry.answered else None
 
     def _finish(self, entry, resp):
         """Send the final answer of a job once (the caller holds the lock)."""
