@@ -1,6 +1,6 @@
-"""Long fuzz of the two JSON services, run as the nodes run them (a script, not a test).
+"""Long fuzz of the services and the file readers, run as the nodes run them (a script, not a test).
 
-N generated requests per service (``--requests``, default 20,000), valid ones mixed with mutations
+N generated requests per JSON service (``--requests``, default 20,000), valid ones mixed with mutations
 (``test/fuzz_corpus.py``), go through the node classes' request callbacks (ErrorModelServer,
 ToleranceAllocator; last-resort wrapper included) when rclpy is importable, else through the services'
 ``handle_text`` / ``handle``. Each batch runs in a child process, so that a crash shows as a signal and
@@ -8,10 +8,21 @@ a hang as a batch killed at its deadline. The allocator answers every request at
 allocations it accepts, ``--solve`` per batch are solved (wall-clock limit ``--time-limit``), the others
 cancelled. Prints, per service: process crashes, hung batches, exceptions escaping the callback,
 'internal' answers, answers slower than 1 s (and the slowest), schema violations (not strict JSON, or
-not valid against ``schemas/*.response.json``, or no answer), with the machine and its load. Exits 1 if
-any crash, hang, escape, 'internal' answer or schema violation occurred.
+not valid against ``schemas/*.response.json``, or no answer), solves answered later than their
+time_limit + 0.5 s, and the memory of a batch after its warm-up and at its end.
 
-    python bench/bench_fuzz.py [--requests 20000] [--batch 2500] [--solve 2] [--seed 0] [--no-ros]
+Then ``--files`` generated files per reader (robot YAML, URDF, budget YAML and JSON, campaign,
+calibration, measurement CSV; a fifth as many URDFs) and ``--entries`` inputs per other entry point
+(the monitor's joint states and measured poses, budget messages and the bound after them, the predicted
+bound, the simulated tracker, robot_description, the joint-state source, payloads that are not text),
+in child processes too; a table each: inputs, accepted, refused (with the reader's own error naming the
+file, or the entry point's documented refusal), escaped (anything else), unusable (taken although the
+corpus's own oracle says it must be refused, or giving non-finite numbers), crashes and hangs, and the
+slowest answer. Exits 1 if any crash, hang, escape, 'internal' answer, schema violation, late solve,
+unusable or slow input occurred.
+
+    python bench/bench_fuzz.py [--requests 20000] [--files 2000] [--entries 5000] [--batch 2500] [--solve 2]
+                               [--seed 0] [--no-ros]
 """
 import os
 
