@@ -171,6 +171,7 @@ def run_batch(service, n, batch_seed, use_ros, conn):
              "accepted": 0, "solved": 0, "late": 0, "max_late_s": -math.inf, "rss_warm": None, "rss_end": None,
              "examples": {}}
     deadlines = {}  # id of a solved job -> [deadline of its final answer (monotonic s)], in acceptance order
+    accepted_ids = {}  # id -> jobs accepted with it: a cancel by id may hit another job of the same id
 
     def keep(kind, text, detail):
         shown = stats["examples"].setdefault(kind, [])
@@ -194,6 +195,7 @@ def run_batch(service, n, batch_seed, use_ros, conn):
                 keep("internal", text, doc)
             if doc.get("status") == "accepted":
                 stats["accepted"] += 1
+                accepted_ids[json.dumps(doc["id"])] = accepted_ids.get(json.dumps(doc["id"]), 0) + 1
                 if stats["accepted"] > ARGS.solve:
                     check("(cancel)", target.send(json.dumps({"id": "bench-cancel", "command": "cancel",
                                                               "target": doc["id"]})))
@@ -203,7 +205,7 @@ def run_batch(service, n, batch_seed, use_ros, conn):
                     deadlines.setdefault(json.dumps(doc["id"]), []).append(time.monotonic() + asked)
             elif doc.get("status") in ("done", "timeout") or doc.get("error", {}).get("code") == "infeasible":
                 waiting = deadlines.get(json.dumps(doc["id"]))  # the final answer of a solve
-                if waiting:
+                if waiting and accepted_ids[json.dumps(doc["id"])] == 1:  # its job is known for sure
                     late = time.monotonic() - waiting.pop(0)
                     stats["max_late_s"] = max(stats["max_late_s"], late)
                     if late > LATE_S:

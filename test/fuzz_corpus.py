@@ -511,7 +511,11 @@ def _build_readers():
     csv = b"\n".join((cfg / "data" / "rong2018_pe_measurements.csv").read_bytes().split(b"\n")[:40])
 
     def finite_model(m):
-        assert np.isfinite(m.fk(m.joint_limits.mean(axis=1)[None])).all()
+        try:
+            T = m.fk(m.joint_limits.mean(axis=1)[None])
+        except ModelError:  # a parallel mechanism that does not assemble there is still a valid model
+            return
+        assert np.isfinite(T).all()
 
     def budget_ok(b):
         try:

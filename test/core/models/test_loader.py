@@ -100,3 +100,10 @@ def test_an_error_of_a_urdf_robot_file_names_the_file(tmp_path):
     p.write_text(example_urdf("panda.urdf").read_text())
     with pytest.raises(ModelError, match=rf"^{p}: urdf branches: its chains end in the links"):
         load_robot(p)
+
+
+@pytest.mark.parametrize("kind", ["{a: 1}", "[dh]", "7"])
+def test_a_kind_that_is_not_a_name_is_the_models_error(tmp_path, kind):
+    p = _write(tmp_path, GOOD.replace("kind: dh", f"kind: {kind}"))
+    with pytest.raises(ModelError, match=rf"^{p}: kind: expected one of \['3pups', 'dh', 'urdf'\]"):
+        load_robot(p)

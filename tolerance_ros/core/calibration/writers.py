@@ -118,6 +118,7 @@ def load_calibrated_model(path, model: Mechanism | None = None) -> Mechanism:
     return load_calibration(path, model).mechanism(model)
 
 
+_COUNTS = ("measurements", "poses", "rows", "unknowns", "rank")  # the whole numbers of the fit block
 _SECTIONS = {"units": dict, "sources": dict, "registration": dict, "base_correction": dict, "parameters": dict,
              "held": list, "unidentifiable": list, "aliases": dict, "fit": dict, "validation": dict}
 
@@ -142,6 +143,8 @@ def _read(path):
     for key, value in (doc.get("fit") or {}).items():
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise CalibrationError(f"{path}: fit.{key}: expected a number, got {type(value).__name__}")
+        if key in _COUNTS and not float(value).is_integer():
+            raise CalibrationError(f"{path}: fit.{key}: expected a whole number, got {value!r}")
     if not isinstance(doc.get("robot"), str):
         raise CalibrationError(f"{path}: robot: expected the robot's name")
     return doc

@@ -38,8 +38,8 @@ def load_robot(spec, tip_link=None, base_link=None) -> Mechanism:
         raise ModelError(f"{path}: expected a mapping at the top level")
     kinds = _kinds()
     kind = data.get("kind")
-    if kind not in kinds:
-        raise ModelError(f"{path}: kind: expected one of {sorted(kinds)}, got {kind!r}")
+    if not isinstance(kind, str) or kind not in kinds:
+        raise ModelError(f"{path}: kind: expected one of {sorted(kinds)}, got {kind!r:.60}")
     if tip_link is not None or base_link is not None:
         if kind != "urdf":
             raise ModelError(f"{path}: tip_link, base_link: only for URDF robots, not kind {kind!r}")
