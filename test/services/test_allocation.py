@@ -211,3 +211,43 @@ def test_the_finished_jobs_kept_are_bounded(robots):
         assert len(out.wait(lambda d: d["id"] == "s")["finished"]) == 10
     finally:
         service.close()
+
+
+def test_the_outbox_holds_each_jobs_latest_progress_and_every_answer_in_order():
+    """A publisher that falls behind (the node's timer) holds one progress per job, not every iteration's."""
+    from tolerance_ros.services.allocation import Outbox
+    box = Outbox()
+    box("response", {"id": "a", "status": "accepted"})
+    for k in range(10_000):
+        box("progress", {"id": "a" if k % 2 else 1, "fraction": k / 10_000})
+    box("budget", {"id": "a"})
+    box("response", {"id": "a", "status": "done"})
+    assert len(box) == 5
+    out = box.drain()
+    assert [(k, d["id"]) for k, d in out] == [("progress", 1), ("progress", "a"), ("response", "a"), ("budget", "a"),
+                                              ("response", "a")]
+    assert out[1][1]["fraction"] == 0.9999 and box.drain() == []
+
+
+def test_no_progress_goes_out_once_a_job_is_answered(robots, monkeypatch):
+    """A solve still stopping after its timeout or cancel answer (a long step) says nothing more."""
+    from tolerance_ros.core import interrupt
+    from tolerance_ros.services import allocation
+
+    def solve(job, progress):
+        progress(1, 3)
+        entry.answered = True  # the watchdog or a cancel answered meanwhile
+        progress(2, 3)
+        return {"id": job.id, "ok": True, "status": "done"}
+
+    out = Outbox()
+    service = AllocatorService(robots, out)
+    try:
+        monkeypatch.setattr(allocation, "run_allocation", solve)
+        job = parse('{"id": "p", "limit": 0.0014}', robots)
+        entry = allocation._Entry(job, interrupt.StopToken(5.0))
+        service._solve(entry)
+        assert [d["fraction"] for kind, d in out.items if kind == "progress"] == [1 / 3]
+    finally:
+        service.close()
+

@@ -13,6 +13,7 @@ and everything it says goes out through ``emit(kind, doc)`` (kind 'response', 'p
 """
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
@@ -148,6 +149,36 @@ def run_allocation(job: AllocationJob, progress=None) -> dict:
                             "max_m": ver["monte_carlo"]["position_m"]["max"]}}
 
 
+class Outbox:
+    """What an AllocatorService emits, held for a publisher that drains it periodically (the node's timer):
+    every response and budget, in order, and of the progress only each job's latest, so that a publisher that
+    falls behind holds one progress message per job, not the history of every solver iteration."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._items = deque()
+        self._progress = {}
+
+    def __call__(self, kind, doc):
+        with self._lock:
+            if kind == "progress":
+                self._progress[json.dumps(doc["id"])] = doc
+            else:
+                self._items.append((kind, doc))
+
+    def __len__(self):
+        with self._lock:
+            return len(self._items) + len(self._progress)
+
+    def drain(self) -> list:
+        """[(kind, doc)] held since the last drain: the latest progress of each job, then the rest in order."""
+        with self._lock:
+            out = [("progress", doc) for doc in self._progress.values()] + list(self._items)
+            self._progress.clear()
+            self._items.clear()
+        return out
+
+
 @dataclass(eq=False)
 class _Entry:
     """An accepted job, its stop token (deadline counted from acceptance) and whether its final answer is out."""
@@ -257,7 +288,7 @@ class AllocatorService:
                 if entry.answered:
                     continue
                 self.current = entry
-            resp = self._solve(entry.job, entry.token)
+            resp = self._solve(entry)
             with self.lock:
                 self.current = None
                 if not entry.answered and resp is not None:
@@ -296,13 +327,16 @@ class AllocatorService:
                 left = [e.token.deadline for e in entries if not e.answered]
                 self.lock.wait(max(0.0, min(left) - time.monotonic()) if left else None)
 
-    def _solve(self, job, token):
-        """The response to a job; a timeout answer when its solve stopped at the deadline; None when cancelled."""
+    def _solve(self, entry):
+        """The response to a job; a timeout answer when its solve stopped at the deadline; None when cancelled.
+        No progress goes out once the job is answered (while its solve stops)."""
+        job, token = entry.job, entry.token
         start = time.perf_counter()
 
         def progress(done, total):
-            self.emit("progress", {"id": job.id, "fraction": min(1.0, done / max(total, 1)),
-                                   "elapsed_s": time.perf_counter() - start})
+            if not entry.answered:
+                self.emit("progress", {"id": job.id, "fraction": min(1.0, done / max(total, 1)),
+                                       "elapsed_s": time.perf_counter() - start})
 
         try:
             with threads.limited(1), interrupt.watching(token):
