@@ -11,7 +11,9 @@ cancelled. Prints, per service: process crashes, hung batches, exceptions escapi
 not valid against ``schemas/*.response.json``, or no answer), solves answered later than their
 time_limit + 0.5 s, and the memory of a batch after its warm-up and at its end.
 
-Then ``--files`` generated files per reader (robot YAML, URDF, budget YAML and JSON, campaign,
+A memory soak (``--soak`` requests per service, default 10,000, through the services' logic in one process)
+prints the memory each service still holds after every 1,000 requests. Then ``--files`` generated files per
+reader (robot YAML, URDF, budget YAML and JSON, campaign,
 calibration, measurement CSV; a fifth as many URDFs) and ``--entries`` inputs per other entry point
 (the monitor's joint states and measured poses, budget messages and the bound after them, the predicted
 bound, the simulated tracker, robot_description, the joint-state source, payloads that are not text),
@@ -21,8 +23,8 @@ corpus's own oracle says it must be refused, or giving non-finite numbers), cras
 slowest answer. Exits 1 if any crash, hang, escape, 'internal' answer, schema violation, late solve,
 unusable or slow input occurred.
 
-    python bench/bench_fuzz.py [--requests 20000] [--files 2000] [--entries 5000] [--batch 2500] [--solve 2]
-                               [--seed 0] [--no-ros]
+    python bench/bench_fuzz.py [--requests 20000] [--soak 10000] [--files 2000] [--entries 5000] [--batch 2500]
+                               [--solve 2] [--seed 0] [--no-ros]
 """
 import os
 
@@ -531,6 +533,84 @@ def print_cases(title, results) -> bool:
     return bad
 
 
+SOAK_CHUNK = 1_000
+
+
+def run_soak(service, n, conn):
+    """Child process: ``n`` generated requests through one service's logic in chunks of SOAK_CHUNK, each chunk
+    generated first and then answered under tracemalloc (the allocator then left to finish its solves): the
+    bytes still held after each chunk, i.e. what the service keeps."""
+    import gc
+    import tracemalloc
+    from tolerance_ros.core.models import warm_up_kernels
+    from tolerance_ros.services.allocation import AllocatorService
+    from tolerance_ros.services.contracts import Limits
+    from tolerance_ros.services.error_model import ErrorModelService
+    from tolerance_ros.services.robots import RobotSet
+    warm_up_kernels()
+    robots = RobotSet(["gao2023_7dof"], "gao2023_7dof")
+    accepted = [0]
+    logic = None
+
+    def emit(kind, doc):  # as bench batches do: ARGS.solve of every 1,000 accepted jobs solved, the others cancelled
+        if kind == "response" and doc.get("status") == "accepted":
+            accepted[0] += 1
+            if accepted[0] % SOAK_CHUNK >= ARGS.solve:
+                logic.handle(json.dumps({"id": "soak-cancel", "command": "cancel", "target": doc["id"]}))
+
+    if service == "compute_error_jacobian":
+        logic = ErrorModelService(robots)
+        handle = logic.handle_text
+    else:
+        logic = AllocatorService(robots, emit, Limits(max_bytes=100_000), max_queue=4,
+                                 max_time_limit_s=ARGS.time_limit)
+        handle = logic.handle
+    kept = []
+    for chunk in range(0, n, SOAK_CHUNK):
+        texts = []
+
+        @seed(ARGS.seed * 1000 + 500 + chunk // SOAK_CHUNK)
+        @settings(max_examples=min(SOAK_CHUNK, n - chunk), database=None, phases=[Phase.generate], deadline=None,
+                  suppress_health_check=list(HealthCheck))
+        @given(st.tuples(jacobian_request() if service == "compute_error_jacobian" else allocate_request(),
+                         st.sampled_from(ENCODINGS)))
+        def generate(case):
+            texts.append(encode(*case))
+
+        generate()
+        tracemalloc.start()
+        for text in texts:
+            handle(text)
+        deadline = time.monotonic() + 4 * ARGS.time_limit * max(ARGS.solve, 1) + 30
+        while service != "compute_error_jacobian" and logic.busy() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        texts.clear()
+        gc.collect()
+        kept.append(tracemalloc.get_traced_memory()[0])
+        tracemalloc.stop()
+    if service != "compute_error_jacobian":
+        logic.close()
+    conn.send(kept)
+    conn.close()
+
+
+def soak(service, ctx):
+    """The bytes kept after each chunk of the soak of one service (None if its process died or hung)."""
+    receive, send = ctx.Pipe(duplex=False)
+    child = ctx.Process(target=run_soak, args=(service, ARGS.soak, send))
+    child.start()
+    send.close()
+    try:
+        kept = receive.recv() if receive.poll(120 + ARGS.soak * 0.2) else None
+    except EOFError:
+        kept = None
+    if child.is_alive():
+        child.kill()
+    child.join(30)
+    print(f"  soak of {service}: {ARGS.soak} requests", file=sys.stderr, flush=True)
+    return kept
+
+
 def machine() -> str:
     cpu = platform.processor() or "unknown CPU"
     try:
@@ -599,6 +679,7 @@ def main():
           f"(one child process each), seed {ARGS.seed}; allocator: {ARGS.solve} accepted job(s) per batch solved "
           f"with a {ARGS.time_limit:g} s limit, the others cancelled")
     results = {s: fuzz_service(s, use_ros, ctx) for s in SERVICES} if ARGS.requests else {}
+    soaks = {s: soak(s, ctx) for s in SERVICES} if ARGS.soak else {}
     from fuzz_corpus import readers
     files = {name: fuzz_cases("reader", name, ARGS.files // (5 if name.startswith("URDF") else 1), ARGS.batch, ctx)
              for name in readers()} if ARGS.files else {}
@@ -624,7 +705,14 @@ def main():
         print(f"|{'-' * (width + 2)}|{'-' * 23}:|{'-' * 23}:|")
         for name, cell in rows:
             print(f"| {name:{width}} | {cell(results[SERVICES[0]]):>22} | {cell(results[SERVICES[1]]):>22} |")
-    failed = bool(files) and print_cases("file reader", files)
+    if soaks:
+        print(f"\nsoak: {ARGS.soak} requests per service through its logic in one process, chunks of {SOAK_CHUNK}; "
+              f"KiB the service still holds after each chunk (allocator: {ARGS.solve} solves per chunk, then idle):")
+        for service, kept in soaks.items():
+            shown = "the process died or hung" if kept is None else ", ".join(f"{k / 1024:.0f}" for k in kept)
+            print(f"  {service}: {shown}")
+    failed = any(kept is None for kept in soaks.values())
+    failed = (bool(files) and print_cases("file reader", files)) or failed
     failed = (bool(entries) and print_cases("entry point", entries)) or failed
     print(f"\n{load()} at the end")
     for service, r in results.items():
@@ -650,6 +738,7 @@ def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--requests", type=int, default=20_000, help="generated requests per service")
     p.add_argument("--files", type=int, default=2_000, help="generated files per reader (a fifth for URDFs)")
+    p.add_argument("--soak", type=int, default=10_000, help="requests per service of the memory soak (0: none)")
     p.add_argument("--entries", type=int, default=5_000, help="generated inputs per other entry point (a fifth "
                                                                "for robot_description)")
     p.add_argument("--batch", type=int, default=2_500, help="requests per child process")
