@@ -49,7 +49,8 @@ sys.path[:0] = [str(ROOT), str(ROOT / "test")]  # the checkout, and the fuzz cor
 from hypothesis import HealthCheck, Phase, given, seed, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from fuzz_corpus import ENCODINGS, allocate_request, encode, jacobian_request  # noqa: E402
+from fuzz_corpus import (ENCODINGS, NESTED_ID, UNKNOWN, allocate_request, encode, expected_id,  # noqa: E402
+                         jacobian_request)
 from schemas_helpers import validator  # noqa: E402
 from tolerance_ros.core.jsonio import dumps_fast, loads_strict  # noqa: E402
 from tolerance_ros.services.contracts import CODES  # noqa: E402
@@ -171,7 +172,7 @@ def run_batch(service, n, batch_seed, use_ros, conn):
     schema = validator(f"{service}.response")
     stats = {"requests": 0, "escaped": 0, "internal": 0, "slow": 0, "max_s": 0.0, "schema": 0, "unanswered": 0,
              "accepted": 0, "solved": 0, "late": 0, "max_late_s": -math.inf, "rss_warm": None, "rss_end": None,
-             "examples": {}}
+             "wrong_id": 0, "examples": {}}
     deadlines = {}  # id of a solved job -> [deadline of its final answer (monotonic s)], in acceptance order
     accepted_ids = {}  # id -> jobs accepted with it: a cancel by id may hit another job of the same id
 
@@ -195,6 +196,10 @@ def run_batch(service, n, batch_seed, use_ros, conn):
             if not doc["ok"] and doc["error"]["code"] == "internal":
                 stats["internal"] += 1
                 keep("internal", text, doc)
+            expected = expected_id(text) if service == "compute_error_jacobian" and text != SOLVES else UNKNOWN
+            if doc["id"] == NESTED_ID or expected not in (UNKNOWN, doc["id"]):
+                stats["wrong_id"] += 1
+                keep("wrong id", text, doc)
             if doc.get("status") == "accepted":
                 stats["accepted"] += 1
                 accepted_ids[json.dumps(doc["id"])] = accepted_ids.get(json.dumps(doc["id"]), 0) + 1
@@ -628,7 +633,8 @@ def load() -> str:
 def fuzz_service(service, use_ros, ctx):
     """All batches of one service; returns the summed counts, crashes and hangs."""
     total = {"requests": 0, "escaped": 0, "internal": 0, "slow": 0, "max_s": 0.0, "schema": 0, "unanswered": 0,
-             "accepted": 0, "solved": 0, "late": 0, "max_late_s": -math.inf, "rss": [], "crashes": [], "hangs": 0,
+             "accepted": 0, "solved": 0, "late": 0, "max_late_s": -math.inf, "rss": [], "wrong_id": 0, "crashes": [],
+             "hangs": 0,
              "examples": {}}
     left, index, started = ARGS.requests, 0, time.monotonic()
     while left > 0:
@@ -653,7 +659,7 @@ def fuzz_service(service, use_ros, ctx):
                 total["crashes"].append(f"batch {index}: exit {child.exitcode}")
         else:
             for key in ("requests", "escaped", "internal", "slow", "schema", "unanswered", "accepted", "solved",
-                        "late"):
+                        "late", "wrong_id"):
                 total[key] += stats[key]
             total["max_s"] = max(total["max_s"], stats["max_s"])
             total["max_late_s"] = max(total["max_late_s"], stats["max_late_s"])
@@ -692,6 +698,7 @@ def main():
             ("'internal' answers", lambda r: f"{r['internal']}"),
             (f"answers slower than {SLOW_S:g} s (max)", lambda r: f"{r['slow']} ({r['max_s'] * 1e3:.1f} ms)"),
             ("schema violations", lambda r: f"{r['schema']}"),
+            ("answers with another object's id", lambda r: f"{r['wrong_id']}"),
             ("requests without an answer", lambda r: f"{r['unanswered']}"),
             ("allocations accepted / solved", lambda r: f"{r['accepted']} / {r['solved']}" if r["accepted"] else "-"),
             (f"solved answers > time_limit + {LATE_S:g} s (max)",
@@ -716,7 +723,8 @@ def main():
     failed = (bool(entries) and print_cases("entry point", entries)) or failed
     print(f"\n{load()} at the end")
     for service, r in results.items():
-        bad = r["crashes"] or r["hangs"] or r["escaped"] or r["internal"] or r["schema"] or r["unanswered"] or r["late"]
+        bad = (r["crashes"] or r["hangs"] or r["escaped"] or r["internal"] or r["schema"] or r["unanswered"]
+               or r["late"] or r["wrong_id"])
         failed = failed or bool(bad)
         for crash in r["crashes"]:
             print(f"{service}: crash in {crash}")

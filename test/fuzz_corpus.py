@@ -130,10 +130,28 @@ def encode(request, how):
         return text[: max(1, len(text) // 2)]
     if how == "huge":
         return text[:-1] + ', "pad": "' + "x" * 1_000_100 + '"}'
+    if how == "nested_id":
+        return '{"zz": {"id": "' + NESTED_ID + '"}, ' + text[1:] if text.startswith("{") and len(text) > 2 else text
     return text
 
 
-ENCODINGS = ["strict", "loose", "loose", "loose", "duplicate", "deep", "bytes", "truncated", "huge"]
+ENCODINGS = ["strict", "loose", "loose", "loose", "duplicate", "deep", "bytes", "truncated", "huge", "nested_id"]
+NESTED_ID = "inner-id"
+"""The id of an object nested before the request's own id (``encode(..., "nested_id")``): never an answer's."""
+UNKNOWN = object()
+
+
+def expected_id(text):
+    """The id the answer to request ``text`` must carry: the top-level id of the JSON object the service parses
+    (None when it has no valid one), or UNKNOWN for text it cannot parse (its id is then recovered best-effort)."""
+    from tolerance_ros.core.jsonio import loads_strict
+    from tolerance_ros.services.contracts import valid_id
+    try:
+        doc = loads_strict(text)
+    except Exception:  # not JSON for the service: no id to be sure of
+        return UNKNOWN
+    rid = doc.get("id") if isinstance(doc, dict) else None
+    return rid if valid_id(rid) else None
 
 
 # ------------------------------------------------------------------ files: every reader of the project

@@ -11,15 +11,16 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzz_corpus import (ENCODINGS, PAYLOADS, allocate_request, budget_messages, encode, jacobian_request,
-                         joint_states, measured_poses, must_refuse, names_twice, readers, urdf_text)
+from fuzz_corpus import (ENCODINGS, NESTED_ID, PAYLOADS, UNKNOWN, allocate_request, budget_messages, encode,
+                         expected_id, jacobian_request, joint_states, measured_poses, must_refuse, names_twice,
+                         readers, urdf_text)
 from helpers import example_urdf
 from schemas_helpers import validator
 from tolerance_ros.core import interrupt
 from tolerance_ros.core.jsonio import dumps_fast, loads_strict
 from tolerance_ros.core.models import ModelError, warm_up_kernels
 from tolerance_ros.services.allocation import AllocatorService, Command, parse_allocate_request, run_allocation
-from tolerance_ros.services.contracts import CODES, ContractError, Limits, error_code, error_response, request_id_of
+from tolerance_ros.services.contracts import CODES, ContractError, Limits, answer_id, error_code, error_response
 from tolerance_ros.services.error_model import ErrorModelService
 from tolerance_ros.services.robots import RobotSet
 
@@ -55,6 +56,7 @@ def test_compute_error_jacobian_answers_everything(service, request, how):
     RESPONSE.validate(doc)
     if not doc["ok"]:
         assert doc["error"]["code"] in CODES and doc["error"]["code"] != "internal", doc
+    assert doc["id"] != NESTED_ID and expected_id(text) in (UNKNOWN, doc["id"]), (doc["id"], text[:200])
 
 
 @settings(max_examples=1000, deadline=None, suppress_health_check=list(HealthCheck))
@@ -64,10 +66,11 @@ def test_allocate_requests_are_parsed_or_refused_with_a_code(robots, request, ho
     try:
         job = parse_allocate_request(text, robots, Limits(max_bytes=100_000))
     except ContractError as exc:
-        doc = error_response(request_id_of(text), exc)
+        doc = error_response(answer_id(exc, text), exc)
         json.loads(json.dumps(doc))
         ALLOCATED.validate(doc)
         assert doc["error"]["code"] != "internal"
+        assert doc["id"] != NESTED_ID and expected_id(text) in (UNKNOWN, doc["id"]), (doc["id"], text[:200])
         return
     assert isinstance(job, Command) or job.limit > 0
 
