@@ -140,11 +140,15 @@ def _read(path):
         for name, entry in (doc.get(key) or {}).items():
             if not isinstance(entry, dict):
                 raise CalibrationError(f"{path}: {key}.{name}: expected a mapping")
-    for key, value in (doc.get("fit") or {}).items():
+    numbers = [(f"fit.{k}", v) for k, v in (doc.get("fit") or {}).items()] + [
+        (f"aliases.{n}.{h}", c) for n, a in (doc.get("aliases") or {}).items() for h, c in a.items()]
+    for field, value in numbers:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise CalibrationError(f"{path}: fit.{key}: expected a number, got {type(value).__name__}")
-        if key in _COUNTS and not float(value).is_integer():
-            raise CalibrationError(f"{path}: fit.{key}: expected a whole number, got {value!r}")
+            raise CalibrationError(f"{path}: {field}: expected a number, got {type(value).__name__}")
+        if isinstance(value, int) and abs(value) > 2 ** 53:
+            raise CalibrationError(f"{path}: {field}: an integer of {len(str(abs(value)))} digits is too large")
+        if field.split(".")[-1] in _COUNTS and field.startswith("fit.") and not float(value).is_integer():
+            raise CalibrationError(f"{path}: {field}: expected a whole number, got {value!r}")
     if not isinstance(doc.get("robot"), str):
         raise CalibrationError(f"{path}: robot: expected the robot's name")
     return doc
