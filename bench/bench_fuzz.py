@@ -219,12 +219,6 @@ def run_batch(service, n, batch_seed, use_ros, conn):
                         stats["late"] += 1
                         keep("late", doc["id"], f"{late:.3f} s after its time_limit")
 
-    def rss_mb():
-        try:
-            return next(int(line.split()[1]) / 1024 for line in Path("/proc/self/status").read_text().splitlines()
-                        if line.startswith("VmRSS"))
-        except (OSError, StopIteration):
-            return None
 
     with tempfile.TemporaryDirectory() as tmp:
         target = Target(service, use_ros, tmp)
@@ -262,7 +256,7 @@ def run_batch(service, n, batch_seed, use_ros, conn):
             check(text, answers)
             check(SOLVES, target.later())
             if stats["requests"] == WARM:
-                stats["rss_warm"] = rss_mb()
+                stats["rss_warm"] = rss_of_process()
 
         fuzz()
         deadline = time.monotonic() + 4 * ARGS.time_limit * max(ARGS.solve, 1) + 30
@@ -271,7 +265,7 @@ def run_batch(service, n, batch_seed, use_ros, conn):
                 check(SOLVES, target.later())
                 time.sleep(0.05)
             check(SOLVES, target.later())
-        stats["rss_end"] = rss_mb()
+        stats["rss_end"] = rss_of_process()
         target.close()
     conn.send(stats)
     conn.close()
@@ -541,6 +535,15 @@ def print_cases(title, results) -> bool:
 SOAK_CHUNK = 1_000
 
 
+def rss_of_process():
+    """Resident memory of this process, MB (None where /proc is not there)."""
+    try:
+        return next(int(line.split()[1]) / 1024 for line in Path("/proc/self/status").read_text().splitlines()
+                    if line.startswith("VmRSS"))
+    except (OSError, StopIteration):
+        return None
+
+
 def run_soak(service, n, conn):
     """Child process: ``n`` generated requests through one service's logic in chunks of SOAK_CHUNK, each chunk
     generated first and then answered under tracemalloc (the allocator then left to finish its solves): the
@@ -591,7 +594,7 @@ def run_soak(service, n, conn):
             time.sleep(0.05)
         texts.clear()
         gc.collect()
-        kept.append(tracemalloc.get_traced_memory()[0])
+        kept.append((tracemalloc.get_traced_memory()[0], rss_of_process()))
         tracemalloc.stop()
     if service != "compute_error_jacobian":
         logic.close()
@@ -716,8 +719,11 @@ def main():
         print(f"\nsoak: {ARGS.soak} requests per service through its logic in one process, chunks of {SOAK_CHUNK}; "
               f"KiB the service still holds after each chunk (allocator: {ARGS.solve} solves per chunk, then idle):")
         for service, kept in soaks.items():
-            shown = "the process died or hung" if kept is None else ", ".join(f"{k / 1024:.0f}" for k in kept)
-            print(f"  {service}: {shown}")
+            if kept is None:
+                print(f"  {service}: the process died or hung")
+                continue
+            print(f"  {service}: held {', '.join(f'{k / 1024:.0f}' for k, _ in kept)} KiB; process RSS "
+                  f"{', '.join(f'{r:.0f}' for _, r in kept)} MB")
     failed = any(kept is None for kept in soaks.values())
     failed = (bool(files) and print_cases("file reader", files)) or failed
     failed = (bool(entries) and print_cases("entry point", entries)) or failed
