@@ -58,7 +58,7 @@ def valid_allocate_request():
     allocation = st.fixed_dictionaries(
         {"id": ids(), "limit": st.floats(0.0008, 0.005)},
         optional={"model": st.sampled_from(["min-cost", "optimal-precision"]),
-                  "criterion": st.sampled_from(["paper", "rss"]), "seed": st.integers(0, 100),
+                  "criterion": st.sampled_from(["paper", "rss", "worst-case"]), "seed": st.integers(0, 100),
                   "mc_poses": st.integers(100, 500), "time_limit": st.floats(0.5, 2.0)})
     return st.one_of(allocation, st.fixed_dictionaries({"id": ids(), "command": st.just("status")}),
                      st.fixed_dictionaries({"id": ids(), "command": st.just("cancel"), "target": ids()}))
