@@ -1,4 +1,6 @@
 """Budget files: units, completeness, round trips."""
+import time
+
 import numpy as np
 import pytest
 
@@ -64,3 +66,33 @@ def test_free_parameters_count_as_zero_and_round_trip(gao, tmp_path):
     assert np.all(v[free] == 0) and np.allclose(v[~free], 1e-4)
     with pytest.raises(BudgetError, match="either free or toleranced"):
         load_budget(_write(tmp_path, "tolerances: {a1: 1}\nfree: [a1]\n"), gao)
+
+
+def test_a_budget_with_a_20_mb_string_is_refused_by_the_size_cap_at_once(gao, tmp_path):
+    p = _write(tmp_path, "tolerances: {a1: 0.001}\nsource: '" + "x" * 20_000_000 + "'\n")
+    t0 = time.perf_counter()
+    with pytest.raises(BudgetError, match=rf"^{p}: 20000035 bytes; a YAML file may have at most 4194304 bytes"):
+        load_budget(p, gao)
+    assert time.perf_counter() - t0 < 0.1
+
+
+@pytest.mark.parametrize("text, message", [
+    ("tolerances: {a1: 0.001, a1: 0.002}\n", r", line 1: key 'a1' given twice in one mapping"),
+    ("units: {length: mm}\ntolerances: {a1: 1_000}\ndefault: 0\n", r", line 2: '1_000' is a number with digit"),
+    (b"source: \xff\ntolerances: {a1: 0.001}\n", r", line 1, column 9: not UTF-8 text"),
+])
+def test_budget_yaml_that_would_change_a_value_is_refused_with_the_line(gao, tmp_path, text, message):
+    p = tmp_path / "b.yaml"
+    p.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with pytest.raises(BudgetError, match=rf"^{p}{message}"):
+        load_budget(p, gao)
+
+
+def test_json_budgets_refuse_duplicate_keys_and_deep_nesting(gao, tmp_path):
+    p = tmp_path / "b.json"
+    p.write_text('{"tolerances": {"a1": 0.001, "a1": 0.002}, "default": 0}')
+    with pytest.raises(BudgetError, match=rf"^{p}: key 'a1' given twice"):
+        load_budget(p, gao)
+    p.write_text('{"tolerances": {"a1": 0.001}, "default": 0, "meta": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    with pytest.raises(BudgetError, match=rf"^{p}: nested deeper than 32 levels"):
+        load_budget(p, gao)

@@ -1,4 +1,6 @@
 """Campaign files."""
+import time
+
 import numpy as np
 import pytest
 import yaml
@@ -40,3 +42,46 @@ def test_pose_without_ik_is_an_error(gao):
     c = campaign_from_dict({**GOOD, "poses": [{"name": "P1", "pose": {"xyz": [0, 0, 1], "rpy": [0, 0, 0]}}]})
     with pytest.raises(CampaignError, match="no inverse kinematics"):
         c.joints_for(gao)
+
+
+@pytest.mark.parametrize("units", [["deg"], "deg"])
+def test_units_that_are_not_a_mapping_are_the_campaigns_error(tmp_path, units):
+    p = tmp_path / "c.yaml"
+    p.write_text(yaml.safe_dump({**GOOD, "units": units}))
+    with pytest.raises(CampaignError, match=rf"^{p}: units: expected a mapping like \{{length: mm, angle: deg\}}"):
+        load_campaign(p)
+
+
+def test_a_joint_outside_its_limits_is_refused_in_the_files_units(gao, tmp_path):
+    p = tmp_path / "c.yaml"
+    far = {"name": "P2", "joints": [0, 720, 0, 0, 0, 0, 0]}
+    p.write_text(yaml.safe_dump({**GOOD, "poses": [GOOD["poses"][0], far]}))
+    with pytest.raises(CampaignError, match=rf"^{p}: poses\[1\].joints\[1\] \(joint2\) = 720 deg is outside the "
+                                            rf"joint's limits \[-180, 180\] deg on robot 'gao2023_7dof'"):
+        load_campaign(p, gao)
+    c = load_campaign(p)  # without the robot, the joints cannot be checked; joints_for checks them
+    with pytest.raises(CampaignError, match=r"poses\[1\].joints\[0\]\[1\] \(joint2\) = 12.5664 is outside"):
+        c.joints_for(gao)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("poses:\n  - {name: P1, joints: [0, 1_000, 0, 0, 0, 0, 0]}\n", r"line 2: '1_000' is a number with digit"),
+    ("poses:\n  - {name: P1, joints: [0, 1:30, 0, 0, 0, 0, 0]}\n", r"line 2: '1:30' is a sexagesimal"),
+    ("cycles: 3\npose_s: 1\ncycles: 4\n", r"line 3: key 'cycles' given twice"),
+    ("poses:\n" + "  " + "[" * 5000 + "]" * 5000 + "\n", r"line 2: nested deeper than 32 levels"),
+])
+def test_yaml_that_would_change_or_hang_the_campaign_is_refused_with_the_line(tmp_path, text, message):
+    p = tmp_path / "c.yaml"
+    p.write_text(text)
+    with pytest.raises(CampaignError, match=rf"^{p}, {message}"):
+        load_campaign(p)
+
+
+def test_a_campaign_of_20000_poses_loads_fast(gao, tmp_path):
+    p = tmp_path / "big.yaml"
+    p.write_text("units: {angle: deg}\nposes:\n" + "".join(
+        f"  - {{name: P{i}, joints: [10, 20, 30, 40, 50, 60, {i % 90}]}}\n" for i in range(20_000)))
+    t0 = time.perf_counter()
+    c = load_campaign(p, gao)
+    assert time.perf_counter() - t0 < 8.0  # 1 s on an idle core, 5 s at load average 5; PyYAML's Python loader: 12-18 s
+    assert len(c.poses) == 20_000 and c.poses[-1].joints[-1] == pytest.approx(np.deg2rad(19_999 % 90))

@@ -38,6 +38,17 @@ def test_joint_order_reorders_ignores_extras_and_names_what_is_missing():
     np.testing.assert_array_equal(order.rows(["j3", "j2", "j1"], [[3, 2, 1], [6, 5, 4]]), [[1, 2, 3], [4, 5, 6]])
 
 
+def test_a_joint_named_twice_or_names_that_are_not_a_list_are_refused():
+    order = JointOrder(["j1", "j2", "j3"])
+    with pytest.raises(IngestError, match=r"joint\(s\) \['j1'\] named more than once in one joint state"):
+        order(["j1", "j2", "j3", "j1"], [1.0, 2.0, 3.0, 4.0])
+    np.testing.assert_array_equal(order(["x", "j1", "j2", "j3", "x"], [0, 1, 2, 3, 0]), [1, 2, 3])  # extras may repeat
+    with pytest.raises(IngestError, match="name: expected a list of joint names, got NoneType"):
+        order(None, [1.0, 2.0, 3.0])
+    with pytest.raises(IngestError, match="name: expected joint names"):
+        order([["j1"], "j2", "j3"], [1.0, 2.0, 3.0])
+
+
 def test_poses_from_position_and_quaternion():
     R = Rotation.from_euler("xyz", [0.1, 0.2, 0.3])
     T = pose_from_values([1.0, 2.0, 3.0], R.as_quat() * 2.0)

@@ -39,3 +39,9 @@ def test_parse_number(text, value):
 def test_parse_number_rejects_everything_else(text):
     with pytest.raises(UnitError, match="f"):
         parse_number(text, "f")
+
+
+@pytest.mark.parametrize("text", ["1_000", "1_0.5", "2*1_0"])
+def test_digit_separators_in_a_number_string_are_refused(text):
+    with pytest.raises(UnitError, match=r"tolerances.a1: .*digit separators '_' are not accepted"):
+        parse_number(text, "tolerances.a1")

@@ -53,6 +53,9 @@ def test_allocate_request_parsing(robots, gao):
     ('{"id": 1, "limit": 0.001, "ga_rounds": 1000000000}', "invalid_request", "ga_rounds"),
     ('{"id": 1, "limit": 0.001, "ga_tol": 1000000000}', "invalid_request", "ga_tol"),
     ('{"id": 1, "limit": 0.001, "time_limit": 1e9}', "invalid_request", "time_limit"),
+    ('{"id": 1, "limit": 0.001, "time_limit": 4.9e-324}', "invalid_request",
+     "time_limit: 4.94066e-324 is outside [0.1, 3600]"),
+    ('{"id": 1, "limit": 0.001, "time_limit": 0}', "invalid_request", "time_limit: 0 is outside [0.1, 3600]"),
     ('{"id": 1, "limit": 0.001, "solver": "ga", "orientation_limit": 0.001}', "invalid_request", "GA handles"),
 ])
 def test_bad_requests_are_refused_before_any_work(robots, text, code, needle):
@@ -160,3 +163,91 @@ def test_a_request_that_cannot_be_parsed_never_escapes(robots):
         assert [d["id"] for d in answers] == [None] * 6
     finally:
         service.close()
+
+
+def test_the_answer_carries_the_top_level_id_never_a_nested_one(robots):
+    out = Outbox()
+    service = AllocatorService(robots, out)
+    try:
+        for text in ('{"floors": {"id": "inner", "zz": 1}, "id": "abc", "limit": 0.0014}',
+                     '{"zz": {"id": "inner"}, "id": "abc", "limit": 0.0014}', None):
+            service.handle(text)
+        answers = [d for k, d in out.items if k == "response"]
+        assert [(d["id"], d["error"]["code"]) for d in answers] == [("abc", "invalid_request")] * 2 + \
+            [(None, "invalid_request")]
+    finally:
+        service.close()
+
+
+def test_the_time_limit_holds_for_a_job_that_waits_and_for_a_long_solver_step(robots):
+    """From its acceptance, each job is answered within 0.5 s of its time_limit: one queued behind a longer
+    job (it waited for the worker), and a worst-case allocation whose check-sample evaluation is one long
+    step (it was answered 4 s late)."""
+    out = Outbox()
+    service = AllocatorService(robots, out)
+    try:
+        t0 = time.monotonic()
+        service.handle('{"id": "long", "limit": 0.005, "criterion": "worst-case", "mc_poses": 200, "time_limit": 3}')
+        service.handle('{"id": "queued", "limit": 0.0014, "time_limit": 1}')
+        answer = out.wait(lambda d: d["id"] == "queued" and d.get("status") != "accepted", 10)
+        assert answer["status"] == "timeout" and "while it waited in the queue" in answer["error"]["message"]
+        assert time.monotonic() - t0 < 1.5
+        answer = out.wait(lambda d: d["id"] == "long" and d.get("status") != "accepted", 20)
+        assert answer["status"] in ("timeout", "done") and time.monotonic() - t0 < 3.5
+    finally:
+        service.close()
+
+
+def test_the_finished_jobs_kept_are_bounded(robots):
+    from tolerance_ros.services.allocation import MAX_FINISHED
+    out = Outbox()
+    service = AllocatorService(robots, out, max_queue=MAX_FINISHED + 50)
+    try:
+        for i in range(MAX_FINISHED + 50):
+            service.handle(json.dumps({"id": i, "limit": 0.0014, "time_limit": 0.1}))
+        out.wait(lambda d: d["id"] == MAX_FINISHED + 49 and d.get("status") == "timeout", 20)
+        assert len(service.done) == MAX_FINISHED and service.done[-1]["id"] == MAX_FINISHED + 49
+        service.handle('{"id": "s", "command": "status"}')
+        assert len(out.wait(lambda d: d["id"] == "s")["finished"]) == 10
+    finally:
+        service.close()
+
+
+def test_the_outbox_holds_each_jobs_latest_progress_and_every_answer_in_order():
+    """A publisher that falls behind (the node's timer) holds one progress per job, not every iteration's."""
+    from tolerance_ros.services.allocation import Outbox
+    box = Outbox()
+    box("response", {"id": "a", "status": "accepted"})
+    for k in range(10_000):
+        box("progress", {"id": "a" if k % 2 else 1, "fraction": k / 10_000})
+    box("budget", {"id": "a"})
+    box("response", {"id": "a", "status": "done"})
+    assert len(box) == 5
+    out = box.drain()
+    assert [(k, d["id"]) for k, d in out] == [("progress", 1), ("progress", "a"), ("response", "a"), ("budget", "a"),
+                                              ("response", "a")]
+    assert out[1][1]["fraction"] == 0.9999 and box.drain() == []
+
+
+def test_no_progress_goes_out_once_a_job_is_answered(robots, monkeypatch):
+    """A solve still stopping after its timeout or cancel answer (a long step) says nothing more."""
+    from tolerance_ros.core import interrupt
+    from tolerance_ros.services import allocation
+
+    def solve(job, progress):
+        progress(1, 3)
+        entry.answered = True  # the watchdog or a cancel answered meanwhile
+        progress(2, 3)
+        return {"id": job.id, "ok": True, "status": "done"}
+
+    out = Outbox()
+    service = AllocatorService(robots, out)
+    try:
+        monkeypatch.setattr(allocation, "run_allocation", solve)
+        job = parse('{"id": "p", "limit": 0.0014}', robots)
+        entry = allocation._Entry(job, interrupt.StopToken(5.0))
+        service._solve(entry)
+        assert [d["fraction"] for kind, d in out.items if kind == "progress"] == [1 / 3]
+    finally:
+        service.close()
+

@@ -106,6 +106,41 @@ def test_errors_have_their_code_and_name_the_field(service, req, code, needle):
     assert r["ok"] is False and r["error"]["code"] == code and needle in r["error"]["message"], r
 
 
+def test_targets_a_kilometre_away_are_flagged_with_finite_residuals(service):
+    far = [[1000.0, 0.0, 0.5, 0.0, 0.0, 0.0, 1.0], [0.0, -1000.0, 0.5, 0.0, 0.0, 0.0, 1.0]]
+    r = ask(service, {"id": "far", "command": "compensate", "poses": far})
+    assert r["ok"] and r["out_of_reach"] == [0, 1]
+    assert all(np.isfinite(r[k]).all() for k in ("joints", "residual_position_m", "residual_orientation_rad"))
+    assert 990 < min(r["residual_position_m"]) and max(r["residual_position_m"]) < 1010
+    r = ask(service, {"id": "farther", "command": "compensate", "poses": [[1e200, 0, 0, 0, 0, 0, 1]]})
+    assert r["error"]["code"] == "invalid_request" and "poses[0]: a target 1e+200 m from the base is beyond 1e+06 m" \
+        in r["error"]["message"]
+
+
+def test_joint_targets_whose_tool_is_beyond_a_thousand_km_are_refused_not_solved_into_overflow():
+    from tolerance_ros.core.models import DHChain
+    slide = DHChain("slide", a=[0.0, 0.3], alpha=[0.5, 0.0], d=[0.0, 0.0], theta=[0.0, 0.0],
+                    joint_types=["revolute", "prismatic"], joint_limits=[[-3, 3], [0, 1]])
+    svc = ErrorModelService({"slide": slide}, "slide",
+                            calibrations={"slide": calibrated_mechanism(slide, np.full(8, 1e-3), np.zeros(6))})
+    r = ask(svc, {"id": 1, "command": "compensate", "joints": [[0.1, 1e300]], "allow_out_of_limits": True})
+    assert r["error"]["code"] == "invalid_request" and "joints[0]: the target's tool point is 8.78e+299 m from the " \
+        "base, beyond 1e+06 m" in r["error"]["message"]
+    assert ask(svc, {"id": 2, "command": "compensate", "joints": [[0.1, 1e5]], "allow_out_of_limits": True})["ok"]
+
+
+def test_the_work_of_a_compensate_request_is_capped(gao):
+    svc = ErrorModelService({"gao2023_7dof": gao}, "gao2023_7dof", Limits(max_compensate_joints=30,
+                                                                        max_compensate_poses=3))
+    many = gao.sample_joints(31, 0).tolist()
+    r = ask(svc, {"id": 1, "command": "compensate", "model": "nominal", "joints": many})
+    assert r["error"]["code"] == "too_large" and "joints: 31 targets exceed the cap of 30" in r["error"]["message"]
+    assert ask(svc, {"id": 2, "command": "compensate", "model": "nominal", "joints": many[:30]})["ok"]
+    r = ask(svc, {"id": 3, "command": "compensate", "model": "nominal", "poses": [EYE] * 4})
+    assert r["error"]["code"] == "too_large" and "poses: 4 targets exceed the cap of 3" in r["error"]["message"]
+    assert Limits().max_compensate_joints == 1000 and Limits().max_compensate_poses == 100
+
+
 @pytest.mark.parametrize("req", [
     {"id": 1, "command": "compensate", "joints": [Q], "poses": [EYE]},
     {"id": 1, "command": "compensate", "joints": [Q], "tolerances": "current"},

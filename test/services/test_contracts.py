@@ -5,8 +5,9 @@ import re
 import pytest
 
 from tolerance_ros.core.budget import load_budget
-from tolerance_ros.services.contracts import (MAX_DEPTH, ContractError, Limits, budget_from_message, error_code,
-                                              error_response, nesting_depth, parse_request, request_id_of)
+from tolerance_ros.services.contracts import (MAX_DEPTH, ContractError, Limits, answer_id, budget_from_message,
+                                              error_code, error_response, nesting_depth, parse_request,
+                                              request_id_of)
 
 FIELDS = {"x": ((int,), False)}
 
@@ -52,6 +53,31 @@ def test_depth_of_long_texts_with_escapes_and_non_ascii_strings():
 ])
 def test_the_id_of_a_broken_request_is_recovered_safely(text, rid):
     assert request_id_of(text) == rid
+
+
+@pytest.mark.parametrize("text", [
+    '{"zz": {"id": "inner"}, "id": "abc", "joints": [NaN]}', '{"zz": [{"id": 5}], "s": "{\\"id\\": 6}", "id": "abc", x',
+    '{"zz": {"id": "inner"}, "id": "abc", "pad": "' + "x" * 2000 + '"}',
+])
+def test_the_recovered_id_is_the_top_level_one(text):
+    assert request_id_of(text) == "abc"
+
+
+@pytest.mark.parametrize("text, rid", [
+    ('{"zz": {"id": "inner"}, "id": "abc", "x": 1}', "abc"), ('{"zz": {"id": "inner"}, "id": true, "x": 1}', None),
+    ('[{"id": "inner"}]', None), ('{"zz": {"id": "inner"}, "x": "no id"}', None),
+])
+def test_an_error_about_a_parsed_request_carries_its_own_top_level_id(text, rid):
+    with pytest.raises(ContractError) as exc:
+        parse_request(text, FIELDS, Limits())
+    assert exc.value.request_id == rid and answer_id(exc.value, text) == rid
+
+
+@pytest.mark.parametrize("payload", [None, 42, 1.5, ["{}"], {"id": 1}, object()])
+def test_a_payload_that_is_not_text_is_an_invalid_request(payload):
+    with pytest.raises(ContractError) as exc:
+        parse_request(payload, FIELDS, Limits())
+    assert exc.value.code == "invalid_request" and "expected the request as text" in exc.value.message
 
 
 def test_error_codes_come_from_the_exception_type():

@@ -72,6 +72,10 @@ def test_bounds_with_tolerances(service, gao):
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"bogus": -1}}', "invalid_request", "-1 is outside [0, inf)"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"a1": 1e-4}}', "invalid_request", "no tolerance for"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": "current"}', "invalid_request", "no budget"),
+    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"default": 0}}', "invalid_request",
+     "tolerances: no parameter has a tolerance"),
+    ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"tolerances": {}, "default": 0}}', "invalid_request",
+     "tolerances.tolerances: no parameter has a tolerance"),
     ('{"id": 1, "joints": [0,0,0,0,0,0,0], "tolerances": {"a1": 1e-4, "default": 0}, "criteria": ["max"]}',
      "invalid_request", "criteria"),
     ('{"id": 1, "joints": ' + json.dumps([[0] * 7] * 51) + '}', "too_large", "cap of 50"),
@@ -85,6 +89,21 @@ def test_error_paths(service, request_text, code, needle):
 def test_id_is_echoed_even_when_the_json_is_broken(service):
     r = ask(service, '{"id": "abc", "joints": [NaN]}')
     assert r["id"] == "abc" and r["error"]["code"] == "invalid_json"
+
+
+def test_the_answer_carries_the_top_level_id_never_a_nested_one(service):
+    for req in ('{"zz": {"id": "inner"}, "id": "abc", "joints": [0, 0, 0, 0, 0, 0, 0]}',
+                '{"tolerances": {"id": "inner", "a1": -1}, "id": "abc", "joints": [0, 0, 0, 0, 0, 0, 0]}',
+                '{"zz": {"id": "inner"}, "id": "abc", "joints": [NaN]}'):
+        assert ask(service, req)["id"] == "abc"
+    assert ask(service, '{"zz": {"id": "inner"}, "joints": [0, 0, 0, 0, 0, 0, 0]}')["id"] is None
+
+
+@pytest.mark.parametrize("payload", [None, 5, ["{}"], {"id": 1, "joints": Q}])
+def test_a_payload_that_is_not_text_is_an_invalid_request_not_internal(service, payload):
+    r = json.loads(service.handle_text(payload))
+    jsonschema.validate(r, schema("compute_error_jacobian.response"))
+    assert r["id"] is None and r["error"]["code"] == "invalid_request"
 
 
 def test_out_of_limits_can_be_allowed_and_is_reported(service):
@@ -128,6 +147,35 @@ def test_bound_at_a_joint_state_uses_the_current_budget(gao):
     assert (b["robot"], b["criterion"], b["stamp"]) == ("gao2023_7dof", "paper", 12.5)
     assert b["position_bound_m"] == pytest.approx(paper_bound(J, svc.current_budget.vector_for(gao))[0])
     assert svc.bound_at(["joint1"], [0.0]) is None                   # joints missing
+
+
+@pytest.mark.parametrize("field, value, needle", [
+    ("criterion", ["paper"], "budget.criterion: expected one of"), ("criterion", "banana", "budget.criterion"),
+    ("limit_position", float("nan"), "budget.limit_position"), ("robot", "ur5", "budget for robot 'ur5'"),
+])
+def test_a_budget_that_would_fail_every_bound_is_refused_when_it_arrives(gao, field, value, needle):
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.services.contracts import ContractError
+    svc = ErrorModelService({"gao2023_7dof": gao}, "gao2023_7dof")
+    good = load_budget("gao2023_delta2", gao)
+    svc.current_budget = good
+    bad = load_budget("gao2023_delta2", gao)
+    setattr(bad, field, value)
+    with pytest.raises(ContractError, match=needle):
+        svc.current_budget = bad
+    assert svc.current_budget is good and svc.bound_at(gao.joint_names, Q)["criterion"] == "paper"
+    with pytest.raises(ValueError, match="criterion: expected one of"):
+        svc.bound_at(gao.joint_names, Q, criterion="banana")
+
+
+def test_a_3pups_joint_at_1e10_with_allow_out_of_limits_is_a_clear_error_not_internal():
+    from tolerance_ros.core.models import load_robot
+    pups = load_robot("rong2018_3pups")
+    svc = ErrorModelService({pups.name: pups}, pups.name)
+    q = pups.joint_limits.mean(axis=1)
+    q[0] = 1e10
+    r = ask(svc, {"id": 1, "joints": q.tolist(), "allow_out_of_limits": True})
+    assert r["error"]["code"] == "invalid_request" and "cannot close the platform triangle" in r["error"]["message"]
 
 
 def test_compact_arrays_are_the_same_numbers(service):

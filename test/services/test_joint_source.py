@@ -37,3 +37,11 @@ def test_selected_poses_have_high_index(gao):
 def test_bad_settings(gao, kwargs, message):
     with pytest.raises(ValueError, match=message):
         JointStateSequence(gao, **kwargs)
+
+
+@pytest.mark.parametrize("t", [float("nan"), float("inf")])
+def test_a_time_that_is_not_finite_is_refused(gao, t):
+    seq = JointStateSequence(gao, "random", count=3)
+    with pytest.raises(ValueError, match="t: expected a finite time in s"):
+        seq.at(t)
+    assert seq.at(1e300)[3] is True  # long after the end: the last configuration, held

@@ -39,6 +39,10 @@ def pose_stamped(t, T):
                                                 orientation=Q(x=q[0], y=q[1], z=q[2], w=q[3])))
 
 
+def _position_and_quaternion(T):
+    return T[:3, 3], matrices_to_quat(T[None, :3, :3])[0]
+
+
 @pytest.fixture
 def setup(gao, tmp_path):
     budget = load_budget("gao2023_delta2", gao)
@@ -99,6 +103,34 @@ def test_joint_state_with_other_names_is_rejected_not_crashing(gao, setup):
     mon, *_ = setup
     assert mon.on_joint_state(1.0, ["a", "b"], [0, 0]) == []
     assert mon.counts["joint_states_rejected"] == 1
+
+
+def test_names_that_are_not_a_list_and_a_frame_that_is_not_utf8_are_refused_and_counted(gao, setup):
+    mon, _, _, _, log = setup
+    assert mon.on_joint_state(1.0, None, [0.0] * 7) == []
+    assert mon.on_joint_state(1.0, list(gao.joint_names) + ["joint1"], [0.0] * 8) == []
+    assert mon.counts["joint_states_rejected"] == 2 and mon.counts["joint_states"] == 0
+    assert "name: expected a list of joint names" in mon.last_reasons[-2]
+    assert mon.on_pose(1.0, "tracker\ud800", [1, 2, 3], [0, 0, 0, 1]) == []
+    assert mon.counts["rejected"] == 1 and "frame_id: not UTF-8 text" in mon.last_reasons[-1]
+    mon.close()
+    rec = [json.loads(line) for line in log.read_text().splitlines()][-1]
+    assert rec["frame"] == "tracker\\ud800" and rec["rejected"].startswith("frame_id")
+
+
+@pytest.mark.parametrize("criterion", [["paper"], "banana", "per-axis"])
+def test_a_budget_with_a_criterion_that_is_not_a_limit_criterion_is_refused_when_it_arrives(gao, setup, criterion):
+    from tolerance_ros.services.contracts import ContractError
+    mon, sim, qk, _, _ = setup
+    before = mon.budget
+    bad = load_budget("gao2023_delta2", gao)
+    bad.criterion = criterion
+    with pytest.raises(ContractError, match=r"budget.criterion: expected one of \['paper', 'worst-case', 'rss'\]"):
+        mon.set_budget(bad)
+    assert mon.budget is before
+    mon.on_joint_state(1.0, gao.joint_names, qk[0])
+    [paired] = mon.on_pose(1.0, "tracker", *_position_and_quaternion(sim.measure_at(qk[0])))
+    assert paired["verdict"] == "within" and np.isfinite(paired["bound"])  # the bounds of the previous budget
 
 
 def test_hostile_names_and_frames_take_bounded_space(gao, setup):

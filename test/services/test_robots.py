@@ -38,8 +38,9 @@ def test_the_robot_on_robot_description_arrives_is_replaced_and_survives_a_bad_o
             robots.on_description(path)
     entities = ('<!DOCTYPE r [<!ENTITY a "aaaaaaaaaa">' + "".join(
         f'<!ENTITY {c} "{("&" + p + ";") * 10}">' for p, c in zip("abcdefgh", "bcdefghi")) + ']><robot name="&i;"/>')
-    for bad in (entities, example_urdf("ur5_robot.urdf").read_text() + "<extra/>"):
-        with pytest.raises(ModelError, match="not well-formed XML"):
+    for bad, why in ((entities, "entity declarations"), (example_urdf("ur5_robot.urdf").read_text() + "<extra/>",
+                                                         "not well-formed XML")):
+        with pytest.raises(ModelError, match=why):
             robots.on_description(bad)
     assert robots.select()[0] == "ur5" and robots.version == 1                      # the previous robot stays
     with pytest.raises(ContractError, match="empty"):

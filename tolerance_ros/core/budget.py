@@ -27,6 +27,7 @@ import yaml
 from .errors import LIMIT_CRITERIA
 from .resources import resolve
 from .units import UnitError, angle_scale, length_scale, parse_number
+from .yamlio import read_json, read_yaml
 
 _KEYS = {"robot", "units", "limit", "criterion", "tolerances", "free", "default", "source", "meta"}
 
@@ -194,11 +195,7 @@ def _guess_kind(name: str):
 def load_budget(spec, model=None) -> Budget:
     """Budget from a YAML/JSON path or a shipped budget name; with ``model``, units follow its parameters."""
     path = resolve("budgets", spec, suffixes=(".yaml", ".yml", ".json"))
-    text = path.read_text()
-    try:
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        raise BudgetError(f"{path}: cannot parse: {exc}") from None
+    data = read_json(path, BudgetError) if path.suffix == ".json" else read_yaml(path, BudgetError)
     kinds = dict(zip(model.param_names, model.param_kinds)) if model is not None else None
     try:
         budget = budget_from_dict(data, kinds)

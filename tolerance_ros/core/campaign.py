@@ -18,14 +18,14 @@ mechanisms have it; serial chains take ``joints``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .geometry import transform
+from .models.base import ModelError
 from .resources import resolve
 from .units import UnitError, angle_scale, length_scale, parse_number
+from .yamlio import read_yaml
 
 _KEYS = {"name", "robot", "units", "cycles", "dwell", "order", "poses", "description", "source", "notes"}
 
@@ -66,7 +66,10 @@ class Campaign:
         out = []
         for i, tp in enumerate(self.poses):
             if tp.joints is not None:
-                out.append(model.check_joints(tp.joints, f"poses[{i}].joints")[0])
+                try:
+                    out.append(model.check_joints(tp.joints, f"poses[{i}].joints", allow_out_of_limits=False)[0])
+                except ModelError as exc:
+                    raise CampaignError(f"campaign {self.name!r}: {exc}") from None
             elif hasattr(model, "inverse_kinematics"):
                 out.append(np.asarray(model.inverse_kinematics(tp.pose[None]), dtype=float)[0])
             else:
@@ -82,14 +85,22 @@ class Campaign:
         return [(i, c) for c in range(self.cycles) for i in range(k)]
 
 
-def campaign_from_dict(data, dof=None) -> Campaign:
-    """Campaign from a parsed file (see the module docstring)."""
+def campaign_from_dict(data, dof=None, model=None) -> Campaign:
+    """Campaign from a parsed file (see the module docstring). With ``model``, the joints must fit it:
+    ``dof`` values each, within the joint limits."""
     if not isinstance(data, dict):
         raise CampaignError("campaign: expected a mapping")
     extra = sorted(set(data) - _KEYS)
     if extra:
         raise CampaignError(f"campaign: unknown key(s) {extra}; allowed: {sorted(_KEYS)}")
+    if model is not None:
+        dof = model.dof
     units = data.get("units") or {}
+    if not isinstance(units, dict):
+        raise CampaignError(f"units: expected a mapping like {{length: mm, angle: deg}}, got {units!r:.40}")
+    bad = sorted(set(units) - {"length", "angle"})
+    if bad:
+        raise CampaignError(f"units: unknown key(s) {bad}; allowed: angle, length")
     try:
         ls, as_ = length_scale(units.get("length", "m")), angle_scale(units.get("angle", "rad"))
     except UnitError as exc:
@@ -131,11 +142,12 @@ def campaign_from_dict(data, dof=None) -> Campaign:
                 if not isinstance(j, list) or (dof is not None and len(j) != dof):
                     raise CampaignError(f"{f}.joints: expected a list of {dof or 'n'} numbers")
                 kinds = p.get("joint_units")
-                vals = [parse_number(v, f"{f}.joints[{k}]") for k, v in enumerate(j)]
+                vals = _numbers(j, f"{f}.joints")
                 if kinds is None:
-                    tp.joints = np.array(vals) * as_  # revolute joints by default
+                    tp.joints = vals * as_  # revolute joints by default
                 else:
-                    if not isinstance(kinds, list) or len(kinds) != len(vals):
+                    if not isinstance(kinds, list) or len(kinds) != len(vals) or \
+                            not all(k in ("angle", "length") for k in kinds):
                         raise CampaignError(f"{f}.joint_units: expected one of 'angle'/'length' per joint")
                     tp.joints = np.array([v * (ls if k == "length" else as_) for v, k in zip(vals, kinds)])
             else:
@@ -150,19 +162,52 @@ def campaign_from_dict(data, dof=None) -> Campaign:
         except UnitError as exc:
             raise CampaignError(str(exc)) from None
         poses.append(tp)
+    if model is not None:
+        _within_limits(model, raw, poses, units)
     return Campaign(str(data.get("name", "campaign")), poses, cycles, float(dwell), order, data.get("robot"),
                     {k: data[k] for k in ("description", "source", "notes") if k in data})
 
 
+def _numbers(values, field) -> np.ndarray:
+    """(n,) floats of a list of numbers or number strings (``parse_number``); plain finite numbers take a
+    fast path."""
+    if all(type(v) is float or type(v) is int for v in values):
+        try:
+            arr = np.array(values, dtype=float)
+        except OverflowError:
+            arr = None
+        if arr is not None and np.isfinite(arr).all():
+            return arr
+    return np.array([parse_number(v, f"{field}[{k}]") for k, v in enumerate(values)], dtype=float)
+
+
+def _within_limits(model, raw, poses, units):
+    """CampaignError naming the first joint (of the poses given as joints) outside the model's limits, in the
+    file's units."""
+    given = [i for i, tp in enumerate(poses) if tp.joints is not None]
+    if not given:
+        return
+    q = np.array([poses[i].joints for i in given])
+    lo, hi = model.joint_limits[:, 0], model.joint_limits[:, 1]
+    out = np.argwhere((q < lo - 1e-12) | (q > hi + 1e-12))
+    if out.size:
+        r, k = out[0]
+        i = given[r]
+        length = (raw[i].get("joint_units") or ["angle"] * model.dof)[k] == "length"
+        unit = units.get("length", "m") if length else units.get("angle", "rad")
+        scale = length_scale(unit) if length else angle_scale(unit)
+        raise CampaignError(f"poses[{i}].joints[{k}] ({model.joint_names[k]}) = {q[r, k] / scale:.6g} {unit} is "
+                            f"outside the joint's limits [{lo[k] / scale:.6g}, {hi[k] / scale:.6g}] {unit} on robot "
+                            f"{model.name!r}")
+
+
 def load_campaign(spec, model=None) -> Campaign:
-    """Campaign from a YAML path or a shipped name (``config/campaigns``)."""
+    """Campaign from a YAML path or a shipped name (``config/campaigns``); with ``model``, its joints are
+    checked against the model's joint count and limits."""
     path = resolve("campaigns", spec)
+    data = read_yaml(path, CampaignError)
     try:
-        data = yaml.safe_load(Path(path).read_text())
-    except yaml.YAMLError as exc:
-        raise CampaignError(f"{path}: not valid YAML: {exc}") from None
-    try:
-        camp = campaign_from_dict(data, model.dof if model is not None else None)
+        camp = campaign_from_dict(data, model=model)
     except CampaignError as exc:
         raise CampaignError(f"{path}: {exc}") from None
     if model is not None and camp.robot and camp.robot != model.name:

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import interrupt
+
 _PERTURB = 1e-9
 
 
@@ -117,6 +119,7 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
     chunk = max(1, int(max_chunk_bytes // (8 * npairs * (m + 8))))
     best_s = np.ones((n, m))
     for a in range(0, n, chunk):
+        interrupt.check()  # a long evaluation stops at the caller's deadline (a no-op outside interrupt.watching)
         b = min(n, a + chunk)
         g, gp = Ga[a:b], Gp[a:b]
         V = np.cross(gp[:, :, ii], gp[:, :, jj], axis=1)           # (c, 3, pairs)

@@ -49,13 +49,24 @@ class JointOrder:
         self._index = None
 
     def index(self, names) -> np.ndarray:
-        """(dof,) positions in ``names`` of the model's joints; raises IngestError naming missing joints."""
-        names = tuple(names)
+        """(dof,) positions in ``names`` of the model's joints; raises IngestError naming missing joints, and
+        joints of the model named twice (which of the two values holds is unknown)."""
+        try:
+            names = tuple(names)
+        except TypeError:
+            raise IngestError(f"name: expected a list of joint names, got {type(names).__name__}") from None
         if names != self._names:
-            lookup = {n: i for i, n in enumerate(names)}
+            try:
+                lookup = {n: i for i, n in enumerate(names)}
+            except TypeError:
+                raise IngestError("name: expected joint names (text)") from None
             missing = [n for n in self.joint_names if n not in lookup]
             if missing:
                 raise IngestError(f"no value for joint(s) {missing} (have {_shown(names)})")
+            if len(lookup) < len(names):
+                twice = [n for n in self.joint_names if names.count(n) > 1]
+                if twice:
+                    raise IngestError(f"joint(s) {twice[:10]} named more than once in one joint state")
             self._index = np.array([lookup[n] for n in self.joint_names], dtype=int)
             self._names = names
         return self._index

@@ -64,7 +64,7 @@ def _eval_node(node, field):
 
 def parse_number(value, field: str) -> float:
     """A finite float from a number or a small arithmetic string (at most ``MAX_EXPRESSION_CHARS``) such as
-    ``'-pi/2'``."""
+    ``'-pi/2'``; digit separators (``'1_000'``) are refused, since YAML readers disagree on them."""
     if isinstance(value, bool):
         raise UnitError(f"{field}: expected a number, got {value!r}")
     if isinstance(value, (int, float)):
@@ -76,6 +76,9 @@ def parse_number(value, field: str) -> float:
         if len(value) > MAX_EXPRESSION_CHARS:
             raise UnitError(f"{field}: a number written in more than {MAX_EXPRESSION_CHARS} characters: "
                             f"{value[:40]!r}...")
+        if "_" in value:
+            raise UnitError(f"{field}: {value[:40]!r}: digit separators '_' are not accepted in a number; write it "
+                            f"without them")
         try:
             tree = ast.parse(value.strip(), mode="eval")
         except (SyntaxError, ValueError):

@@ -160,10 +160,10 @@ class AccuracyMonitor(Node):
         model = self.logic.model
         try:
             _, budget = budget_from_message(msg.data, {model.name: model})
+            self.logic.set_budget(budget)
         except ContractError as exc:
             self.get_logger().error(f"budget message ignored: {exc.message}")
             return
-        self.logic.set_budget(budget)
         self.get_logger().info(f"new budget: {budget.source or 'tolerance_budget'}")
 
     def diagnostic(self) -> dict:

@@ -21,6 +21,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
+from ..core.errors import CRITERIA
 from ..core.jsonio import dumps_fast, warm_up_base64
 from ..services.contracts import ContractError, Limits, budget_from_message
 from ..services.compensation import load_calibrations
@@ -45,6 +46,10 @@ class ErrorModelServer(Node):
         max_poses = declare(self, "max_poses", 10_000, "size cap of a request, configurations")
         max_worst = declare(self, "max_worst_case_poses", 1_000, "configurations per request with the 'worst-case' "
                                                                  "criterion (O(p^3) work per configuration)")
+        max_comp_joints = declare(self, "max_compensate_joints", 1_000, "targets of a compensate request given as "
+                                                                        "joints")
+        max_comp_poses = declare(self, "max_compensate_poses", 100, "targets of a compensate request given as tool "
+                                                                    "poses (each solved from 9 starts)")
         self.criterion = declare(self, "bound_criterion", "", "criterion of the predicted bound on joint states "
                                  "(paper | worst-case | rss); empty takes the budget's")
         self.calibration = declare(self, "calibration", "", "calibration file (tolerance-ros calibrate) of a served robot: "
@@ -53,7 +58,10 @@ class ErrorModelServer(Node):
                                                  "a second (Hz), from the latest joint state")
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and 0.0 < rate <= 10_000.0):
             raise ValueError(f"bound_rate: expected a rate in (0, 10000] Hz, got {rate!r}")
-        self.service = ErrorModelService(robot_set(self, specs, default), limits=Limits(max_bytes, max_poses, max_worst))
+        if self.criterion and self.criterion not in CRITERIA:
+            raise ValueError(f"bound_criterion: expected one of {list(CRITERIA)} or empty, got {self.criterion!r}")
+        limits = Limits(max_bytes, max_poses, max_worst, max_comp_joints, max_comp_poses)
+        self.service = ErrorModelService(robot_set(self, specs, default), limits=limits)
         warm_up_base64()
         self.load_calibration()
         self.responses = self.create_publisher(String, f"{JACOBIAN_TOPIC}/response", SERVICE_RESPONSE_QOS)

@@ -6,7 +6,6 @@ acknowledged and queued, ``status`` and ``cancel`` are answered at once, progres
 on ``tolerance_budget`` (transient local: late subscribers get it)."""
 from __future__ import annotations
 
-import queue
 from pathlib import Path
 
 from rclpy.node import Node
@@ -14,7 +13,7 @@ from std_msgs.msg import String
 
 from ..core.budget import budget_from_dict
 from ..core.jsonio import dumps_fast
-from ..services.allocation import MAX_TIME_LIMIT_S, AllocatorService
+from ..services.allocation import MAX_TIME_LIMIT_S, AllocatorService, Outbox
 from ..services.contracts import Limits
 from .common import (ALLOCATE_TOPIC, BUDGET_QOS, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, declare,
                      follow_robot_description, guarded, robot_set, run)
@@ -38,9 +37,9 @@ class ToleranceAllocator(Node):
         max_bytes = declare(self, "max_request_bytes", 100_000, "size cap of a request, bytes")
         max_time = declare(self, "max_time_limit", MAX_TIME_LIMIT_S, "largest wall-clock limit a request may ask "
                                                                      "for, s (also the default limit when below 300 s)")
-        self.outbox = queue.Queue()
-        self.service = AllocatorService(robot_set(self, specs, default), lambda kind, doc: self.outbox.put((kind, doc)),
-                                        Limits(max_bytes, 10_000), max_queue, self.save, float(max_time))
+        self.outbox = Outbox()
+        self.service = AllocatorService(robot_set(self, specs, default), self.outbox, Limits(max_bytes, 10_000),
+                                        max_queue, self.save, float(max_time))
         self.responses = self.create_publisher(String, f"{ALLOCATE_TOPIC}/response", SERVICE_RESPONSE_QOS)
         self.progress_pub = self.create_publisher(String, f"{ALLOCATE_TOPIC}/progress", SERVICE_RESPONSE_QOS)
         self.budget_pub = self.create_publisher(String, "tolerance_budget", BUDGET_QOS)
@@ -66,11 +65,7 @@ class ToleranceAllocator(Node):
 
     def flush_outbox(self):
         publishers = {"progress": self.progress_pub, "budget": self.budget_pub, "response": self.responses}
-        while True:
-            try:
-                kind, doc = self.outbox.get_nowait()
-            except queue.Empty:
-                return
+        for kind, doc in self.outbox.drain():
             publishers[kind].publish(String(data=dumps_fast(doc)))
 
     def close(self):

@@ -16,18 +16,21 @@ Response: ``{"id", "ok": true, "command": "compensate", "robot", "model", "n", "
 "out_of_reach", "near_singularity", "out_of_limits", "iterations"}`` (flags as lists of target
 indices; see ``core.calibration.compensate``). Errors: ``invalid_request`` (a field, or
 ``"model": "calibrated"`` for a robot without a loaded calibration), ``unknown_robot``,
-``out_of_limits``, ``too_large`` (more targets than ``max_poses``).
+``out_of_limits``, ``too_large`` (more targets than ``Limits.max_compensate_joints`` given as joints or
+``max_compensate_poses`` given as poses, within ``max_poses``). Pose targets lie within
+``ingest.MAX_POSITION_M`` of the base; an unreachable one is flagged in ``out_of_reach`` with its finite
+residual.
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
 from ..core.accuracy.targets import AtTarget
 from ..core.calibration.compensate import MATCHES, compensate
-from ..core.calibration.writers import load_calibration
+from ..core.calibration.writers import calibration_robot_name, load_calibration
 from ..core.geometry import quat_to_matrices
+from ..core.ingest import MAX_POSITION_M
 from ..core.models.base import ModelError
 from .contracts import ContractError, Limits
 
@@ -39,10 +42,9 @@ MODELS = ("calibrated", "nominal")
 def load_calibrations(paths, models: dict) -> dict:
     """{robot: calibrated Mechanism} from calibration files, each checked against the served model of
     its robot (a file for a robot that is not served raises ValueError)."""
-    import yaml
     out = {}
     for path in paths:
-        robot = (yaml.safe_load(Path(path).read_text()) or {}).get("robot")
+        robot = calibration_robot_name(path)
         if robot not in models:
             raise ValueError(f"calibration {path}: robot {robot!r} is not served ({sorted(models)})")
         out[robot] = load_calibration(path, models[robot]).mechanism(models[robot])
@@ -79,14 +81,22 @@ def parse_poses(value, limits: Limits) -> np.ndarray:
     if not isinstance(value, list) or not value:
         raise ContractError("invalid_request", "poses: expected a non-empty list of 4x4 matrices or of "
                                                "[x, y, z, qx, qy, qz, qw]")
-    if len(value) > limits.max_poses:
-        raise ContractError("too_large", f"poses: {len(value)} targets exceed the cap of {limits.max_poses}")
+    cap = min(limits.max_poses, limits.max_compensate_poses)
+    if len(value) > cap:
+        raise ContractError("too_large", f"poses: {len(value)} targets exceed the cap of {cap} (each tool pose is "
+                                         f"solved from 9 starts first; give joint targets for more)")
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
         raise ContractError("invalid_request", "poses: every pose must be numbers of one shape, 4x4 or 7") from None
     if not np.all(np.isfinite(arr)):
         raise ContractError("invalid_request", f"poses[{int(np.argwhere(~np.isfinite(arr))[0][0])}]: not finite")
+    position = arr[:, :3] if arr.ndim == 2 else arr[:, :3, 3] if arr.ndim == 3 and arr.shape[1:] == (4, 4) else None
+    if position is not None:
+        far = np.flatnonzero(np.abs(position).max(axis=1) > MAX_POSITION_M)
+        if far.size:
+            raise ContractError("invalid_request", f"poses[{far[0]}]: a target {np.abs(position[far[0]]).max():.3g} m "
+                                                   f"from the base is beyond {MAX_POSITION_M:g} m")
     if arr.ndim == 2 and arr.shape[1] == 7:
         try:
             R = quat_to_matrices(arr[:, 3:])
@@ -137,7 +147,20 @@ def compensate_request(req: dict, robots, calibrations: dict, limits: Limits) ->
         if "joints" in req:
             if "seed" in req:
                 raise ContractError("invalid_request", "seed: only with poses (joint targets start from themselves)")
-            comp = compensate(model, nominal, joints=parse_joints(req["joints"], nominal, limits, allow), match=match)
+            cap = min(limits.max_poses, limits.max_compensate_joints)
+            joints = req["joints"]
+            count = len(joints) if isinstance(joints, list) and joints and isinstance(joints[0], list) else 1
+            if count > cap:
+                raise ContractError("too_large", f"joints: {count} targets exceed the cap of {cap} of command "
+                                                 f"'compensate'")
+            q = parse_joints(joints, nominal, limits, allow)
+            reach = np.abs(nominal.fk(q)[:, :3, 3]).max(axis=1)
+            far = np.flatnonzero(~(reach <= MAX_POSITION_M))
+            if far.size:
+                raise ContractError("invalid_request", f"joints[{far[0]}]: the target's tool point is "
+                                                       f"{reach[far[0]]:.3g} m from the base, beyond "
+                                                       f"{MAX_POSITION_M:g} m")
+            comp = compensate(model, nominal, joints=q, match=match)
         else:
             poses = parse_poses(req["poses"], limits)
             seed = None

@@ -27,11 +27,13 @@ from __future__ import annotations
 import json
 import math
 import re
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.budget import BudgetError, budget_from_dict
+from ..core.budget import Budget, BudgetError, budget_from_dict
+from ..core.errors import LIMIT_CRITERIA
 from ..core.ingest import IngestError
 from ..core.jsonio import loads_strict
 from ..core.models.base import ModelError
@@ -58,12 +60,16 @@ class ContractError(Exception):
 
 @dataclass
 class Limits:
-    """Size caps of a service (configurable per node): request bytes, configurations per request, and
-    configurations per request with the 'worst-case' criterion (O(p^3) per pose)."""
+    """Size caps of a service (configurable per node): request bytes, configurations per request,
+    configurations per request with the 'worst-case' criterion (O(p^3) per pose), and the targets of a
+    ``compensate`` request given as joints or as tool poses (each pose is first solved from 9 starts);
+    the compensate caps apply within ``max_poses``."""
 
     max_bytes: int = 1_000_000
     max_poses: int = 10_000
     max_worst_case_poses: int = 1_000
+    max_compensate_joints: int = 1_000
+    max_compensate_poses: int = 100
 
 
 def error_code(exc) -> str:
@@ -112,8 +118,6 @@ def _text(text) -> str:
             return bytes(text).decode("utf-8")
         except UnicodeDecodeError as exc:
             raise ContractError("invalid_json", f"not UTF-8 text: byte {exc.start} is invalid") from None
-    if not isinstance(text, str):
-        raise ContractError("invalid_json", f"expected text, got {type(text).__name__}")
     return text
 
 
@@ -143,7 +147,11 @@ def nesting_depth(text: str) -> int:
 
 
 def loads(text, limits: "Limits") -> object:
-    """Parse a request text safely: size, UTF-8, nesting depth, then strict JSON (ContractError on any)."""
+    """Parse a request text safely: its type (text), size, UTF-8, nesting depth, then strict JSON (ContractError
+    on any)."""
+    if not isinstance(text, (str, bytes, bytearray, memoryview)):
+        raise ContractError("invalid_request", f"expected the request as text (str, or bytes of UTF-8), got "
+                                               f"{type(text).__name__}")
     size = len(text)
     if size > limits.max_bytes or (isinstance(text, str) and size * 4 > limits.max_bytes
                                    and _utf8_size(text) > limits.max_bytes):
@@ -164,6 +172,13 @@ def parse_request(text, fields: dict, limits: Limits) -> dict:
     fields : name -> (types tuple, required bool).
     """
     req = loads(text, limits)
+    rid = req.get("id") if isinstance(req, dict) else None
+    with answering(rid if valid_id(rid) else None):
+        _check_envelope(req, fields)
+    return req
+
+
+def _check_envelope(req, fields):
     if not isinstance(req, dict):
         raise ContractError("invalid_request", f"expected a JSON object, got {_kind(req)}")
     rid = req.get("id")
@@ -188,7 +203,29 @@ def parse_request(text, fields: dict, limits: Limits) -> dict:
             raise ContractError("invalid_request", f"{name}: expected {_names(types)}, got {_kind(v)}")
         if isinstance(v, float) and not math.isfinite(v):
             raise ContractError("invalid_request", f"{name}: not a finite number")
-    return req
+
+
+@contextmanager
+def answering(request_id):
+    """Within the body, an exception raised about a parsed request carries ``request_id`` (the id its answer
+    echoes, ``answer_id``), unless it already carries one."""
+    try:
+        yield
+    except Exception as exc:
+        if not hasattr(exc, "request_id"):
+            try:
+                exc.request_id = request_id
+            except AttributeError:  # an exception type without a __dict__; its answer gets the id from the text
+                pass
+        raise
+
+
+def answer_id(exc, text):
+    """The id the answer to a failed request echoes: the parsed request's own top-level id (None when it has
+    no valid one), or for text that could not be parsed the best guess of ``request_id_of``."""
+    if hasattr(exc, "request_id"):
+        return exc.request_id
+    return request_id_of(text)
 
 
 def _names(types):
@@ -216,22 +253,33 @@ def number(value, field: str, lo: float | None = None, hi: float | None = None, 
     return value
 
 
-_ID = re.compile(r'"id"\s*:\s*(?:"((?:[^"\\]|\\.){0,256})"|(-?\d{1,19})(?![\d.eE]))')
+_ID = re.compile(r'\s*:\s*(?:"((?:[^"\\]|\\.){0,256})"|(-?\d{1,19})(?![\d.eE]))')
+_TOKEN = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
 
 
 def request_id_of(text):
-    """Best-effort id of a request that could not be parsed, from its first 64 KB (never parsed), else None."""
+    """Best-effort id of a request that could not be parsed, from its first 64 KB (never parsed), else None:
+    the value of an ``"id"`` key of the top-level object only (an ``"id"`` inside a nested object is another
+    object's)."""
     try:
         head = text[:65536]
         if not isinstance(head, str):
             head = bytes(head).decode("utf-8", errors="replace")
-        m = _ID.search(head)
-        if not m:
-            return None
-        rid = json.loads(f'"{m.group(1)}"') if m.group(1) is not None else int(m.group(2))
+        depth = 0
+        for token in _TOKEN.finditer(head):
+            t = token.group()
+            if t in "[{":
+                depth += 1
+            elif t in "]}":
+                depth -= 1
+            elif depth == 1 and t == '"id"':
+                m = _ID.match(head, token.end())
+                if m:
+                    rid = json.loads(f'"{m.group(1)}"') if m.group(1) is not None else int(m.group(2))
+                    return rid if valid_id(rid) else None
     except (ValueError, TypeError):
         return None
-    return rid if valid_id(rid) else None
+    return None
 
 
 def budget_from_message(text, models: dict):
@@ -251,11 +299,41 @@ def budget_from_message(text, models: dict):
     model = models[robot]
     try:
         budget = budget_from_dict(doc["budget"], dict(zip(model.param_names, model.param_kinds)), "budget.")
-        delta = budget.vector_for(model)
     except BudgetError as exc:
         raise ContractError("invalid_request", str(exc)[:MAX_MESSAGE_CHARS]) from None
+    budget.robot = budget.robot or robot
+    check_budget(budget, model)
+    return robot, budget
+
+
+def check_budget(budget, model) -> np.ndarray:
+    """The (p,) tolerances (SI) of a budget a service is given for ``model``, once, when it arrives: a Budget
+    for that robot, a criterion of ``LIMIT_CRITERIA``, limits that are None or finite and > 0, every
+    tolerance finite within [0, ``MAX_TOLERANCE``]. ContractError 'invalid_request' naming the field
+    otherwise (so that nothing fails later at every bound)."""
+    if not isinstance(budget, Budget):
+        raise ContractError("invalid_request", f"budget: expected a Budget, got {type(budget).__name__}")
+    if budget.robot is not None and budget.robot != model.name:
+        shown = budget.robot[:80] if isinstance(budget.robot, str) else _kind(budget.robot)
+        raise ContractError("invalid_request", f"budget.robot: the budget is for robot {shown!r}, not {model.name!r}")
+    if not isinstance(budget.criterion, str) or budget.criterion not in LIMIT_CRITERIA:
+        shown = budget.criterion[:40] if isinstance(budget.criterion, str) else _kind(budget.criterion)
+        raise ContractError("invalid_request", f"budget.criterion: expected one of {list(LIMIT_CRITERIA)}, got "
+                                               f"{shown!r}")
+    for name in ("limit_position", "limit_orientation"):
+        value = getattr(budget, name)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                  or not math.isfinite(value) or value <= 0):
+            raise ContractError("invalid_request", f"budget.{name}: expected None or a finite number > 0, got "
+                                                   f"{value!r:.40}")
+    try:
+        delta = np.asarray(budget.vector_for(model), dtype=float)
+    except BudgetError as exc:
+        raise ContractError("invalid_request", str(exc)[:MAX_MESSAGE_CHARS]) from None
+    except (TypeError, ValueError):
+        raise ContractError("invalid_request", "budget.tolerances: expected numbers") from None
     for name, kind, value in zip(model.param_names, model.param_kinds, delta):
-        if value > MAX_TOLERANCE[kind]:
+        if not 0 <= value <= MAX_TOLERANCE[kind]:  # False for NaN too
             raise ContractError("invalid_request", f"budget.tolerances.{name}: {value:.6g} is outside "
                                                    f"[0, {MAX_TOLERANCE[kind]:g}]")
-    return robot, budget
+    return delta

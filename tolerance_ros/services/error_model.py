@@ -21,7 +21,8 @@ from ..core.ingest import IngestError, JointOrder, stamp_seconds
 from ..core.jsonio import compact_array, dumps_fast, encode_arrays
 from ..core.models.base import ModelError
 from .compensation import compensate_request, jacobian_model
-from .contracts import MAX_TOLERANCE, ContractError, Limits, error_response, number, parse_request, request_id_of
+from .contracts import (MAX_TOLERANCE, ContractError, Limits, answer_id, check_budget, error_response, number,
+                        parse_request)
 from .robots import RobotSet
 
 ROWS = ("dx", "dy", "dz", "drx", "dry", "drz")
@@ -106,6 +107,10 @@ def parse_tolerances(value, model, current_budget=None) -> tuple:
         free = value.get("free", [])
         if not isinstance(free, list) or not all(isinstance(n, str) for n in free):
             raise ContractError("invalid_request", "tolerances.free: expected a list of parameter names")
+        if not tol and not free:
+            field = "tolerances.tolerances" if nested else "tolerances"
+            raise ContractError("invalid_request", f"{field}: no parameter has a tolerance; give parameter -> "
+                                                   f"tolerance (m or rad), with 'default': 0 for the others")
         data = {"tolerances": tol, "free": free}
         if "default" in value:
             data["default"] = number(value["default"], "tolerances.default")
@@ -151,13 +156,30 @@ class ErrorModelService:
         self.robots = robots
         self.calibrations = dict(calibrations or {})
         self.limits = limits or Limits()
-        self.current_budget = None
+        self._budget = None
         self.joint_orders = {}
         self._per_model = {}
 
     @property
     def models(self) -> dict:
         return self.robots.models
+
+    @property
+    def current_budget(self):
+        """The latest budget (``tolerances: "current"`` and the predicted bound), or None."""
+        return self._budget
+
+    @current_budget.setter
+    def current_budget(self, budget):
+        """Checked when it arrives (``contracts.check_budget`` against its robot, which must be served):
+        ContractError 'invalid_request' or 'unknown_robot' otherwise, and the previous budget stays."""
+        if budget is not None:
+            robot = getattr(budget, "robot", None)
+            if robot not in self.models:
+                shown = robot[:80] if isinstance(robot, str) else type(robot).__name__
+                raise ContractError("unknown_robot", f"budget for robot {shown!r}, not one of {sorted(self.models)}")
+            check_budget(budget, self.models[robot])
+        self._budget = budget
 
     def handle(self, text) -> dict:
         rid = None
@@ -166,7 +188,7 @@ class ErrorModelService:
             rid = req["id"]
             return self._serve(req)
         except Exception as exc:  # every failure becomes a response
-            return error_response(rid if rid is not None else request_id_of(text), exc)
+            return error_response(rid if rid is not None else answer_id(exc, text), exc)
 
     def handle_text(self, text) -> str:
         """The response to a request, as JSON text (arrays as base64 objects when the request asked)."""
@@ -176,6 +198,8 @@ class ErrorModelService:
         """The current budget's predicted bound at a joint state (names in any order, stamp s), as the
         ``predicted_bound`` message: {stamp, robot, criterion, position_bound_m, orientation_bound_rad};
         None without a budget or when the state is unusable (missing joints, non-finite values)."""
+        if criterion is not None and criterion not in CRITERIA:
+            raise ValueError(f"criterion: expected one of {list(CRITERIA)}, got {criterion!r:.40}")
         budget = self.current_budget
         if budget is None or budget.robot not in self.models:
             return None

@@ -7,6 +7,8 @@ otherwise the last configuration is held once it has run out.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 MODES = ("campaign", "random", "selected")
@@ -48,11 +50,12 @@ class JointStateSequence:
         return len(self.q)
 
     def at(self, t: float):
-        k = int(max(t, 0.0) // self.dwell)
-        finished = False
-        if k >= len(self.q):
-            if self.loop:
-                k %= len(self.q)
-            else:
-                k, finished = len(self.q) - 1, True
-        return k, self.labels[k], self.q[k], finished
+        if not math.isfinite(t):
+            raise ValueError(f"t: expected a finite time in s, got {t!r}")
+        t, n = max(t, 0.0), len(self.q)
+        if t >= n * self.dwell:
+            if not self.loop:
+                return n - 1, self.labels[-1], self.q[-1], True
+            t %= n * self.dwell  # a time of any size: its steps need not fit an integer
+        k = min(int(t // self.dwell), n - 1)
+        return k, self.labels[k], self.q[k], False

@@ -23,6 +23,7 @@ from ..core.jsonio import dumps_fast
 from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
 from ..core.accuracy.targets import Targets
+from .contracts import check_budget
 
 OK, WARN, ERROR = 0, 1, 2
 MAX_FRAME_CHARS = 100  # of a measurement's frame_id in the campaign log
@@ -66,12 +67,15 @@ class MonitorLogic:
         self.set_budget(budget)
 
     def set_budget(self, budget):
-        """Use a new budget (Budget or None) from now on; statistics restart with it."""
+        """Use a new budget (Budget or None) from now on; statistics restart with it. A budget that does not
+        fit the robot (``contracts.check_budget``: its robot, criterion, limits, tolerances) raises
+        ContractError when it arrives, and the previous budget stays."""
+        delta = check_budget(budget, self.model) if budget is not None else None
         self.acc = AccuracyAccumulator.from_budget(self.model, budget, self.campaign, self.T_tracker_base,
                                                    self.targets, self.pose_tolerance, identify=False,
                                                    orientation=self.orientation)
         self.budget = budget
-        self.delta = budget.vector_for(self.model) if budget is not None else None
+        self.delta = delta
         self.generation += 1
         self.recent.clear()
         if self.log:
@@ -108,16 +112,19 @@ class MonitorLogic:
         seq = self.seq
         self.seq += 1
         quaternion = quaternion if self.orientation else None
-        rec = {"event": "measurement", "seq": seq, "stamp": None, "frame": str(frame_id)[:MAX_FRAME_CHARS],
+        frame, frame_ok = _frame(frame_id)
+        rec = {"event": "measurement", "seq": seq, "stamp": None, "frame": frame,
                "position": _numbers(position), "quaternion": None if quaternion is None else _numbers(quaternion)}
         if target:
-            rec["target"] = str(target)[:MAX_FRAME_CHARS]
+            rec["target"] = _frame(target)[0]
         try:
             k = self._target_index.get(str(target))
             if k is None:
                 raise IngestError(f"target {str(target)[:MAX_FRAME_CHARS]!r} is not one of the monitor's targets "
                                   f"{[n for n in self.targets.names]}")
             rec["stamp"] = t = stamp_seconds(stamp)
+            if not frame_ok:
+                raise IngestError("frame_id: not UTF-8 text (a lone surrogate); written to the log escaped")
             if quaternion is None and self.orientation:
                 raise IngestError("orientation: missing (the monitor measures poses)")
             T = pose_from_values(position, quaternion if quaternion is not None else (0.0, 0.0, 0.0, 1.0))
@@ -231,6 +238,17 @@ class MonitorLogic:
                 "budget": None if self.budget is None else {"source": self.budget.source,
                                                              "criterion": self.budget.criterion,
                                                              "limit_position_m": self.budget.limit_position}}
+
+
+def _frame(frame_id) -> tuple:
+    """(text for the log, whether it is valid UTF-8): the frame_id cut to ``MAX_FRAME_CHARS``, lone surrogates
+    escaped."""
+    text = str(frame_id)[:MAX_FRAME_CHARS]
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "backslashreplace").decode("utf-8"), False
+    return text, True
 
 
 def _numbers(values):

@@ -11,6 +11,7 @@ message is URDF text: a path in it is not read.
 from __future__ import annotations
 
 from ..core.models import ModelError, URDFChain, load_robot
+from ..core.models.urdf import read_urdf
 from .contracts import ContractError
 
 DESCRIPTION = "robot_description"
@@ -52,8 +53,10 @@ class RobotSet:
             raise ContractError("invalid_request", "this node does not take its robot from robot_description")
         if not isinstance(text, str) or not text.strip():
             raise ContractError("invalid_request", "robot_description: empty message")
-        if not text.lstrip().startswith("<"):
-            raise ModelError(f"robot_description: not URDF XML text (never a path): {text.strip()[:40]!r}")
+        try:
+            text, _ = read_urdf(text, text_only=True)  # the reader of URDF files: one answer for one content
+        except ModelError as exc:
+            raise ModelError(f"robot_description: {exc}") from None
         model = URDFChain(text, tip_link=self.tip_link, base_link=self.base_link)
         if check is not None:
             check(model)

@@ -157,3 +157,22 @@ def test_calibration_file_errors_name_the_field(gao, gao_calibration, tmp_path):
         load_calibration(bad, gao)
     with pytest.raises(CalibrationError, match="file not found"):
         load_calibration(tmp_path / "none.yaml", gao)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t.replace("units: {length: mm, angle: mrad}", "units: [mm, mrad]"),
+     r": units: expected a mapping, got list"),
+    (lambda t: t.replace("format: tolerance_ros.calibration/2", "format: tolerance_ros.calibration/2\nfit: 3"),
+     r", line \d+: key 'fit' given twice in one mapping"),
+    (lambda t: t + "junk: " + "[" * 5000 + "]" * 5000 + "\n", r", line \d+: nested deeper than 32 levels"),
+    (lambda t: t.replace("rank: ", "rank: x, other: "), r": fit.rank: expected a number, got str"),
+    (lambda t: t.replace("rank: ", "rank: .inf, other: "), r": fit.rank: expected a whole number, got inf"),
+    (lambda t: t.replace("noise_m: ", "noise_m: " + "9" * 400 + ", other: "),
+     r": fit.noise_m: an integer of 400 digits is too large"),
+])
+def test_calibration_files_that_would_trace_back_are_the_calibrations_error(gao, gao_calibration, tmp_path, edit,
+                                                                            message):
+    path = save_calibration(gao_calibration, tmp_path / "c.yaml")
+    path.write_text(edit(path.read_text()))
+    with pytest.raises(CalibrationError, match=rf"^{path}{message}"):
+        load_calibration(path, gao)

@@ -79,3 +79,31 @@ def test_shipped_paper_robot(gao):
     assert gao.dof == 7 and gao.n_params == 28
     assert gao.d[1:] == pytest.approx([0.177, 0.415, 0.1478, 0.40362, 0.13062, 0.09112])
     assert gao.joint_limits == pytest.approx(np.tile([-np.pi, np.pi], (7, 1)))
+
+
+@pytest.mark.parametrize("content, message", [
+    (GOOD.encode().replace(b"shoulder", b"sh\xf6ulder"), r", line 7, column 14: not UTF-8 text \(byte 0xf6\)"),
+    ("name: x\nkind: dh\njoints: " + "[" * 5000 + "]" * 5000 + "\n", r", line 3: nested deeper than 32 levels"),
+    (GOOD + "name: again\n", r", line 11: key 'name' given twice in one mapping"),
+    (GOOD.replace("d: 100", "d: 1_00"), r", line 7: '1_00' is a number with digit separators"),
+])
+def test_files_that_would_trace_back_or_change_are_the_models_error(tmp_path, content, message):
+    p = tmp_path / "robot.yaml"
+    p.write_bytes(content if isinstance(content, bytes) else content.encode())
+    with pytest.raises(ModelError, match=rf"^{p}{message}"):
+        load_robot(p)
+
+
+def test_an_error_of_a_urdf_robot_file_names_the_file(tmp_path):
+    from helpers import example_urdf
+    p = tmp_path / "panda.urdf"
+    p.write_text(example_urdf("panda.urdf").read_text())
+    with pytest.raises(ModelError, match=rf"^{p}: urdf branches: its chains end in the links"):
+        load_robot(p)
+
+
+@pytest.mark.parametrize("kind", ["{a: 1}", "[dh]", "7"])
+def test_a_kind_that_is_not_a_name_is_the_models_error(tmp_path, kind):
+    p = _write(tmp_path, GOOD.replace("kind: dh", f"kind: {kind}"))
+    with pytest.raises(ModelError, match=rf"^{p}: kind: expected one of \['3pups', 'dh', 'urdf'\]"):
+        load_robot(p)

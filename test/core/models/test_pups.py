@@ -193,6 +193,18 @@ def test_joints_that_cannot_close_the_loop(model, ws):
     np.testing.assert_allclose(T[:2], ws[1][:2], atol=1e-12)
 
 
+@pytest.mark.parametrize("joint", [0, 7])
+def test_joints_far_outside_their_range_fail_alone_with_the_reason(model, ws, joint):
+    """A slider or leg at 1e10 m made the start's normal equations singular: LinAlgError for the whole batch."""
+    far = ws[0][0].copy()
+    far[joint] = 1e10
+    with pytest.raises(ModelError, match=r"joints\[0\] = .*: the legs cannot close the platform triangle"):
+        model.fk(far)
+    T, _ = model.tolerant().fk_and_jacobian(np.vstack([ws[0][:2], far]))
+    assert np.isnan(T[2]).all()
+    np.testing.assert_allclose(T[:2], ws[1][:2], atol=1e-12)
+
+
 def test_sample_joints_deterministic_and_reachable(model):
     q = model.sample_joints(300, seed=5)
     np.testing.assert_array_equal(q, model.sample_joints(300, seed=5))

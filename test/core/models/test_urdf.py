@@ -1,4 +1,5 @@
 """URDF chains: our batched FK and Jacobian against pinocchio on real URDFs from example-robot-data."""
+import time
 import warnings
 import xml.etree.ElementTree as ET
 
@@ -153,3 +154,65 @@ def test_an_axis_of_any_finite_length_is_normalised_without_overflow():
     np.testing.assert_allclose(tiny._axes[0], [0.6, 0.0, 0.8], rtol=1e-12)
     with pytest.raises(ModelError, match="zero axis"):
         URDFChain(two_links("0 0 0"))
+
+
+def _chain_urdf(joints, limits=None):
+    """URDF text of revolute joints (name, parent link, child link), each at 0.1 m along z of its parent."""
+    links = sorted({link for _, p, c in joints for link in (p, c)})
+    text = '<robot name="r">' + "".join(f'<link name="{link}"/>' for link in links)
+    for name, p, c in joints:
+        lo, hi = (limits or {}).get(name, ("-1", "1"))
+        text += (f'<joint name="{name}" type="revolute"><parent link="{p}"/><child link="{c}"/>'
+                 f'<origin xyz="0 0 0.1"/><axis xyz="0 0 1"/><limit lower="{lo}" upper="{hi}" effort="1" '
+                 f'velocity="1"/></joint>')
+    return text + "</robot>"
+
+
+def test_a_revolute_limit_whose_lower_is_above_its_upper_is_refused():
+    text = _chain_urdf([("j1", "a", "b"), ("j2", "b", "c")], {"j2": ("1", "-1")})
+    with pytest.raises(ModelError, match=r"joint 'j2': <limit lower=\"1\" upper=\"-1\">: the lower limit is above"):
+        URDFChain(text)
+
+
+def test_a_kinematic_cycle_is_refused_naming_its_joints():
+    """a -> b -> c -> d with j2 turned b -> a: urdfdom rooted the tree at c and gave a model of j3 alone."""
+    with pytest.raises(ModelError, match=r"joints \['j2', 'j1'\] form a kinematic cycle \(b -> a -> b\)"):
+        URDFChain(_chain_urdf([("j1", "a", "b"), ("j2", "b", "a"), ("j3", "c", "d")]), tip_link="d")
+    with pytest.raises(ModelError, match=r"link 'b' is the child of two joints, 'j1' and 'j2'"):
+        URDFChain(_chain_urdf([("j1", "a", "b"), ("j2", "c", "b"), ("j3", "b", "d")]))
+
+
+def test_a_byte_order_mark_gives_one_answer_from_a_file_and_from_text(tmp_path):
+    from tolerance_ros.services.robots import RobotSet
+    text = "\ufeff" + example_urdf("ur5_robot.urdf").read_text()
+    path = tmp_path / "bom.urdf"
+    path.write_text(text, encoding="utf-8")
+    robots = RobotSet(["robot_description"], "robot_description", tip_link="tool0")
+    robots.on_description(text)
+    q = robots.single().sample_joints(3, 0)
+    for chain in (URDFChain(path, tip_link="tool0"), URDFChain(text, tip_link="tool0")):
+        np.testing.assert_array_equal(chain.fk(q), robots.single().fk(q))
+
+
+@pytest.mark.parametrize("text, message", [
+    ('<robot name="r"><link name="a">' + "<visual>" * 100_000 + "</visual>" * 100_000 + "</link></robot>",
+     "elements nested deeper than 64 levels"),
+    (_chain_urdf([(f"j{i}", f"l{i}", f"l{i + 1}") for i in range(1001)]), "1001 joints; a URDF may have at most 1000"),
+    ('<!DOCTYPE r [<!ENTITY a "x">]><robot name="&a;"/>', r"entity declarations \(<!ENTITY ...>\) are not supported"),
+])
+def test_a_hostile_urdf_is_refused_before_pinocchio_reads_it(text, message):
+    t0 = time.perf_counter()
+    with pytest.raises(ModelError, match=message):
+        URDFChain(text)
+    assert time.perf_counter() - t0 < 1.0
+
+
+def test_a_urdf_file_is_bounded_and_utf8(tmp_path):
+    big = tmp_path / "big.urdf"
+    big.write_bytes(b"<robot name='r'>" + b" " * (9 * 1024 * 1024) + b"</robot>")
+    with pytest.raises(ModelError, match=rf"{big}: \d+ bytes; a URDF may have at most 8388608 bytes"):
+        URDFChain(big)
+    latin = tmp_path / "latin.urdf"
+    latin.write_bytes(b"<robot name='r'>\n<link name='caf\xe9'/></robot>")
+    with pytest.raises(ModelError, match=rf"{latin}, line 2, column 16: not UTF-8 text"):
+        URDFChain(latin)

@@ -56,6 +56,7 @@ from ..models.loader import frame_from_dict, load_robot
 from ..models.urdf import URDFChain
 from ..units import UnitError, angle_scale, length_scale, parse_number
 from ..accuracy.targets import Targets
+from ..yamlio import loads_yaml, read_yaml
 from .calibrate import Calibration, calibrated_mechanism, corrected_origins
 
 FORMAT = "tolerance_ros.calibration/2"
@@ -104,12 +105,8 @@ def calibration_from_text(text, model: Mechanism, source="tolerance_calibration"
         raise CalibrationError(f"{source}: expected the calibration file's text")
     if len(text) > MAX_TEXT:
         raise CalibrationError(f"{source}: longer than {MAX_TEXT} characters")
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise CalibrationError(f"{source}: not valid YAML: {str(exc)[:200]}") from None
-    if not isinstance(doc, dict) or doc.get("format") not in FORMATS:
-        raise CalibrationError(f"{source}: format: expected {FORMAT!r}")
+    doc = loads_yaml(text, source, CalibrationError)
+    _check_document(doc, source)
     try:
         return _calibration_from_dict(doc, Path("."), model)
     except (UnitError, ModelError, CalibrationError, KeyError, TypeError, ValueError) as exc:
@@ -214,17 +211,53 @@ def load_calibrated_model(path, model: Mechanism | None = None) -> Mechanism:
     return load_calibration(path, model).mechanism(model)
 
 
+_COUNTS = ("measurements", "poses", "rows", "unknowns", "rank")  # the whole numbers of the fit block
+_SECTIONS = {"units": dict, "sources": dict, "registration": dict, "base_correction": dict, "parameters": dict,
+             "held": list, "unidentifiable": list, "aliases": dict, "fit": dict, "validation": dict, "targets": dict,
+             "compliance": dict, "nominal_registration": dict, "model": dict, "rejected": list, "plausibility": dict,
+             "repeatability": dict, "training": dict}
+
+
 def _read(path):
+    """The calibration file's document (bounded reader, ``core.yamlio``), its format and the type of each
+    section checked."""
     path = Path(path)
     if not path.is_file():
         raise CalibrationError(f"calibration {str(path)!r}: file not found")
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise CalibrationError(f"{path}: not valid YAML: {exc}") from None
+    doc = read_yaml(path, CalibrationError)
+    _check_document(doc, path)
+    return doc
+
+
+def _check_document(doc, path):
+    """The format and the type of each section of a calibration document; CalibrationError naming ``path``."""
     if not isinstance(doc, dict) or doc.get("format") not in FORMATS:
         raise CalibrationError(f"{path}: format: expected {FORMAT!r}")
+    for key, kind in _SECTIONS.items():
+        if doc.get(key) is not None and not isinstance(doc[key], kind):
+            raise CalibrationError(f"{path}: {key}: expected {'a mapping' if kind is dict else 'a list'}, got "
+                                   f"{type(doc[key]).__name__}")
+    for key in ("parameters", "aliases"):
+        for name, entry in (doc.get(key) or {}).items():
+            if not isinstance(entry, dict):
+                raise CalibrationError(f"{path}: {key}.{name}: expected a mapping")
+    numbers = [(f"fit.{k}", v) for k, v in (doc.get("fit") or {}).items()] + [
+        (f"aliases.{n}.{h}", c) for n, a in (doc.get("aliases") or {}).items() for h, c in a.items()]
+    for field, value in numbers:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise CalibrationError(f"{path}: {field}: expected a number, got {type(value).__name__}")
+        if isinstance(value, int) and abs(value) > 2 ** 53:
+            raise CalibrationError(f"{path}: {field}: an integer of {len(str(abs(value)))} digits is too large")
+        if field.split(".")[-1] in _COUNTS and field.startswith("fit.") and not float(value).is_integer():
+            raise CalibrationError(f"{path}: {field}: expected a whole number, got {value!r}")
+    if not isinstance(doc.get("robot"), str):
+        raise CalibrationError(f"{path}: robot: expected the robot's name")
     return doc
+
+
+def calibration_robot_name(path) -> str:
+    """The name of the robot a calibration file is for (the file read and checked as ``load_calibration`` does)."""
+    return _read(path)["robot"]
 
 
 def calibration_robot(path) -> Mechanism:

@@ -4,11 +4,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ..resources import resolve
 from ..units import UnitError, angle_scale, length_scale, parse_number
 from ..geometry import transform
+from ..yamlio import read_yaml
 from .base import PRISMATIC, REVOLUTE, Mechanism, ModelError
 from .dh import DHChain
 from .urdf import URDFChain
@@ -29,17 +29,17 @@ def load_robot(spec, tip_link=None, base_link=None) -> Mechanism:
         return spec
     path = resolve("robots", spec, suffixes=(".yaml", ".yml", ".urdf"))
     if path.suffix == ".urdf":
-        return URDFChain(path, tip_link=tip_link, base_link=base_link)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ModelError(f"{path}: not valid YAML: {exc}") from None
+        try:
+            return URDFChain(path, tip_link=tip_link, base_link=base_link)
+        except ModelError as exc:  # every error names the file
+            raise ModelError(str(exc) if str(path) in str(exc) else f"{path}: {exc}") from None
+    data = read_yaml(path, ModelError)
     if not isinstance(data, dict):
         raise ModelError(f"{path}: expected a mapping at the top level")
     kinds = _kinds()
     kind = data.get("kind")
-    if kind not in kinds:
-        raise ModelError(f"{path}: kind: expected one of {sorted(kinds)}, got {kind!r}")
+    if not isinstance(kind, str) or kind not in kinds:
+        raise ModelError(f"{path}: kind: expected one of {sorted(kinds)}, got {kind!r:.60}")
     if tip_link is not None or base_link is not None:
         if kind != "urdf":
             raise ModelError(f"{path}: tip_link, base_link: only for URDF robots, not kind {kind!r}")

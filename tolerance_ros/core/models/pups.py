@@ -77,6 +77,20 @@ _KEYS = {"name", "kind", "units", "source", "description", "notes", "slider_angl
          "locked"}
 
 
+def _solve_rows(A, b):
+    """``np.linalg.solve`` of stacks A (n, k, k), b (n, k, 1), with NaN rows where a matrix is singular (joints
+    far outside the mechanism's range), so that one such pose fails alone, with its reason, not the batch."""
+    try:
+        return np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        out = np.full(b.shape, np.nan)
+        for i in range(len(A)):
+            try:
+                out[i] = np.linalg.solve(A[i], b[i])
+            except np.linalg.LinAlgError:
+                pass
+        return out
+
 class PUPS3(Mechanism):
     """The 3-PUPS platform (see the module docstring for frames, joints and error parameters).
 
@@ -223,8 +237,8 @@ class PUPS3(Mechanism):
             f = np.concatenate([(np.einsum("nki,nki->nk", d, d) - g["rho"] ** 2) / (2 * g["rho"]),
                                 np.einsum("nki,nki->nk", g["k"], d)], axis=1)
             J = np.concatenate([d / g["rho"][:, :, None], g["k"]], axis=1)
-            step = np.linalg.solve(np.einsum("nki,nkj->nij", J, J) + 1e-12 * np.eye(3),
-                                   np.einsum("nki,nk->ni", J, f)[:, :, None])[:, :, 0]
+            step = _solve_rows(np.einsum("nki,nkj->nij", J, J) + 1e-12 * np.eye(3),
+                               np.einsum("nki,nk->ni", J, f)[:, :, None])[:, :, 0]
             p = p - step
             if np.max(np.abs(step)) < 1e-10:
                 break
@@ -242,7 +256,7 @@ class PUPS3(Mechanism):
             gi = {key: v[idx] for key, v in g.items()}
             J = self._jacobian_rows(R[idx], self._directions(d[idx], gi))
             JT = J.transpose(0, 2, 1)
-            step = -np.linalg.solve(JT @ J + 1e-14 * np.eye(6), JT @ f[idx][:, :, None])[:, :, 0]
+            step = -_solve_rows(JT @ J + 1e-14 * np.eye(6), JT @ f[idx][:, :, None])[:, :, 0]
             t = np.ones(idx.size)
             pending = np.arange(idx.size)
             for _ls in range(12):

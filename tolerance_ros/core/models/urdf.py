@@ -21,9 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import axis_angle_matrix, cross3, rpy_matrix, rpy_to_matrix
+from ..yamlio import decode_utf8, read_bytes
 from .base import PRISMATIC, REVOLUTE, CompiledChain, ErrorJacobian, ModelError
 
 ORIGIN_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
+MAX_URDF_BYTES = 8 * 1024 * 1024  # of a URDF file or robot_description text
+MAX_URDF_DEPTH = 64               # elements inside elements
+MAX_URDF_JOINTS = 1000
+_LEADING = "\ufeff \t\r\n"       # dropped before the XML: a byte-order mark and white space
 
 
 def _pin():
@@ -55,11 +60,8 @@ class URDFChain(CompiledChain):
     """
 
     def __init__(self, urdf, tip_link=None, base_link=None, name=None):
-        text, source = _read_urdf(urdf)
-        try:
-            root = ET.fromstring(text)
-        except ET.ParseError as exc:
-            raise ModelError(f"urdf ({source}): not well-formed XML: {exc}") from None
+        text, source = read_urdf(urdf)
+        root = _xml(text, source)
         model = _parse(text, source)
         self.name = str(name or root.get("name") or "urdf_robot")
         self.pin_model = model
@@ -121,6 +123,10 @@ class URDFChain(CompiledChain):
                 limits.append((-math.pi, math.pi))
             else:
                 lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
+                if lo > hi:
+                    lim = xml.find("limit")
+                    raise ModelError(f"urdf ({source}): joint {jname!r}: <limit lower=\"{lim.get('lower')}\" "
+                                     f"upper=\"{lim.get('upper')}\">: the lower limit is above the upper one")
                 if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
                     if jtype == "prismatic":
                         raise ModelError(f"urdf: prismatic joint {jname!r} needs finite <limit lower upper>")
@@ -275,13 +281,79 @@ def _parse(text, source):
     return model
 
 
-def _read_urdf(urdf):
-    if isinstance(urdf, str) and urdf.lstrip().startswith("<"):
-        return urdf, "<string>"
+def read_urdf(urdf, text_only=False) -> tuple:
+    """(text, source) of a URDF given as XML text or as a file path: the one reader of both, so that the
+    same content gives the same answer. At most ``MAX_URDF_BYTES``, UTF-8; a leading byte-order mark and
+    white space are dropped. ``text_only``: a string that is not XML text is an error, never a path."""
+    if isinstance(urdf, (bytes, bytearray)):
+        urdf = decode_utf8(bytes(urdf), "urdf", ModelError)
+    if isinstance(urdf, str):
+        text = urdf.lstrip(_LEADING)
+        if text.startswith("<"):
+            if len(text) > MAX_URDF_BYTES:
+                raise ModelError(f"urdf: {len(text)} characters; a URDF may have at most {MAX_URDF_BYTES} bytes")
+            return text, "<string>"
+        if text_only:
+            raise ModelError(f"urdf: not URDF XML text (never a path): {text.strip()[:40]!r}")
     path = Path(urdf)
     if not path.is_file():
         raise ModelError(f"urdf: file not found: {path}")
-    return path.read_text(), str(path)
+    data = read_bytes(path, ModelError, MAX_URDF_BYTES, "URDF")
+    return decode_utf8(data, path, ModelError).lstrip(_LEADING), str(path)
+
+
+def _xml(text, source):
+    """The URDF's XML tree, checked: no entity declarations (expat would expand them, urdfdom would not),
+    at most ``MAX_URDF_DEPTH`` elements deep and ``MAX_URDF_JOINTS`` joints, and a tree of links (every
+    link the child of at most one joint, no kinematic cycle)."""
+    if "<!ENTITY" in text:
+        raise ModelError(f"urdf ({source}): entity declarations (<!ENTITY ...>) are not supported in a URDF")
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise ModelError(f"urdf ({source}): not well-formed XML: {exc}") from None
+    todo = [(root, 1)]
+    while todo:
+        elem, depth = todo.pop()
+        if depth > MAX_URDF_DEPTH:
+            raise ModelError(f"urdf ({source}): elements nested deeper than {MAX_URDF_DEPTH} levels")
+        todo.extend((child, depth + 1) for child in elem)
+    joints = root.findall("joint")
+    if len(joints) > MAX_URDF_JOINTS:
+        raise ModelError(f"urdf ({source}): {len(joints)} joints; a URDF may have at most {MAX_URDF_JOINTS}")
+    _check_tree(joints, source)
+    return root
+
+
+def _check_tree(joints, source):
+    """ModelError for a link that is the child of two joints or for a kinematic cycle (urdfdom would root
+    the tree at a link outside the cycle and drop the cycle's links silently)."""
+    parent = {}  # child link -> (joint name, parent link)
+    for j in joints:
+        p, c = j.find("parent"), j.find("child")
+        if p is None or c is None:
+            continue  # urdfdom names the joint
+        child = c.get("link")
+        if child in parent:
+            raise ModelError(f"urdf ({source}): link {child!r} is the child of two joints, {parent[child][0]!r} "
+                             f"and {j.get('name')!r}; every link has one parent joint")
+        parent[child] = (j.get("name"), p.get("link"))
+    state = {}  # link -> 1 on the path being followed, 2 when known to reach a root
+    for start in parent:
+        path = []
+        link = start
+        while link in parent and state.get(link) is None:
+            state[link] = 1
+            path.append(link)
+            link = parent[link][1]
+        if state.get(link) == 1:  # back on the path: a cycle
+            cycle = path[path.index(link):]
+            names = [parent[c][0] for c in reversed(cycle)]
+            shown = " -> ".join([parent[cycle[-1]][1]] + [c for c in reversed(cycle)])
+            raise ModelError(f"urdf ({source}): joints {names} form a kinematic cycle ({shown}); a URDF must be a "
+                             f"tree (a reversed parent and child of a joint makes one)")
+        for visited in path:
+            state[visited] = 2
 
 
 def _vector(elem, attr, default, field):
