@@ -118,7 +118,7 @@ def test_out_of_limits_can_be_allowed_and_is_reported(service):
 def test_parse_joints_refuses_what_a_parser_may_let_through(gao):
     """Python's json module reads 1e999 as inf and keeps huge integers; orjson refuses both."""
     from tolerance_ros.services.contracts import ContractError
-    from tolerance_ros.services.error_model import parse_joints
+    from tolerance_ros.services.requests import parse_joints
     for value, needle in (([0] * 6 + [10 ** 400], "joints: a value is too large for a float"),
                           ([[0.0] * 7, [0.0] * 3 + [float("inf")] + [0.0] * 3], "joints[1][3]: not a finite number"),
                           ([[0.0] * 7, [float("nan")] * 7], "joints[1][0]: not a finite number")):

@@ -1,5 +1,7 @@
-"""Logic of the ``compensate`` command of the error-model service, the choice of the nominal or calibrated
-model for its Jacobian requests, and the calibrations it serves.
+"""Compensation in the services: the calibrated models a node serves (``load_calibrations``, ``calibrated_pair``:
+the calibrated robot and the nominal one at the calibration's tool point), and the ``compensate`` command of
+the error-model service. The error model and the trajectory compensator call it; it parses with
+``requests``, below it.
 
 Request (on ``compute_error_jacobian``, SI)::
 
@@ -23,16 +25,15 @@ residual.
 """
 from __future__ import annotations
 
-
 import numpy as np
 
 from ..core.accuracy.targets import AtTarget
 from ..core.calibration.compensate import MATCHES, compensate
 from ..core.calibration.writers import calibration_robot_name, load_calibration
-from ..core.geometry import quat_to_matrices
 from ..core.ingest import MAX_POSITION_M
 from ..core.models.base import ModelError
 from .contracts import ContractError, Limits
+from .requests import parse_joints, parse_poses
 
 COMPENSATE_ONLY = ("poses", "seed", "match")
 JACOBIAN_ONLY = ("outputs", "tolerances", "criteria", "include_jacobian")
@@ -51,70 +52,15 @@ def load_calibrations(paths, models: dict) -> dict:
     return out
 
 
-def jacobian_model(req: dict, robots, calibrations: dict):
-    """(robot name, model) of a ``compute_error_jacobian`` request: the nominal model, or with
-    ``"model": "calibrated"`` the robot's loaded calibration; refuses another command, the fields of
-    ``compensate`` and a request without ``joints``."""
-    command = req.get("command", "compute_error_jacobian")
-    if command != "compute_error_jacobian":
-        raise ContractError("invalid_request", f"command: expected 'compute_error_jacobian' or 'compensate', "
-                                               f"got {command[:40]!r}")
-    stray = [f for f in COMPENSATE_ONLY if f in req]
-    if stray:
-        raise ContractError("invalid_request", f"{stray[0]}: only with command 'compensate'")
-    if "joints" not in req:
-        raise ContractError("invalid_request", "joints: required")
-    name, model = robots.select(req.get("robot"))
-    which = req.get("model", "nominal")
-    if which not in MODELS:
-        raise ContractError("invalid_request", f"model: expected one of {list(MODELS)}, got {which[:40]!r}")
-    if which == "calibrated":
-        if name not in calibrations:
-            raise ContractError("invalid_request", f"model: no calibration is loaded for robot {name!r} (node "
-                                                   f"parameter 'calibration')")
-        model = calibrations[name]
-    return name, model
+def calibrated_pair(calibration, model, target=None) -> tuple:
+    """(calibrated robot, nominal robot), both with their tool at the calibration's tool point (``target`` by
+    name, or its first): what a compensation compares."""
+    return calibration.mechanism(model, target), calibration.nominal_at_tool_point(model, target)
 
 
-def parse_poses(value, limits: Limits) -> np.ndarray:
-    """(n, 4, 4) tool poses from a list of 4x4 matrices or of [x, y, z, qx, qy, qz, qw] (m)."""
-    if not isinstance(value, list) or not value:
-        raise ContractError("invalid_request", "poses: expected a non-empty list of 4x4 matrices or of "
-                                               "[x, y, z, qx, qy, qz, qw]")
-    cap = min(limits.max_poses, limits.max_compensate_poses)
-    if len(value) > cap:
-        raise ContractError("too_large", f"poses: {len(value)} targets exceed the cap of {cap} (each tool pose is "
-                                         f"solved from 9 starts first; give joint targets for more)")
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise ContractError("invalid_request", "poses: every pose must be numbers of one shape, 4x4 or 7") from None
-    if not np.all(np.isfinite(arr)):
-        raise ContractError("invalid_request", f"poses[{int(np.argwhere(~np.isfinite(arr))[0][0])}]: not finite")
-    position = arr[:, :3] if arr.ndim == 2 else arr[:, :3, 3] if arr.ndim == 3 and arr.shape[1:] == (4, 4) else None
-    if position is not None:
-        far = np.flatnonzero(np.abs(position).max(axis=1) > MAX_POSITION_M)
-        if far.size:
-            raise ContractError("invalid_request", f"poses[{far[0]}]: a target {np.abs(position[far[0]]).max():.3g} m "
-                                                   f"from the base is beyond {MAX_POSITION_M:g} m")
-    if arr.ndim == 2 and arr.shape[1] == 7:
-        try:
-            R = quat_to_matrices(arr[:, 3:])
-        except ValueError:
-            raise ContractError("invalid_request", "poses: a quaternion has zero norm") from None
-        T = np.tile(np.eye(4), (len(arr), 1, 1))
-        T[:, :3, :3], T[:, :3, 3] = R, arr[:, :3]
-        return T
-    if arr.ndim != 3 or arr.shape[1:] != (4, 4):
-        raise ContractError("invalid_request", f"poses: expected (n, 4, 4) matrices or (n, 7) position + "
-                                               f"quaternion, got shape {list(arr.shape)}")
-    R = arr[:, :3, :3]
-    bad = np.flatnonzero((np.abs(np.einsum("nij,nkj->nik", R, R) - np.eye(3)).max(axis=(1, 2)) > 1e-6)
-                         | (np.linalg.det(R) < 0) | (np.abs(arr[:, 3] - [0, 0, 0, 1]).max(axis=1) > 0))
-    if bad.size:
-        raise ContractError("invalid_request", f"poses[{bad[0]}]: not a rigid transform (rotation part not "
-                                               f"orthonormal, or last row not [0, 0, 0, 1])")
-    return arr
+def nominal_at(calibrated, nominal):
+    """The nominal robot with its tool where the calibrated robot's is (a calibration's tool point)."""
+    return AtTarget(nominal, calibrated.X, calibrated.target) if isinstance(calibrated, AtTarget) else nominal
 
 
 def compensate_request(req: dict, robots, calibrations: dict, limits: Limits) -> dict:
@@ -133,15 +79,13 @@ def compensate_request(req: dict, robots, calibrations: dict, limits: Limits) ->
                                                f"'calibration'); ask for \"model\": \"nominal\" to solve on the "
                                                f"nominal model")
     model = calibrations[name] if which == "calibrated" else nominal
-    if isinstance(model, AtTarget):  # the calibration's tool point: the nominal pose is taken there too
-        nominal = AtTarget(nominal, model.X, model.target)
+    nominal = nominal_at(model, nominal)
     match = req.get("match", "pose")
     if match not in MATCHES:
         raise ContractError("invalid_request", f"match: expected one of {list(MATCHES)}, got {match[:40]!r}")
     if ("joints" in req) == ("poses" in req):
         raise ContractError("invalid_request", "joints, poses: give exactly one (nominal joint configurations or "
                                                "tool poses)")
-    from .error_model import parse_joints  # here: error_model imports this module
     allow = req.get("allow_out_of_limits", False)
     try:
         if "joints" in req:

@@ -11,8 +11,6 @@ once, tolerances within physical ranges.
 """
 from __future__ import annotations
 
-from itertools import chain
-
 import numpy as np
 
 from ..core.budget import BudgetError, budget_from_dict
@@ -20,9 +18,10 @@ from ..core.errors import CRITERIA, criterion_bound
 from ..core.ingest import IngestError, JointOrder, stamp_seconds
 from ..core.jsonio import compact_array, dumps_fast, encode_arrays
 from ..core.models.base import ModelError
-from .compensation import compensate_request, jacobian_model
+from .compensation import COMPENSATE_ONLY, MODELS, compensate_request
 from .contracts import (MAX_TOLERANCE, ContractError, Limits, answer_id, check_budget, error_response, number,
                         parse_request)
+from .requests import _parse_joints
 from .robots import RobotSet
 
 ROWS = ("dx", "dy", "dz", "drx", "dry", "drz")
@@ -32,52 +31,6 @@ JACOBIAN_FIELDS = {"robot": ((str,), False), "joints": ((list,), False), "output
                    "arrays": ((str,), False), "command": ((str,), False), "model": ((str,), False),
                    "poses": ((list,), False), "seed": ((list,), False), "match": ((str,), False)}
 ARRAYS = ("json", "base64")
-
-
-def parse_joints(value, model, limits: Limits, allow_out_of_limits: bool) -> np.ndarray:
-    """(n, dof) joints from one configuration (list of numbers) or many (list of lists)."""
-    return _parse_joints(value, model, limits, allow_out_of_limits)[0]
-
-
-def _parse_joints(value, model, limits: Limits, allow_out_of_limits: bool, bounds=None) -> tuple:
-    """``parse_joints`` and the (n, dof) mask of joints outside their limits (None when there are none).
-    ``bounds``: the model's (lower - 1e-12, upper + 1e-12), when the caller keeps them. The checks run over
-    whole rows and arrays in C (``map``, numpy); the loops that name the offending entry run only on a failure."""
-    if not isinstance(value, list) or not value:
-        raise ContractError("invalid_request", "joints: expected a non-empty list (one configuration) or a list of lists")
-    rows = value if isinstance(value[0], list) else [value]
-    if len(rows) > limits.max_poses:
-        raise ContractError("too_large", f"joints: {len(rows)} configurations exceed the cap of {limits.max_poses}")
-    dof = model.dof
-    if set(map(type, rows)) != {list} or set(map(len, rows)) != {dof}:
-        for i, r in enumerate(rows):
-            if not isinstance(r, list) or len(r) != dof:
-                got = len(r) if isinstance(r, list) else type(r).__name__
-                raise ContractError("invalid_request", f"joints[{i}]: expected {dof} values "
-                                                       f"({', '.join(model.joint_names)}), got {got}")
-    kinds = set(map(type, chain.from_iterable(rows)))
-    if not kinds <= {int, float}:
-        i, j = next((i, j) for i, r in enumerate(rows) for j, v in enumerate(r) if type(v) not in (int, float))
-        raise ContractError("invalid_request", f"joints[{i}][{j}]: expected a number, got {type(rows[i][j]).__name__}")
-    try:
-        q = np.fromiter(chain.from_iterable(rows), dtype=float, count=len(rows) * dof).reshape(len(rows), dof)
-    except OverflowError:
-        raise ContractError("invalid_request", "joints: a value is too large for a float") from None
-    lo, hi = bounds if bounds is not None else (model.joint_limits[:, 0] - 1e-12, model.joint_limits[:, 1] + 1e-12)
-    within = (q >= lo) & (q <= hi)  # False for NaN too: all True means finite and within the limits
-    if within.all():
-        return q, None
-    if not np.isfinite(q).all():
-        i, j = np.argwhere(~np.isfinite(q))[0]
-        raise ContractError("invalid_request", f"joints[{i}][{j}]: not a finite number")
-    out = ~within
-    if not allow_out_of_limits:
-        i, j = np.argwhere(out)[0]
-        lo, hi = model.joint_limits[j]
-        raise ContractError("out_of_limits", f"joints[{i}][{j}] ({model.joint_names[j]}) = {q[i, j]:.6g} is outside "
-                                             f"[{lo:.6g}, {hi:.6g}] ({int(out.any(axis=1).sum())} configuration(s) "
-                                             f"affected); set allow_out_of_limits to accept")
-    return q, out
 
 
 def parse_tolerances(value, model, current_budget=None) -> tuple:
@@ -138,6 +91,31 @@ def parse_criteria(value, n_poses: int, limits: Limits) -> list:
         raise ContractError("too_large", f"criteria: 'worst-case' for {n_poses} configurations exceeds the cap of "
                                          f"{limits.max_worst_case_poses} for that criterion")
     return criteria
+
+
+def jacobian_model(req: dict, robots, calibrations: dict):
+    """(robot name, model) of a ``compute_error_jacobian`` request: the nominal model, or with
+    ``"model": "calibrated"`` the robot's loaded calibration; refuses another command, the fields of
+    ``compensate`` and a request without ``joints``."""
+    command = req.get("command", "compute_error_jacobian")
+    if command != "compute_error_jacobian":
+        raise ContractError("invalid_request", f"command: expected 'compute_error_jacobian' or 'compensate', "
+                                               f"got {command[:40]!r}")
+    stray = [f for f in COMPENSATE_ONLY if f in req]
+    if stray:
+        raise ContractError("invalid_request", f"{stray[0]}: only with command 'compensate'")
+    if "joints" not in req:
+        raise ContractError("invalid_request", "joints: required")
+    name, model = robots.select(req.get("robot"))
+    which = req.get("model", "nominal")
+    if which not in MODELS:
+        raise ContractError("invalid_request", f"model: expected one of {list(MODELS)}, got {which[:40]!r}")
+    if which == "calibrated":
+        if name not in calibrations:
+            raise ContractError("invalid_request", f"model: no calibration is loaded for robot {name!r} (node "
+                                                   f"parameter 'calibration')")
+        model = calibrations[name]
+    return name, model
 
 
 class ErrorModelService:

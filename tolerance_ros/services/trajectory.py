@@ -14,6 +14,7 @@ import numpy as np
 
 from ..core.calibration.trajectory import compensate_trajectory
 from ..core.models.base import ModelError
+from .compensation import calibrated_pair
 from .trajectory_cdr import CdrError, decode, replaced
 
 ON_FLAG = ("reject", "nominal")
@@ -39,11 +40,8 @@ class TrajectoryLogic:
         """Compensate with ``calibration`` (None: pass through) from now on."""
         self.calibration = calibration
         self.source = source
-        if calibration is None:
-            self.calibrated = self.nominal = None
-        else:
-            self.calibrated = calibration.mechanism(self.model, self.target)
-            self.nominal = calibration.nominal_at_tool_point(self.model, self.target)
+        self.calibrated, self.nominal = (None, None) if calibration is None else \
+            calibrated_pair(calibration, self.model, self.target)
 
     def compensate(self, joint_names, positions, velocities=None, accelerations=None) -> dict:
         """{"ok", "positions", "velocities", "accelerations" (m, k) in the given joint order (None where the
