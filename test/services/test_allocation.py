@@ -199,7 +199,7 @@ def test_the_time_limit_holds_for_a_job_that_waits_and_for_a_long_solver_step(ro
 
 
 def test_the_finished_jobs_kept_are_bounded(robots):
-    from tolerance_ros.services.allocation import MAX_FINISHED
+    from tolerance_ros.services.jobs import MAX_FINISHED
     out = Outbox()
     service = AllocatorService(robots, out, max_queue=MAX_FINISHED + 50)
     try:
@@ -215,7 +215,7 @@ def test_the_finished_jobs_kept_are_bounded(robots):
 
 def test_the_outbox_holds_each_jobs_latest_progress_and_every_answer_in_order():
     """A publisher that falls behind (the node's timer) holds one progress per job, not every iteration's."""
-    from tolerance_ros.services.allocation import Outbox
+    from tolerance_ros.services.jobs import Outbox
     box = Outbox()
     box("response", {"id": "a", "status": "accepted"})
     for k in range(10_000):
@@ -232,7 +232,7 @@ def test_the_outbox_holds_each_jobs_latest_progress_and_every_answer_in_order():
 def test_no_progress_goes_out_once_a_job_is_answered(robots, monkeypatch):
     """A solve still stopping after its timeout or cancel answer (a long step) says nothing more."""
     from tolerance_ros.core import interrupt
-    from tolerance_ros.services import allocation
+    from tolerance_ros.services import allocation, jobs
 
     def solve(job, progress):
         progress(1, 3)
@@ -245,7 +245,7 @@ def test_no_progress_goes_out_once_a_job_is_answered(robots, monkeypatch):
     try:
         monkeypatch.setattr(allocation, "run_allocation", solve)
         job = parse('{"id": "p", "limit": 0.0014}', robots)
-        entry = allocation._Entry(job, interrupt.StopToken(5.0))
+        entry = jobs._Entry(job, interrupt.StopToken(5.0))
         service._solve(entry)
         assert [d["fraction"] for kind, d in out.items if kind == "progress"] == [1 / 3]
     finally:

@@ -13,7 +13,8 @@ from std_msgs.msg import String
 
 from ..core.budget import budget_from_dict
 from ..core.jsonio import dumps_fast
-from ..services.allocation import MAX_TIME_LIMIT_S, AllocatorService, Outbox
+from ..services.allocation import MAX_TIME_LIMIT_S, AllocatorService
+from ..services.jobs import Outbox
 from ..services.contracts import Limits
 from .common import (ALLOCATE_TOPIC, BUDGET_QOS, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, declare,
                      follow_robot_description, guarded, robot_set, run)
