@@ -527,3 +527,62 @@ def test_a_managed_error_model_serves_only_while_active_and_keeps_its_state(grap
     assert _transition(graph, "tolerance_error_model", ns, Transition.TRANSITION_DEACTIVATE)
     assert _transition(graph, "tolerance_error_model", ns, Transition.TRANSITION_CLEANUP)
     assert node._made is None
+
+
+def test_the_accuracy_loop_closes_on_the_graph(graph, ns, tmp_path):
+    """The whole loop: the joint source plays a planned campaign through the trajectory compensator (which
+    has no calibration yet and passes it through), the simulated tracker measures an as-built robot, the
+    monitor logs; its calibrate service fits from its own log and puts the calibration in force; from then
+    on the compensated motion puts the tool within 10 % of the error it had before, in the monitor's report
+    and measured against the plan itself."""
+    import yaml
+    from geometry_msgs.msg import PoseStamped
+    from tolerance_ros.core.calibration.planning import campaign_dict, plan
+    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
+    from tolerance_ros.nodes.joint_state_source import JointStateSource
+    from tolerance_ros.nodes.simulated_tracker import SimulatedTrackerNode
+    from tolerance_ros.nodes.trajectory_compensator import TrajectoryCompensator
+    gao = load_robot("gao2023_7dof")
+    planned = plan(gao, 24, "observability", candidates=500, seed=3).q
+    (tmp_path / "planned.yaml").write_text(yaml.safe_dump(campaign_dict(gao, planned, "planned", 1)))
+    base = [1.5, 0.2, 0.0, 0.0, 0.0, 0.5]
+    graph.start(AccuracyMonitor, ns, tracker_to_base=base, log_dir=str(tmp_path), report_period=0.3, slop=0.005)
+    graph.start(SimulatedTrackerNode, ns, tracker_to_base=base, measure_every=3, seed=4)
+    graph.start(TrajectoryCompensator, ns)
+    graph.start(JointStateSource, ns, mode="campaign", campaign=str(tmp_path / "planned.yaml"), dwell=0.25, loop=True,
+                compensated=True)
+    node = graph.node("integrator", ns)
+    reports = collect(graph, node, String, "tolerance/accuracy_report")
+    answers = collect(graph, node, String, "tolerance/calibrate/response")
+    measured = collect(graph, node, PoseStamped, "measured_pose", MEASUREMENT_QOS)
+    request = node.create_publisher(String, "tolerance/calibrate/request", 10)
+
+    def report():
+        return json.loads(reports[-1].data) if reports else {"counts": {"paired": 0}}
+    assert wait_for(lambda: report()["counts"]["paired"] >= 2 * 24 * 2, 90)      # every pose measured twice over
+    before = report()["summary"]["position_error_m"]["mean"]
+    assert wait_for(lambda: request.get_subscription_count())
+    request.publish(String(data=json.dumps({"id": "k1", "log": "current", "registration": "base", "noise": 1e-5})))
+    assert wait_for(lambda: any(json.loads(a.data).get("status") == "done" for a in answers), 120)
+    done = next(json.loads(a.data) for a in answers if json.loads(a.data).get("status") == "done")
+    assert done["success"], done
+    assert wait_for(lambda: report().get("calibration") and report()["counts"]["paired"] > 0
+                    and report()["summary"]["measurements"] >= 40, 60)
+    rep = report()
+    after = rep["summary"]["position_error_m"]["mean"]
+    assert rep["before"]["summary"]["position_error_m"]["mean"] == pytest.approx(before, rel=0.5)
+    assert after <= 0.1 * before, (before, after)
+    # measured against the plan itself: the tracker's readings of the compensated motion, in the base frame the
+    # calibration registered (the one its model, and so the compensation, is expressed in)
+    from tolerance_ros.core.calibration.writers import calibration_from_text
+    put = collect(graph, graph.node("late_listener", ns), String, "tolerance_calibration", LATCHED_QOS)
+    assert wait_for(lambda: put)
+    T_tb = calibration_from_text(put[-1].data, gao).T_tracker_base
+    n0 = len(measured)
+    assert wait_for(lambda: len(measured) >= n0 + 20, 30)
+    nominal = gao.fk(planned)[:, :3, 3]
+    errors = []
+    for m in measured[n0:]:
+        p = np.linalg.inv(T_tb) @ np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z, 1.0])
+        errors.append(np.min(np.linalg.norm(nominal - p[:3], axis=1)))
+    assert np.median(errors) <= 0.1 * before, (before, np.median(errors))

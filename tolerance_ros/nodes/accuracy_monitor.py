@@ -21,14 +21,17 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.budget import load_budget
-from ..core.calibration.writers import load_calibration
+from ..core.calibration.writers import CalibrationError, calibration_from_text, load_calibration
 from ..core.campaign import load_campaign
 from ..core.geometry import transform
 from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, budget_from_message
+from ..services.calibration import CalibrationService
+from ..services.jobs import Outbox
 from ..services.monitor import WARN, MonitorLogic, monitor_targets, tracker_frame
-from .common import (BUDGET_QOS, LATCHED_QOS, MEASUREMENT_QOS, PREFIX, STATUS_QOS, declare, follow_robot, guarded,
-                     robot_set, run, status_name)
+from .common import (BUDGET_QOS, CALIBRATE_TOPIC, CALIBRATION_TOPIC, LATCHED_QOS, MEASUREMENT_QOS, PREFIX,
+                     SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, declare, follow_robot, guarded, robot_set,
+                     run, status_name)
 
 MARKER_TYPES = {"sphere": Marker.SPHERE, "arrow": Marker.ARROW, "text": Marker.TEXT_VIEW_FACING}
 
@@ -88,6 +91,19 @@ class AccuracyMonitor(Node):
         self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
         self.create_timer(period, guarded(self, self.publish_status))
         self.create_timer(marker_period, guarded(self, self.publish_markers))
+        self.calibrate_outbox = Outbox()
+        self.calibrator = CalibrationService(self.robots, self.calibrate_outbox, self.current_log,
+                                             save_dir=self.log_dir / "calibrations")
+        self.calibrate_pubs = {"response": self.create_publisher(String, f"{CALIBRATE_TOPIC}/response",
+                                                                 SERVICE_RESPONSE_QOS),
+                               "progress": self.create_publisher(String, f"{CALIBRATE_TOPIC}/progress",
+                                                                 SERVICE_RESPONSE_QOS),
+                               "calibration": self.create_publisher(String, CALIBRATION_TOPIC, LATCHED_QOS)}
+        self.create_subscription(String, f"{CALIBRATE_TOPIC}/request", guarded(self, self.on_calibrate_request),
+                                 SERVICE_REQUEST_QOS)
+        self.create_subscription(String, CALIBRATION_TOPIC, guarded(self, self.on_calibration), LATCHED_QOS)
+        self.create_timer(0.05, guarded(self, self.flush_calibrate_outbox))
+        self.calibration_text = None
         follow_robot(self, self.robots, self.start, check=self.files_for)
 
     def files_for(self, model):
@@ -119,6 +135,8 @@ class AccuracyMonitor(Node):
                                   orientation=self.measurement == "pose")
         if self.budget_text is not None:
             self.on_budget(String(data=self.budget_text))
+        if self.calibration_text is not None:
+            self.on_calibration(String(data=self.calibration_text))
         self.frame = self.marker_frame or getattr(model, "base_link", None) or "base_link"
         self.publish_tracker_frame(T_tracker_base)
         self.get_logger().info(f"monitoring {model.name}; campaign log {log_path}")
@@ -210,7 +228,35 @@ class AccuracyMonitor(Node):
             out.markers.append(marker)
         self.marker_pub.publish(out)
 
+    def current_log(self):
+        """The campaign log being written (what a calibrate request's ``"log": "current"`` means)."""
+        return None if self.logic is None or self.logic.log is None else self.logic.log.name
+
+    def on_calibrate_request(self, msg):
+        self.calibrator.handle(msg.data)
+
+    def flush_calibrate_outbox(self):
+        for kind, doc in self.calibrate_outbox.drain():
+            self.calibrate_pubs[kind].publish(String(data=doc["text"] if kind == "calibration" else dumps_fast(doc)))
+
+    def on_calibration(self, msg):
+        """A calibration on the graph (this node's own service's, or another's): compare with the calibrated
+        robot from now on, its registration and targets too; one that does not fit is refused, logged."""
+        self.calibration_text = msg.data
+        if self.logic is None:
+            return
+        try:
+            cal = calibration_from_text(msg.data, self.logic.model)
+            self.logic.set_calibration(cal, CALIBRATION_TOPIC)
+        except (CalibrationError, ValueError) as exc:
+            self.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused, the current reference stays: {exc}")
+            return
+        self.publish_tracker_frame(cal.T_tracker_base)
+        self.get_logger().info(f"calibration in force: {cal.model.get('label', 'identified')}; measurements are "
+                               f"compared with the calibrated robot from now on")
+
     def close(self):
+        self.calibrator.close()
         if self.logic is not None:
             self.logic.close()
 

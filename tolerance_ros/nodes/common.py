@@ -39,6 +39,8 @@ BUDGET_QOS = ROBOT_DESCRIPTION_QOS = LATCHED_QOS
 PREFIX = "tolerance"  # relative: under the node's namespace
 JACOBIAN_TOPIC = f"{PREFIX}/compute_error_jacobian"
 ALLOCATE_TOPIC = f"{PREFIX}/allocate_tolerances"
+CALIBRATE_TOPIC = f"{PREFIX}/calibrate"
+CALIBRATION_TOPIC = "tolerance_calibration"  # latched: the calibration in force (a calibration file's text, SI)
 
 
 def declare(node, name, default, description):

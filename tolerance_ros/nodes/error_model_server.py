@@ -24,10 +24,11 @@ from std_msgs.msg import String
 from ..core.errors import CRITERIA
 from ..core.jsonio import dumps_fast, warm_up_base64
 from ..services.contracts import ContractError, Limits, budget_from_message
-from ..services.compensation import load_calibrations
+from ..services.compensation import calibration_from_graph, load_calibrations
 from ..services.error_model import ErrorModelService
-from .common import (BUDGET_QOS, JACOBIAN_TOPIC, MEASUREMENT_QOS, PREFIX, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS,
-                     STATUS_QOS, declare, follow_robot_description, guarded, robot_set, run)
+from .common import (BUDGET_QOS, CALIBRATION_TOPIC, JACOBIAN_TOPIC, LATCHED_QOS, MEASUREMENT_QOS, PREFIX,
+                     SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, declare, follow_robot_description, guarded,
+                     robot_set, run)
 
 
 class ErrorModelServer(Node):
@@ -76,6 +77,7 @@ class ErrorModelServer(Node):
             JointState, self.resolve_topic_name("joint_states"), lambda msg: None, qos, raw=True)
         self.create_timer(1.0 / rate, guarded(self, self.publish_bound))
         self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
+        self.create_subscription(String, CALIBRATION_TOPIC, guarded(self, self.on_calibration), LATCHED_QOS)
         follow_robot_description(self, self.service.robots, self.on_robots_changed)
         self.get_logger().info(f"serving {sorted(self.service.models) or 'robot_description'} on "
                                f"{self.resolve_topic_name(JACOBIAN_TOPIC + '/request')}")
@@ -104,6 +106,17 @@ class ErrorModelServer(Node):
 
     def on_request(self, msg):
         self.responses.publish(String(data=self.service.handle_text(msg.data)))
+
+    def on_calibration(self, msg):
+        """A calibration on the graph replaces the file's for its robot (requests with "model": "calibrated",
+        compensate, and the predicted bound, which then comes from the calibrated robot)."""
+        try:
+            robot, cal = calibration_from_graph(msg.data, self.service.models)
+        except ValueError as exc:
+            self.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused: {exc}")
+            return
+        self.service.calibrations[robot] = cal.mechanism(self.service.models[robot])
+        self.get_logger().info(f"calibrated model of {robot} from {CALIBRATION_TOPIC}")
 
     def on_budget(self, msg):
         try:

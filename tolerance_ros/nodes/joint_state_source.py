@@ -1,14 +1,18 @@
 """Joint-state source (node ``tolerance_joint_state_source``; a stand-in for the robot, or used with the
 standard ``joint_state_publisher``): publishes sensor_msgs/JointState on ``joint_states`` from a
-campaign, random or selected (index F) configurations. The robot may come from ``robot_description``."""
+campaign, random or selected (index F) configurations. With ``compensated`` it stands in for a controller
+that executes compensated motion: each configuration goes to the trajectory compensator as a one-point
+JointTrajectory on ``joint_trajectory_in``, and what comes back on ``joint_trajectory`` is what it
+publishes. The robot may come from ``robot_description``."""
 from __future__ import annotations
 
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..core.campaign import load_campaign
 from ..services.joint_source import JointStateSequence
-from .common import MEASUREMENT_QOS, declare, follow_robot, guarded, robot_set, run
+from .common import MEASUREMENT_QOS, STATUS_QOS, declare, follow_robot, guarded, robot_set, run
 
 
 class JointStateSource(Node):
@@ -28,9 +32,17 @@ class JointStateSource(Node):
         self.dwell = declare(self, "dwell", 0.0, "seconds at each configuration; 0 takes the campaign's dwell (or 2 s)")
         rate = declare(self, "rate", 50.0, "publishing rate, Hz")
         self.loop = declare(self, "loop", False, "repeat the sequence instead of holding the last configuration")
+        self.compensated = declare(self, "compensated", False, "send each configuration through the trajectory "
+                                                               "compensator and publish what comes back")
         self.robots = robot_set(self, [robot], robot)
         self.sequence = None
         self.publisher = self.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+        self.commanded = None     # (step, joints) the compensator sent back for the configuration of ``step``
+        self.sent_step = None
+        if self.compensated:
+            self.plan_pub = self.create_publisher(JointTrajectory, "joint_trajectory_in", STATUS_QOS)
+            self.create_subscription(JointTrajectory, "joint_trajectory", guarded(self, self.on_compensated),
+                                     STATUS_QOS)
         self.timer = self.create_timer(1.0 / rate, guarded(self, self.publish_joint_state))
         follow_robot(self, self.robots, self.start, check=self.sequence_for)
 
@@ -48,11 +60,26 @@ class JointStateSource(Node):
         self.get_logger().info(f"{self.mode}: {len(self.sequence)} configurations of {model.name}, "
                                f"{self.sequence.dwell:g} s each")
 
+    def on_compensated(self, msg):
+        """The compensator's answer to the configuration sent last: what the controller executes."""
+        if msg.points and self.sent_step is not None and list(msg.joint_names) == self.names:
+            self.commanded = (self.sent_step, [float(v) for v in msg.points[0].positions])
+
     def publish_joint_state(self):
         if self.sequence is None:
             return
         now = self.get_clock().now()
         step, label, q, finished = self.sequence.at((now - self.t0).nanoseconds * 1e-9)
+        if self.compensated:
+            if step != self.sent_step:
+                plan = JointTrajectory(joint_names=self.names,
+                                       points=[JointTrajectoryPoint(positions=[float(v) for v in q])])
+                plan.header.stamp = now.to_msg()
+                self.plan_pub.publish(plan)
+                self.sent_step = step
+            if self.commanded is None or self.commanded[0] != step:
+                return  # the compensated command of this configuration has not come back yet
+            q = self.commanded[1]
         msg = JointState()
         msg.header.stamp = now.to_msg()
         msg.name = self.names

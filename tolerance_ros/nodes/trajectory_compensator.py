@@ -14,9 +14,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from ..core.calibration.writers import CalibrationError, calibration_from_text, load_calibration
 from ..services.trajectory import ON_FLAG, TrajectoryError, TrajectoryLogic
-from .common import LATCHED_QOS, STATUS_QOS, declare, follow_robot, guarded, robot_set, run, status_name
-
-CALIBRATION_TOPIC = "tolerance_calibration"
+from .common import CALIBRATION_TOPIC, LATCHED_QOS, STATUS_QOS, declare, follow_robot, guarded, robot_set, run, status_name
 
 
 class TrajectoryCompensator(Node):

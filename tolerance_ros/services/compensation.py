@@ -29,7 +29,8 @@ import numpy as np
 
 from ..core.accuracy.targets import AtTarget
 from ..core.calibration.compensate import MATCHES, compensate
-from ..core.calibration.writers import calibration_robot_name, load_calibration
+from ..core.calibration.writers import (CalibrationError, calibration_from_text, calibration_robot_name,
+                                       load_calibration)
 from ..core.ingest import MAX_POSITION_M
 from ..core.models.base import ModelError
 from .contracts import ContractError, Limits
@@ -50,6 +51,17 @@ def load_calibrations(paths, models: dict) -> dict:
             raise ValueError(f"calibration {path}: robot {robot!r} is not served ({sorted(models)})")
         out[robot] = load_calibration(path, models[robot]).mechanism(models[robot])
     return out
+
+
+def calibration_from_graph(text, models: dict) -> tuple:
+    """(robot name, Calibration) of a calibration received as text (``tolerance_calibration``) for one of the
+    served ``models``; ValueError (CalibrationError) naming why it does not fit."""
+    from ..core.yamlio import loads_yaml
+    doc = loads_yaml(text, "tolerance_calibration", CalibrationError) if isinstance(text, str) else None
+    robot = doc.get("robot") if isinstance(doc, dict) else None
+    if robot not in models:
+        raise CalibrationError(f"tolerance_calibration: robot {str(robot)[:80]!r} is not served ({sorted(models)})")
+    return robot, calibration_from_text(text, models[robot])
 
 
 def calibrated_pair(calibration, model, target=None) -> tuple:

@@ -174,7 +174,8 @@ class ErrorModelService:
 
     def bound_at(self, names, positions, criterion=None, stamp=0.0):
         """The current budget's predicted bound at a joint state (names in any order, stamp s), as the
-        ``predicted_bound`` message: {stamp, robot, criterion, position_bound_m, orientation_bound_rad};
+        ``predicted_bound`` message: {stamp, robot, model, criterion, position_bound_m, orientation_bound_rad},
+        from the calibrated robot (at its tool point) when a calibration of the budget's robot is loaded;
         None without a budget or when the state is unusable (missing joints, non-finite values)."""
         if criterion is not None and criterion not in CRITERIA:
             raise ValueError(f"criterion: expected one of {list(CRITERIA)}, got {criterion!r:.40}")
@@ -191,9 +192,11 @@ class ErrorModelService:
         except IngestError:
             return None
         crit = criterion or budget.criterion
-        EJ = model.error_jacobian(q)
+        calibrated = self.calibrations.get(budget.robot)
+        EJ = (calibrated or model).error_jacobian(q)
         delta = budget.vector_for(model)
-        return {"stamp": t, "robot": budget.robot, "criterion": crit,
+        return {"stamp": t, "robot": budget.robot, "model": "nominal" if calibrated is None else "calibrated",
+                "criterion": crit,
                 "position_bound_m": float(criterion_bound(EJ.position, delta, crit)[0]),
                 "orientation_bound_rad": float(criterion_bound(EJ.orientation, delta, crit)[0])}
 

@@ -36,6 +36,9 @@ class MonitorLogic:
                  targets=None, log_path=None, pose_tolerance=1e-3, state_buffer=2000, clock=time.monotonic,
                  name="tolerance_ros: accuracy monitor", recent=20, orientation=True):
         self.model = model
+        self.reference = model        # what measurements are compared with: the nominal or the calibrated robot
+        self.calibration = None
+        self.before = None            # the summary the monitor had when a calibration came
         self.name = name
         self.recent = deque(maxlen=recent)  # the latest paired results, for the markers
         self.generation = 0                 # increases with each new budget
@@ -71,7 +74,7 @@ class MonitorLogic:
         fit the robot (``contracts.check_budget``: its robot, criterion, limits, tolerances) raises
         ContractError when it arrives, and the previous budget stays."""
         delta = check_budget(budget, self.model) if budget is not None else None
-        self.acc = AccuracyAccumulator.from_budget(self.model, budget, self.campaign, self.T_tracker_base,
+        self.acc = AccuracyAccumulator.from_budget(self.reference, budget, self.campaign, self.T_tracker_base,
                                                    self.targets, self.pose_tolerance, identify=False,
                                                    orientation=self.orientation)
         self.budget = budget
@@ -81,6 +84,23 @@ class MonitorLogic:
         if self.log:
             self._write({"event": "budget", "robot": budget.robot if budget else None,
                          "source": budget.source if budget else None})
+
+    def set_calibration(self, calibration, source=""):
+        """Compare measurements with the calibrated robot from now on (its registration and targets too):
+        with compensated motion that is the pose the controller was asked for; without, what the calibration
+        predicts. The statistics so far are kept as ``before`` in the report and restart."""
+        names = [n for n in self.targets.names if n not in calibration.targets.names]
+        if names:
+            raise ValueError(f"calibration: no target(s) {names} (it has {list(calibration.targets.names)})")
+        self.before = {"calibration": self.calibration, "summary": self.acc.summary()}
+        self.reference = calibration.calibrated_chain(self.model)
+        self.T_tracker_base, self.targets = calibration.T_tracker_base, calibration.targets
+        self._target_index = {n: k for k, n in enumerate(self.targets.names)}
+        self.calibration = {"source": source, "model": calibration.model.get("label"),
+                            "held_out_rms_m": (calibration.validation or {}).get("after", {}).get("position_rms_m")}
+        self.set_budget(self.budget)
+        if self.log:
+            self._write({"event": "calibration", "source": source})
 
     def _write(self, rec):
         """Append one event to the campaign log (strict JSON: non-finite numbers become null)."""
@@ -233,7 +253,8 @@ class MonitorLogic:
     def report(self) -> dict:
         """JSON-ready report: counts, the accumulator summary (per test pose ISO 9283), the last result."""
         last = None if self.last is None else {k: v for k, v in self.last.items() if k != "dp"}
-        return {"robot": self.model.name, "counts": dict(self.counts), "pending": len(self.pending),
+        return {"robot": self.model.name, "calibration": self.calibration, "before": self.before,
+                "counts": dict(self.counts), "pending": len(self.pending),
                 "recent_issues": list(self.last_reasons), "summary": self.acc.summary(), "last": last,
                 "budget": None if self.budget is None else {"source": self.budget.source,
                                                              "criterion": self.budget.criterion,

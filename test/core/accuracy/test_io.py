@@ -306,7 +306,7 @@ BAD_LOG_LINES = [
     ("seq as a string", [_m("5")], "seq: expected a non-negative integer, got '5'"),
     ("negative seq", [_m(-5)], "seq: expected a non-negative integer, got -5"),
     ("unknown event", ['{"event": "measurment", "seq": 5}'],
-     "event: expected start, budget, measurement, paired or unpaired, got 'measurment'"),
+     "event: expected start, budget, calibration, measurement, paired or unpaired, got 'measurment'"),
     ("pose label as a list", [_m(5), _p(5, pose=["P1"])], "pose: expected a test pose name or null, got a JSON array"),
 ]
 

@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import interrupt
 from ..accuracy.identification import BASE_NAMES, base_matrix, identify
 from ..accuracy.iso9283 import pose_characteristics
 from ..accuracy.registration import register, spread_ratio
@@ -157,10 +158,13 @@ class Calibration:
         """The calibrated model: a Mechanism of the nominal model's kind (see ``calibrated_mechanism``), its
         joints deflected by the elastostatic term when there is one, its tool at the calibration's tool
         point (``tool_point``) when that is not the tool frame itself."""
+        return self._at_tool_point(self.calibrated_chain(model), target)
+
+    def calibrated_chain(self, model: Mechanism) -> Mechanism:
+        """The calibrated chain, its tool frame the model's own (the targets are applied by who measures them)."""
         chain = calibrated_mechanism(model, self.dx, self.base)
-        if self.compliance is not None and np.any(self.compliance):
-            chain = DeflectedChain(chain, self.compliance)
-        return self._at_tool_point(chain, target)
+        return DeflectedChain(chain, self.compliance) if self.compliance is not None and np.any(self.compliance) \
+            else chain
 
     def nominal_at_tool_point(self, model: Mechanism, target=None) -> Mechanism:
         """The nominal model with its tool at the calibration's tool point (what the calibrated one is compared
@@ -580,6 +584,7 @@ def validate(model, q, T_tracker, groups, registration="base", sigma_position=1e
     outlier = np.zeros(n, bool)
     unknowns = None
     for f in range(k):
+        interrupt.check()  # a cancel or time limit stops the cross-validation here (nothing outside a watch)
         test = fold == f
         g = None if gravity is None else gravity[~test]
         nom = _fit(model, q[~test], T_tracker[~test], registration, sigma_position, sigma_orientation, idx[~test],

@@ -59,11 +59,11 @@ def read_log(path, skip_bad=False) -> Measurements:
                 if ev == "start":
                     session += 1
                     continue
-                if ev == "budget":
+                if ev in ("budget", "calibration"):
                     continue
                 if ev not in ("measurement", "paired", "unpaired"):
-                    raise MeasurementError(f"event: expected start, budget, measurement, paired or unpaired, "
-                                           f"got {_brief(ev)}")
+                    raise MeasurementError(f"event: expected start, budget, calibration, measurement, paired or "
+                                           f"unpaired, got {_brief(ev)}")
                 seq = rec.get("seq")
                 if type(seq) is not int or seq < 0:
                     raise MeasurementError(f"seq: expected a non-negative integer, got {_brief(seq)}")

@@ -1,0 +1,99 @@
+"""The calibration service: from the monitor's campaign log to a calibration put in force, or refused."""
+import json
+
+import numpy as np
+import pytest
+
+from tolerance_ros.core.accuracy.io import write_csv
+from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_targets
+from tolerance_ros.core.budget import load_budget
+from tolerance_ros.core.calibration.writers import calibration_from_text
+from tolerance_ros.core.geometry import transform
+from tolerance_ros.services.calibration import CalibrationService
+from tolerance_ros.services.robots import RobotSet
+
+
+@pytest.fixture(scope="module")
+def campaign(gao, tmp_path_factory):
+    dx = as_built_errors(load_budget("gao2023_delta2", gao).vector_for(gao), 5)
+    q = np.repeat(gao.sample_joints(30, 5), 2, axis=0)
+    m = measure_targets(gao, q, dx, None, 1e-5, 0.0, transform([1.5, 0.2, 0.0], [0, 0, 0.5]), seed=2,
+                        labels=[f"P{i // 2}" for i in range(60)], stamps=np.arange(60) * 0.5)
+    return write_csv(tmp_path_factory.mktemp("cal") / "log.csv", m)
+
+
+class Recorder(list):
+    """Every (kind, doc) a service emits, in order."""
+
+    def __call__(self, kind, doc):
+        self.append((kind, doc))
+
+    @property
+    def items(self):
+        return list(self)
+
+
+def wait(out, rid, timeout=60.0):
+    import time
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for kind, doc in out.items:
+            if kind == "response" and doc.get("id") == rid and doc.get("status") not in ("accepted",):
+                return doc
+        time.sleep(0.05)
+    raise AssertionError(f"no final answer to {rid}")
+
+
+def test_a_calibration_from_the_log_is_answered_and_put_in_force(gao, campaign, tmp_path):
+    out = Recorder()
+    svc = CalibrationService(RobotSet(["gao2023_7dof"], "gao2023_7dof"), out, current_log=lambda: str(campaign),
+                             save_dir=tmp_path)
+    try:
+        svc.handle(json.dumps({"id": "k1", "log": "current", "window": [0.0, 29.75]}))
+        assert out.items[0][1]["status"] == "accepted"
+        resp = wait(out, "k1")
+        assert resp["ok"] and resp["success"] and resp["measurements"] == 60 and resp["model"]["parameters"] == "full"
+        assert resp["validation"]["improvement"] > 0.9 and "_calibration" not in resp
+        put = [d for kind, d in out.items if kind == "calibration"]
+        assert len(put) == 1 and put[0]["robot"] == "gao2023_7dof"
+        cal = calibration_from_text(put[0]["text"], gao)
+        assert cal.validation["after"]["position_rms_m"] < 3e-5
+        assert (tmp_path / "k1" / "calibration.yaml").exists()
+        assert any(kind == "progress" and d["id"] == "k1" for kind, d in out.items)
+    finally:
+        svc.close()
+
+
+@pytest.mark.parametrize("req, code, message", [
+    ({"id": "b1", "log": "nowhere.jsonl"}, "invalid_request", "log: no such file"),
+    ({"id": "b2", "parameters": "everything"}, "invalid_request", "parameters: expected one of"),
+    ({"id": "b3", "window": [5, 1]}, "invalid_request", "window: t_start must be before t_end"),
+    ({"id": "b4", "robot": "nobody"}, "unknown_robot", "nobody"),
+    ({"id": "b5", "time_limit": 1e-300}, "invalid_request", "time_limit"),
+])
+def test_bad_requests_are_refused_naming_the_field(campaign, req, code, message):
+    out = Recorder()
+    svc = CalibrationService(RobotSet(["gao2023_7dof"], "gao2023_7dof"), out, current_log=lambda: str(campaign))
+    try:
+        svc.handle(json.dumps(req))
+        doc = out.items[0][1]
+        assert doc["ok"] is False and doc["error"]["code"] == code and message in doc["error"]["message"]
+    finally:
+        svc.close()
+
+
+def test_a_calibration_the_checks_refuse_is_answered_not_put_in_force(gao, tmp_path):
+    q = np.repeat(gao.sample_joints(20, 6), 2, axis=0)
+    m = measure_targets(gao, q, None, None, 1e-5, 0.0, transform([1.5, 0.2, 0.0], [0, 0, 0.5]), seed=1,
+                        labels=[f"P{i // 2}" for i in range(40)])
+    m.T[:, :3, 3] *= 1e-3                                     # metres labelled millimetres
+    log = write_csv(tmp_path / "mm.csv", m)
+    out = Recorder()
+    svc = CalibrationService(RobotSet(["gao2023_7dof"], "gao2023_7dof"), out)
+    try:
+        svc.handle(json.dumps({"id": "r1", "log": str(log)}))
+        resp = wait(out, "r1")
+        assert resp["ok"] and resp["success"] is False and "units" in resp["plausibility"]["problems"][0]
+        assert not [d for kind, d in out.items if kind == "calibration"]
+    finally:
+        svc.close()

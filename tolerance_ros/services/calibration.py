@@ -1,0 +1,170 @@
+"""Logic of the ``calibrate`` service: calibration as a service, from what the accuracy monitor logged (SI).
+
+Request (on ``tolerance/calibrate/request``, std_msgs/String JSON; the shape of ``allocate_tolerances``)::
+
+    {"id": "k1", "log": "current",        # the monitor's own campaign log, or a path to a log, CSV or rosbag2
+     "window": [t0, t1],                  # optional: only measurements stamped in [t0, t1] (s)
+     "registration": "base",              # or "base+tool"
+     "parameters": "auto",                # registration | joint-offsets | full | full+elastic
+     "prior": [0.01, 0.01],               # m, rad; null: no regularised candidate
+     "noise": 1e-5, "orientation_noise": null, "folds": 10, "seed": 0, "robust": true,
+     "time_limit": 300}
+    {"id": ..., "command": "status"}, {"id": ..., "command": "cancel", "target": <id of a job>}
+
+Answers: ``{"status": "accepted", "queued": n}`` at once, progress on ``.../progress``, then ``{"status":
+"done", "success": true|false, "robot", "measurements", "model", "validation": {before, after, improvement},
+"plausibility", "rejected", "repeatability", "calibration_file"}``. A calibration that the plausibility checks
+accept goes out as ``calibration`` (the calibration file's text, SI), which the node publishes latched on
+``tolerance_calibration``; one they refuse is answered (``success: false`` with the reasons) and not put in
+force. Errors carry the services' codes (``invalid_request`` naming the field, ``unknown_robot``, ``busy``,
+``cancelled``, ``timeout``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..core.accuracy.io import MeasurementError, read_measurements
+from ..core.calibration.calibrate import MODELS, PRIOR, calibrate_measurements
+from ..core.calibration.writers import SI, calibration_text, save_calibration
+from ..core.models.base import Mechanism
+from .allocation import DEFAULT_TIME_LIMIT_S, MAX_TIME_LIMIT_S, MIN_TIME_LIMIT_S
+from .contracts import ContractError, Limits, number, parse_request, valid_id
+from .jobs import Command, JobService
+
+COMMANDS = ("calibrate", "status", "cancel")
+FIELDS = {"command": ((str,), False), "robot": ((str,), False), "log": ((str,), False), "window": ((list,), False),
+          "registration": ((str,), False), "parameters": ((str,), False), "prior": ((list, type(None)), False),
+          "noise": ((int, float), False), "orientation_noise": ((int, float, type(None)), False),
+          "folds": ((int,), False), "seed": ((int,), False), "robust": ((bool,), False),
+          "time_limit": ((int, float), False), "target": ((str, int), False)}
+PARAMETERS = ("auto",) + MODELS
+
+
+@dataclass(frozen=True)
+class CalibrationJob:
+    """A validated calibration request (SI)."""
+
+    id: object
+    robot: str
+    mechanism: Mechanism
+    log: str
+    window: tuple | None = None
+    registration: str = "base"
+    parameters: str = "auto"
+    prior: tuple | None = PRIOR
+    noise: float = 1e-5
+    orientation_noise: float | None = None
+    folds: int = 10
+    seed: int = 0
+    robust: bool = True
+    time_limit_s: float = DEFAULT_TIME_LIMIT_S
+
+
+def parse_calibrate_request(text, robots, limits: Limits, current_log=None, max_time_limit_s=MAX_TIME_LIMIT_S):
+    """A CalibrationJob or a Command; raises ContractError naming the field. ``current_log`` is the monitor's
+    own log (what ``"log": "current"`` means)."""
+    req = parse_request(text, FIELDS, limits)
+    command = req.get("command", "calibrate")
+    if command not in COMMANDS:
+        raise ContractError("invalid_request", f"command: expected one of {list(COMMANDS)}, got {command[:40]!r}")
+    if command == "cancel":
+        if "target" not in req or not valid_id(req["target"]):
+            raise ContractError("invalid_request", "target: required with command 'cancel': the id of the job")
+        return Command(req["id"], command, req["target"])
+    if command != "calibrate":
+        return Command(req["id"], command)
+    name, model = robots.select(req.get("robot"))
+    log = req.get("log", "current")
+    if log == "current":
+        if not current_log:
+            raise ContractError("invalid_request", "log: this node keeps no campaign log; give a file")
+        log = str(current_log)
+    if not Path(log).exists():
+        raise ContractError("invalid_request", f"log: no such file {log[:200]!r}")
+    window = req.get("window")
+    if window is not None:
+        if len(window) != 2:
+            raise ContractError("invalid_request", "window: expected [t_start, t_end] (s)")
+        window = (number(window[0], "window[0]"), number(window[1], "window[1]"))
+        if not window[0] < window[1]:
+            raise ContractError("invalid_request", "window: t_start must be before t_end")
+    registration = req.get("registration", "base")
+    if registration not in ("base", "base+tool"):
+        raise ContractError("invalid_request", f"registration: expected 'base' or 'base+tool', got {registration[:40]!r}")
+    parameters = req.get("parameters", "auto")
+    if parameters not in PARAMETERS:
+        raise ContractError("invalid_request", f"parameters: expected one of {list(PARAMETERS)}, got "
+                                               f"{parameters[:40]!r}")
+    prior = req.get("prior", list(PRIOR))
+    if prior is not None:
+        if len(prior) != 2:
+            raise ContractError("invalid_request", "prior: expected [length m, angle rad] or null")
+        prior = (number(prior[0], "prior[0]", 1e-9, 10.0), number(prior[1], "prior[1]", 1e-9, np.pi))
+    onoise = req.get("orientation_noise")
+    time_limit = number(req.get("time_limit", min(DEFAULT_TIME_LIMIT_S, max_time_limit_s)), "time_limit",
+                        MIN_TIME_LIMIT_S, max_time_limit_s)
+    return CalibrationJob(req["id"], name, model, log, window, registration, parameters, prior,
+                          number(req.get("noise", 1e-5), "noise", 1e-9, 1.0),
+                          None if onoise is None else number(onoise, "orientation_noise", 1e-12, 1.0),
+                          int(number(req.get("folds", 10), "folds", 2, 100, integer=True)),
+                          int(number(req.get("seed", 0), "seed", 0, 2 ** 31, integer=True)),
+                          bool(req.get("robust", True)), time_limit)
+
+
+def run_calibration(job: CalibrationJob, progress=None):
+    """(response dict, Calibration) of a job; MeasurementError / ValueError for data that cannot be calibrated."""
+    meas = read_measurements(job.log, joint_names=job.mechanism.joint_names, skip_bad=True)
+    if job.window is not None:
+        keep = (meas.stamps >= job.window[0]) & (meas.stamps <= job.window[1])
+        if not keep.any():
+            raise MeasurementError(f"window: no measurement of {job.log} is stamped in [{job.window[0]:.9g}, "
+                                   f"{job.window[1]:.9g}] s")
+        meas = meas.select(keep)
+    cal = calibrate_measurements(job.mechanism, meas, None, job.registration, job.noise, job.orientation_noise,
+                                 job.folds, job.seed, job.parameters, job.robust, job.prior, progress)
+    cal.sources.update(measurements=job.log)
+    v = cal.validation
+    resp = {"id": job.id, "ok": True, "status": "done", "success": bool(cal.plausibility["ok"]), "robot": job.robot,
+            "measurements": cal.measurements, "skipped": len(meas.skipped), "model": cal.model,
+            "validation": {k: v[k] for k in ("method", "folds", "poses", "before", "after", "improvement")},
+            "plausibility": cal.plausibility, "rejected": cal.rejected, "repeatability": cal.repeatability}
+    return resp, cal
+
+
+class CalibrationService(JobService):
+    """Queue, worker and answers of the calibration service (see the module docstring and
+    ``jobs.JobService``); ROS-free. ``current_log()`` gives the node's campaign log path; ``save_dir`` (or
+    None) keeps each finished calibration's file."""
+
+    KIND = "calibration"
+
+    def __init__(self, robots, emit, current_log=None, limits: Limits | None = None, max_queue: int = 2,
+                 save_dir=None, max_time_limit_s: float = MAX_TIME_LIMIT_S):
+        self.robots, self.current_log, self.save_dir = robots, current_log, save_dir
+        self.limits = limits or Limits(max_bytes=100_000)
+        self.max_time_limit_s = max_time_limit_s
+        super().__init__(emit, max_queue)
+
+    def parse(self, text):
+        return parse_calibrate_request(text, self.robots, self.limits,
+                                       self.current_log() if self.current_log else None, self.max_time_limit_s)
+
+    def run(self, job, progress) -> dict:
+        resp, cal = run_calibration(job, progress)
+        resp["_calibration"] = cal  # taken out by deliver, before the answer goes out
+        return resp
+
+    def deliver(self, job, resp):
+        """Save the calibration; put it in force (``calibration``) when the plausibility checks accept it."""
+        cal = resp.pop("_calibration")
+        if self.save_dir is not None:
+            name = "calibration.yaml" if resp["success"] else "calibration.refused.yaml"
+            try:
+                resp["calibration_file"] = str(save_calibration(cal, Path(self.save_dir) / str(job.id) / name))
+            except OSError as exc:
+                resp.setdefault("warnings", []).append(f"the calibration could not be saved: {exc}")
+        if resp["success"]:
+            self.emit("calibration", {"id": job.id, "robot": job.robot, "text": calibration_text(cal, SI)})
