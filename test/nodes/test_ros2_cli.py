@@ -68,7 +68,8 @@ def test_colcon_install_layout(workspace):
         assert f"tolerance_ros {exe}" in out
     share = Path(workspace["WS"]) / "install" / "tolerance_ros" / "share" / "tolerance_ros"
     for rel in ("package.xml", "launch/accuracy_suite.launch.py", "launch/two_arms.launch.py",
-                "launch/managed_suite.launch.py",
+                "launch/managed_suite.launch.py", "launch/accuracy_loop.launch.py",
+                "config/campaigns/gao2023_calibration_30.yaml",
                 "config/accuracy_suite.yaml", "config/two_arms.yaml", "config/tolerance.rviz",
                 "config/robots/gao2023_7dof.yaml", "schemas/compute_error_jacobian.request.json"):
         assert (share / rel).exists(), rel
@@ -154,3 +155,33 @@ def test_the_managed_launch_configures_and_activates_and_ros2_lifecycle_drives_t
         assert sh(src + "ros2 lifecycle get /tolerance_error_model", workspace).stdout.startswith("inactive")
         assert "successful" in sh(src + "ros2 lifecycle set /tolerance_error_model activate", workspace).stdout.lower()
         assert sh(src + "ros2 lifecycle get /tolerance_error_model", workspace).stdout.startswith("active")
+
+
+def test_the_loop_launch_calibrates_from_the_command_line(workspace):
+    """accuracy_loop.launch.py, then the calibrate request of its docstring with ros2 topic pub: the monitor's
+    report says the calibration is in force and keeps the statistics before it."""
+    src = "source $WS/install/setup.bash && "
+
+    def report():
+        out = sh(src + "timeout 10 ros2 topic echo --once --full-length /tolerance/accuracy_report "
+                       "std_msgs/msg/String", workspace, check=False).stdout
+        return out.replace(" ", "")
+
+    with launched(workspace, "accuracy_loop.launch.py"):
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and '"paired":' not in report():
+            time.sleep(2)
+        time.sleep(20)  # the 30 poses of the campaign measured (0.25 s each), more than once
+        req = '{data: \'{"id": "k1", "log": "current", "registration": "base"}\'}'
+        pub = subprocess.run(["bash", "-c", src + 'exec ros2 topic pub --once -w 1 /tolerance/calibrate/request '
+                              'std_msgs/msg/String "$0"', req], env=workspace, capture_output=True, text=True,
+                             timeout=60)
+        assert pub.returncode == 0, pub.stderr
+        deadline = time.monotonic() + 120
+        text = ""
+        while time.monotonic() < deadline:
+            text = report()
+            if '"calibration":{"source":"tolerance_calibration"' in text:
+                break
+            time.sleep(2)
+        assert '"calibration":{"source":"tolerance_calibration"' in text and '"before":{' in text, text[:3000]

@@ -1,0 +1,42 @@
+"""The whole accuracy loop on the graph, with a simulated as-built robot: the joint-state source plays a
+campaign through the trajectory compensator (a stand-in for a controller executing compensated motion),
+the simulated tracker measures the robot, the accuracy monitor logs and reports, the error model serves.
+Calibrate from the monitor's log, and the compensator, the monitor and the error model switch to the
+calibration; the monitor's report then carries the errors before beside the errors after:
+
+    ros2 launch tolerance_ros accuracy_loop.launch.py [campaign:=gao2023_iso_cube] [namespace:=arm]
+    ros2 topic pub --once tolerance/calibrate/request std_msgs/msg/String \\
+        "{data: '{\\"id\\": \\"k1\\", \\"log\\": \\"current\\", \\"registration\\": \\"base\\"}'}"
+    ros2 topic echo tolerance/accuracy_report std_msgs/msg/String
+"""
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+TRACKER_TO_BASE = [1.5, 0.2, 0.0, 0.0, 0.0, 0.5]
+
+
+def generate_launch_description():
+    params = os.path.join(get_package_share_directory("tolerance_ros"), "config", "accuracy_suite.yaml")
+    ns, campaign = LaunchConfiguration("namespace"), LaunchConfiguration("campaign")
+
+    def node(exe, name, **overrides):
+        return Node(package="tolerance_ros", executable=exe, name=name, namespace=ns, output="screen",
+                    parameters=[params, overrides])
+
+    return LaunchDescription([
+        DeclareLaunchArgument("namespace", default_value="", description="namespace of the loop (one robot)"),
+        DeclareLaunchArgument("campaign", default_value="gao2023_calibration_30",
+                              description="campaign the joint-state source plays (shipped name or file)"),
+        node("joint_state_source", "tolerance_joint_state_source", mode="campaign", campaign=campaign, dwell=0.25,
+             loop=True, compensated=True),
+        node("trajectory_compensator", "tolerance_trajectory_compensator"),
+        node("simulated_tracker", "tolerance_simulated_tracker", tracker_to_base=TRACKER_TO_BASE, measure_every=3),
+        node("accuracy_monitor", "tolerance_accuracy_monitor", tracker_to_base=TRACKER_TO_BASE, budget="",
+             campaign=""),
+        node("error_model_server", "tolerance_error_model"),
+    ])
