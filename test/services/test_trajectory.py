@@ -112,6 +112,41 @@ def test_the_cdr_codec_reads_and_writes_what_ros_serializes(gao):
         decode(raw[:-9])
 
 
+def test_the_codec_reads_every_layout_the_fast_way_and_the_slow_way_alike():
+    """Random trajectories (point counts, sizes equal or not, empty arrays, odd string lengths that shift the
+    alignment): decoded exactly, re-encoded byte for byte, a truncated one refused."""
+    from tolerance_ros.services.trajectory_cdr import CdrError, decode, encode, replaced
+    T, rng = TS.types, np.random.default_rng(1)
+    for trial in range(150):
+        m, k = int(rng.integers(0, 9)), int(rng.integers(1, 8))
+        same = [k] + [int(rng.integers(0, 4)) * int(rng.random() < 0.5) for _ in range(3)]
+        pts = []
+        for _ in range(m):
+            sv = same if trial % 2 else [int(rng.integers(0, 9)) for _ in range(4)]
+            pts.append(T["trajectory_msgs/msg/JointTrajectoryPoint"](
+                positions=rng.normal(size=sv[0]), velocities=rng.normal(size=sv[1]),
+                accelerations=rng.normal(size=sv[2]), effort=rng.normal(size=sv[3]),
+                time_from_start=T["builtin_interfaces/msg/Duration"](sec=int(rng.integers(-5, 5)),
+                                                                     nanosec=int(rng.integers(0, 10 ** 9)))))
+        msg = T["trajectory_msgs/msg/JointTrajectory"](
+            header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=3, nanosec=4),
+                                            frame_id="x" * int(rng.integers(0, 5))),
+            joint_names=[f"j{i}" for i in range(int(rng.integers(0, 4)))], points=pts)
+        raw = bytes(TS.serialize_cdr(msg, "trajectory_msgs/msg/JointTrajectory"))
+        t = decode(raw)
+        assert encode(t) == raw
+        for i, p in enumerate(pts):
+            for f in ("positions", "velocities", "accelerations", "effort"):
+                assert np.array_equal(np.asarray(getattr(t, f)[i]), getattr(p, f))
+            assert tuple(t.time_from_start[i]) == (p.time_from_start.sec, p.time_from_start.nanosec)
+        if m and trial % 2:
+            new = rng.normal(size=(m, k))
+            back = TS.deserialize_cdr(replaced(raw, t, new), "trajectory_msgs/msg/JointTrajectory")
+            assert np.array_equal(np.array([p.positions for p in back.points]), new)
+            with pytest.raises(CdrError):
+                decode(raw[:-1])
+
+
 def test_a_serialized_trajectory_in_gives_the_same_compensation_out(gao, calibration):
     q = gao.sample_joints(6, 8) * 0.6
     msg = trajectory(list(gao.joint_names), q, np.full_like(q, 0.2))

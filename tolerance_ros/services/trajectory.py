@@ -111,7 +111,7 @@ class TrajectoryLogic:
             t = decode(raw)
         except CdrError as exc:
             raise TrajectoryError(f"not a JointTrajectory: {exc}") from None
-        P = _matrix(np.array(t.positions, float) if t.positions else np.zeros((0, len(t.joint_names))),
+        P = _matrix(np.array(t.positions, float) if len(t.positions) else np.zeros((0, len(t.joint_names))),
                     len(t.joint_names), "positions")
         V = _rates(t.velocities, "velocities")
         A = _rates(t.accelerations, "accelerations")
@@ -146,6 +146,8 @@ def _matrix(values, k, field, m=None) -> np.ndarray:
 
 def _rates(rows, field):
     """None when every point leaves the rates empty; else the rows as one array (all must be given)."""
+    if isinstance(rows, np.ndarray) and rows.ndim == 2:
+        return rows if rows.shape[1] else None
     sizes = {len(r) for r in rows}
     if sizes <= {0}:
         return None

@@ -25,7 +25,8 @@ class CdrError(ValueError):
 @dataclass
 class Trajectory:
     """A JointTrajectory's content: stamp (sec, nanosec), frame_id, joint_names, and per point (m of them)
-    the four float64 arrays (lists of (k_i,) arrays, as given) and time_from_start (m, 2) int64."""
+    the four float64 arrays (each an (m, k) array when all points have k of them, else a list of (k_i,)
+    arrays, as given) and time_from_start (m, 2) int64."""
 
     stamp: tuple
     frame_id: str
@@ -42,9 +43,9 @@ _I32 = struct.Struct("<i").unpack_from
 
 
 def decode(raw) -> Trajectory:
-    """The content of a serialized JointTrajectory; CdrError for bytes that are not one. The float64 arrays
-    are read-only views into ``raw``; ``Trajectory.slots`` (m, 4) gives each one's index in the float64 view
-    of the payload (-1 for an empty one), for ``replaced``."""
+    """The content of a serialized JointTrajectory; CdrError for bytes that are not one.
+    ``Trajectory.slots`` (m, 4) gives each float64 array's index in the float64 view of the payload (-1 for
+    an empty one), for ``replaced``. Points of one shape are read at once, not one by one."""
     b = bytes(raw)
     if len(b) < 4 or b[:2] != CDR_LE[:2]:
         raise CdrError("not little-endian CDR (encapsulation header 00 01)")
@@ -84,28 +85,91 @@ def decode(raw) -> Trajectory:
         name, o = string(o)
         names.append(name)
     m, o = count(o, "points")
-    arrays = ([], [], [], [])
-    slots = np.full((m, 4), -1, np.int64)
-    tfs = np.empty((m, 2), np.int64)
-    empty = np.zeros(0)
-    for i in range(m):
+
+    def point(o):
+        """One point from byte ``o``: (sizes (4,), double offsets (4,) or -1, count offsets (4,), time
+        offset, the end)."""
+        sizes, slots, counts = [0] * 4, [-1] * 4, [0] * 4
         for j in range(4):
+            o += (-(o - 4)) % 4
+            counts[j] = o
             n, o = count(o, "float64[]")
             if n:
                 o += (-(o - 4)) % 8
                 if o + 8 * n > end:
                     raise CdrError(f"float64[{n}] at byte {o} does not fit")
-                s = (o - 4) // 8
-                arrays[j].append(doubles[s:s + n])
-                slots[i, j] = s
+                sizes[j], slots[j] = n, o
                 o += 8 * n
-            else:
-                arrays[j].append(empty)
-        tfs[i, 0], o = i32(o)
-        tfs[i, 1], o = u32(o)
+        o += (-(o - 4)) % 4
+        if o + 8 > end:
+            raise CdrError(f"truncated at byte {o}")
+        return sizes, slots, counts, o, o + 8
+
+    parsed = []
+    for _ in range(min(m, 3)):
+        parsed.append(point(o))
+        o = parsed[-1][4]
+    layout = _uniform(b, parsed, m, end) if m > 3 else None
+    if layout is None:
+        for _ in range(m - len(parsed)):
+            parsed.append(point(o))
+            o = parsed[-1][4]
+        sizes = np.array([p[0] for p in parsed], np.int64).reshape(m, 4)
+        byte_slots = np.array([p[1] for p in parsed], np.int64).reshape(m, 4)
+        times = np.array([p[3] for p in parsed], np.int64)
+    else:
+        sizes, byte_slots, times = layout
+    slots = np.where(byte_slots >= 0, (byte_slots - 4) // 8, -1)
+    tfs = np.empty((m, 2), np.int64)
+    if m:
+        words = (times - 4) // 4
+        tfs[:, 0] = np.frombuffer(b, "<i4", (end - 4) // 4, 4)[words]
+        tfs[:, 1] = np.frombuffer(b, "<u4", (end - 4) // 4, 4)[words + 1]
+    arrays = [_rows(doubles, slots[:, j], sizes[:, j]) for j in range(4)]
     out = Trajectory((sec, nsec), frame, names, *arrays, tfs)
     out.slots = slots
     return out
+
+
+def _uniform(b, parsed, m, end):
+    """(sizes (m, 4), double byte offsets (m, 4), time byte offsets (m,)) when every point after the first
+    has the sizes of the second: the layout then repeats every two points (alignment depends only on the
+    offset modulo 8), so it is computed at once and every count in the bytes checked against it; None when
+    the points differ (the caller reads them one by one)."""
+    (_, _, _, _, s1), (n1, sl1, c1, t1, s2), (n2, sl2, c2, t2, s3) = parsed
+    if n1 != n2:
+        return None
+    d1, d2 = s2 - s1, s3 - s2
+    i = np.arange(m - 1)
+    odd = i % 2
+    start = s1 + (i // 2) * (d1 + d2) + odd * d1
+    last_end = start[-1] + (d2 if odd[-1] else d1)
+    if last_end > end:
+        return None
+    rel = np.array([[c - s1 for c in c1], [c - s2 for c in c2]])
+    counts = start[:, None] + rel[odd]
+    n = np.array(n1, np.int64)
+    words = np.frombuffer(b, "<u4", (end - 4) // 4, 4)
+    if not np.array_equal(words[(counts - 4) // 4], np.broadcast_to(n, counts.shape)):
+        return None
+    rel_slots = np.array([[x - s1 if x >= 0 else -1 for x in sl1], [x - s2 if x >= 0 else -1 for x in sl2]])
+    slots = np.where(n > 0, start[:, None] + rel_slots[odd], -1)
+    times = start + np.array([t1 - s1, t2 - s2])[odd]
+    n0, sl0, _, t0, _ = parsed[0]
+    return (np.vstack([n0, np.broadcast_to(n, (m - 1, 4))]), np.vstack([sl0, slots]),
+            np.concatenate([[t0], times]))
+
+
+def _rows(doubles, slots, sizes):
+    """The float64 arrays at ``slots`` (index into ``doubles``, -1 for empty) of ``sizes``: one (m, n)
+    array when all have the same size n, else a list of (n_i,) arrays."""
+    m = len(slots)
+    if m and np.all(sizes == sizes[0]):
+        n = int(sizes[0])
+        if n == 0:
+            return np.zeros((m, 0))
+        return doubles[slots[:, None] + np.arange(n)]
+    return [doubles[s:s + n] if n else np.zeros(0) for s, n in zip(slots.tolist(), sizes.tolist())]
 
 
 def replaced(raw, t: Trajectory, positions, velocities=None, accelerations=None) -> bytes:
@@ -117,9 +181,8 @@ def replaced(raw, t: Trajectory, positions, velocities=None, accelerations=None)
         if values is None:
             continue
         values = np.asarray(values, float)
-        for i, s in enumerate(t.slots[:, j]):
-            if s >= 0:
-                view[s:s + values.shape[1]] = values[i]
+        rows = np.flatnonzero(t.slots[:, j] >= 0)
+        view[t.slots[rows, j][:, None] + np.arange(values.shape[1])] = values[rows]
     return bytes(out)
 
 

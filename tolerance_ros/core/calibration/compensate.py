@@ -95,6 +95,11 @@ def solve(model: Mechanism, T_target, q0, match="pose", tol_position=1e-9, tol_o
     orientation (n,) rad, iterations (n,)), from q0 (n, dof) towards T_target (n, 4, 4). A step is
     shortened to ``max_step`` (rad or m, largest joint) so that a solve near a singularity stays near
     its start."""
+    return _solve(model, T_target, q0, match, tol_position, tol_orientation, max_iter, damping, max_step)[:4]
+
+
+def _solve(model, T_target, q0, match, tol_position, tol_orientation, max_iter, damping=1e-3, max_step=0.2):
+    """``solve`` and the joint Jacobians (n, 6, dof) at its answer."""
     if match not in MATCHES:
         raise ValueError(f"match: expected one of {MATCHES}, got {match!r}")
     T_target = np.asarray(T_target, float)
@@ -131,7 +136,7 @@ def solve(model: Mechanism, T_target, q0, match="pose", tol_position=1e-9, tol_o
         lam[act[~better]] *= 4.0
         done[ok] = ((np.linalg.norm(dp[ok], axis=1) <= tol_position)
                     & (np.linalg.norm(dphi[ok], axis=1) <= tol_orientation))
-    return q, np.linalg.norm(dp, axis=1), np.linalg.norm(dphi, axis=1), iters
+    return q, np.linalg.norm(dp, axis=1), np.linalg.norm(dphi, axis=1), iters, J
 
 
 def into_limits(model: Mechanism, q, near=None) -> np.ndarray:
@@ -194,9 +199,8 @@ def compensate(calibrated: Mechanism, nominal: Mechanism, joints=None, poses=Non
         if T_target.ndim != 3 or T_target.shape[1:] != (4, 4):
             raise ValueError(f"poses: expected (n, 4, 4) tool poses, got shape {T_target.shape}")
         q_nom = nominal_solution(nominal, T_target, seed, restarts, rng, match, **kw)
-    q, rp, ro, it = solve(calibrated, T_target, q_nom, match, **kw)
-    q = into_limits(calibrated, q, q_nom)
-    _, J = joint_jacobian(calibrated, q)
+    q, rp, ro, it, J = _solve(calibrated, T_target, q_nom, match, **kw)
+    q = into_limits(calibrated, q, q_nom)          # full turns of revolute joints: the same poses and J
     Js = J[:, :3] if match == "position" else np.concatenate([J[:, :3], LENGTH * J[:, 3:]], axis=1)
     s2 = np.linalg.eigvalsh(np.einsum("nij,nkj->nik", Js, Js) if Js.shape[1] <= Js.shape[2]
                             else np.einsum("nji,njk->nik", Js, Js))          # squared singular values, ascending
