@@ -3,13 +3,14 @@ import json
 
 import numpy as np
 import pytest
+from schemas_helpers import validator
 
 from tolerance_ros.core.accuracy.io import write_csv
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_targets
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.calibration.writers import calibration_from_text
 from tolerance_ros.core.geometry import transform
-from tolerance_ros.services.calibration import CalibrationService
+from tolerance_ros.services.calibration import FIELDS, CalibrationService
 from tolerance_ros.services.robots import RobotSet
 
 
@@ -22,10 +23,16 @@ def campaign(gao, tmp_path_factory):
     return write_csv(tmp_path_factory.mktemp("cal") / "log.csv", m)
 
 
+RESPONSE = validator("calibrate.response")
+
+
 class Recorder(list):
-    """Every (kind, doc) a service emits, in order."""
+    """Every (kind, doc) a service emits, in order; every answer checked against the shipped schema (after a
+    JSON round trip, as it goes out)."""
 
     def __call__(self, kind, doc):
+        if kind == "response":
+            RESPONSE.validate(json.loads(json.dumps(doc)))
         self.append((kind, doc))
 
     @property
@@ -44,6 +51,13 @@ def wait(out, rid, timeout=60.0):
     raise AssertionError(f"no final answer to {rid}")
 
 
+def test_the_request_schema_names_the_fields_the_service_takes():
+    request = validator("calibrate.request")
+    assert set(request.schema["properties"]) == set(FIELDS) | {"id"}
+    request.validate({"id": "k", "log": "current", "window": [0.0, 1.0], "prior": None, "folds": 5})
+    assert not request.is_valid({"id": "k", "parameters": "everything"})
+
+
 def test_a_calibration_from_the_log_is_answered_and_put_in_force(gao, campaign, tmp_path):
     out = Recorder()
     svc = CalibrationService(RobotSet(["gao2023_7dof"], "gao2023_7dof"), out, current_log=lambda: str(campaign),
@@ -51,6 +65,7 @@ def test_a_calibration_from_the_log_is_answered_and_put_in_force(gao, campaign, 
     try:
         svc.handle(json.dumps({"id": "k1", "log": "current", "window": [0.0, 29.75]}))
         assert out.items[0][1]["status"] == "accepted"
+        svc.handle(json.dumps({"id": "s1", "command": "status"}))
         resp = wait(out, "k1")
         assert resp["ok"] and resp["success"] and resp["measurements"] == 60 and resp["model"]["parameters"] == "full"
         assert resp["validation"]["improvement"] > 0.9 and "_calibration" not in resp
@@ -78,6 +93,21 @@ def test_bad_requests_are_refused_naming_the_field(campaign, req, code, message)
         svc.handle(json.dumps(req))
         doc = out.items[0][1]
         assert doc["ok"] is False and doc["error"]["code"] == code and message in doc["error"]["message"]
+    finally:
+        svc.close()
+
+
+def test_a_log_that_cannot_be_calibrated_is_infeasible_with_the_reason(campaign):
+    out = Recorder()
+    svc = CalibrationService(RobotSet(["gao2023_7dof"], "gao2023_7dof"), out, current_log=lambda: str(campaign))
+    try:
+        svc.handle(json.dumps({"id": "w1", "log": "current", "window": [0.0, 0.6]}))  # one pose, measured twice
+        doc = wait(out, "w1")
+        assert doc["ok"] is False and doc["error"]["code"] == "infeasible"
+        assert "distinct test poses" in doc["error"]["message"]
+        svc.handle(json.dumps({"id": "w2", "log": "current", "window": [1e6, 2e6]}))
+        doc = wait(out, "w2")
+        assert doc["error"]["code"] == "infeasible" and "window: no measurement" in doc["error"]["message"]
     finally:
         svc.close()
 

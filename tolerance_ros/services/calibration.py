@@ -17,7 +17,7 @@ Answers: ``{"status": "accepted", "queued": n}`` at once, progress on ``.../prog
 accept goes out as ``calibration`` (the calibration file's text, SI), which the node publishes latched on
 ``tolerance_calibration``; one they refuse is answered (``success: false`` with the reasons) and not put in
 force. Errors carry the services' codes (``invalid_request`` naming the field, ``unknown_robot``, ``busy``,
-``cancelled``, ``timeout``).
+``cancelled``, ``timeout``; ``infeasible`` for a log that cannot be calibrated, with the reason).
 """
 from __future__ import annotations
 
@@ -153,7 +153,12 @@ class CalibrationService(JobService):
                                        self.current_log() if self.current_log else None, self.max_time_limit_s)
 
     def run(self, job, progress) -> dict:
-        resp, cal = run_calibration(job, progress)
+        """The answer of one job; a log that cannot be calibrated (too few poses, unreadable, out of the
+        window) answers ``infeasible`` with the reason."""
+        try:
+            resp, cal = run_calibration(job, progress)
+        except (MeasurementError, ValueError) as exc:
+            raise ContractError("infeasible", f"the log cannot be calibrated: {exc}") from None
         resp["_calibration"] = cal  # taken out by deliver, before the answer goes out
         return resp
 
