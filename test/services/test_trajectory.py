@@ -156,3 +156,14 @@ def test_a_serialized_trajectory_in_gives_the_same_compensation_out(gao, calibra
     back = TS.deserialize_cdr(raw, "trajectory_msgs/msg/JointTrajectory")
     assert np.array_equal(np.array([p.positions for p in back.points]), ref["positions"])
     assert np.array_equal(np.array([p.velocities for p in back.points]), ref["velocities"])
+
+
+@pytest.mark.parametrize("sizes", [(1, 0), (7, 6), (0, 7)])
+def test_a_serialized_trajectory_with_ragged_positions_is_refused_naming_the_point(gao, calibration, sizes):
+    q = gao.sample_joints(2, 3)
+    msg = trajectory(list(gao.joint_names), q)
+    for p, k in zip(msg.points, sizes):
+        p.positions = p.positions[:k]
+    bad = next(i for i, k in enumerate(sizes) if k != 7)
+    with pytest.raises(TrajectoryError, match=rf"points\[{bad}\].positions: expected 7 numbers"):
+        TrajectoryLogic(gao, calibration).compensate_raw(bytes(TS.serialize_cdr(msg, "trajectory_msgs/msg/JointTrajectory")))

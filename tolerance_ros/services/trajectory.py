@@ -38,10 +38,9 @@ class TrajectoryLogic:
 
     def set_calibration(self, calibration, source=""):
         """Compensate with ``calibration`` (None: pass through) from now on."""
-        self.calibration = calibration
-        self.source = source
-        self.calibrated, self.nominal = (None, None) if calibration is None else \
-            calibrated_pair(calibration, self.model, self.target)
+        pair = (None, None) if calibration is None else calibrated_pair(calibration, self.model, self.target)
+        self.calibration, self.source = calibration, source
+        self.calibrated, self.nominal = pair
 
     def compensate(self, joint_names, positions, velocities=None, accelerations=None) -> dict:
         """{"ok", "positions", "velocities", "accelerations" (m, k) in the given joint order (None where the
@@ -111,8 +110,12 @@ class TrajectoryLogic:
             t = decode(raw)
         except CdrError as exc:
             raise TrajectoryError(f"not a JointTrajectory: {exc}") from None
-        P = _matrix(np.array(t.positions, float) if len(t.positions) else np.zeros((0, len(t.joint_names))),
-                    len(t.joint_names), "positions")
+        k = len(t.joint_names)
+        bad = [i for i, p in enumerate(t.positions) if len(p) != k]
+        if bad:
+            raise TrajectoryError(f"points[{bad[0]}].positions: expected {k} numbers (one per joint name), got "
+                                  f"{len(t.positions[bad[0]])}")
+        P = _matrix(np.array(t.positions, float) if len(t.positions) else np.zeros((0, k)), k, "positions")
         V = _rates(t.velocities, "velocities")
         A = _rates(t.accelerations, "accelerations")
         res = self.compensate(t.joint_names, P, V, A)
