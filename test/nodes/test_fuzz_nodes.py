@@ -23,8 +23,10 @@ from geometry_msgs.msg import PoseStamped  # noqa: E402
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
-from fuzz_corpus import ENCODINGS, Q, allocate_request, encode, jacobian_request, json_values  # noqa: E402
+from fuzz_corpus import (ENCODINGS, ODD_IDS, Q, allocate_request, encode, jacobian_request,  # noqa: E402
+                         json_values, scalars, yaml_file)
 from helpers import example_urdf  # noqa: E402
 from ros_graph import Graph, wait_for  # noqa: E402
 from schemas_helpers import validator  # noqa: E402
@@ -39,8 +41,10 @@ from tolerance_ros.services.contracts import CODES  # noqa: E402
 
 EXAMPLES = 200
 FUZZ = settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=list(HealthCheck), database=None)
+CALIBRATION_FUZZ = settings(FUZZ, max_examples=60)  # a calibration document is large: each example parses it
 JACOBIAN_RESPONSE = validator("compute_error_jacobian.response")
 ALLOCATE_RESPONSE = validator("allocate_tolerances.response")
+CALIBRATE_RESPONSE = validator("calibrate.response")
 GAO = load_robot("gao2023_7dof")
 BUDGET = load_budget("gao2023_delta2", GAO)
 URDF = example_urdf("ur5_robot.urdf").read_text()
@@ -63,7 +67,8 @@ class Harness:
         key = topic[len(self.prefix):] if topic.startswith(self.prefix) else topic
 
         def publish(msg):
-            serialize_message(msg)
+            if not isinstance(msg, bytes):
+                serialize_message(msg)
             self.sent[key].append(msg)
         return publish
 
@@ -85,11 +90,13 @@ class Harness:
         return sorted(s.topic_name[len(self.prefix):] for s in self.subscriptions())
 
     def call(self, topic, msg):
-        """The subscription callback of ``topic`` (relative to the namespace) with ``msg`` as delivered; a
-        subscription the node takes from on a timer gets ``msg`` as its only waiting message, then the timers run."""
+        """The subscription callback of ``topic`` (relative to the namespace) with ``msg`` as delivered (bytes
+        to a raw subscription: ``msg`` itself when it is bytes); a subscription the node takes from on a timer
+        gets ``msg`` as its only waiting message, then the timers run."""
         sub = next(s for s in self.subscriptions() if s.topic_name == self.prefix + topic)
         if sub in self.node.subscriptions:
-            sub.callback(deserialize_message(serialize_message(msg), type(msg)))
+            raw = msg if isinstance(msg, bytes) else serialize_message(msg)
+            sub.callback(raw if sub.raw else deserialize_message(raw, type(msg)))
             self.check()
             return
         waiting = [serialize_message(msg)]
@@ -300,13 +307,18 @@ def source(graph):
     return Harness(graph.start(JointStateSource, "/fuzz_source"))
 
 
-def test_every_subscription_is_fuzzed(error_model, allocator, monitor, tracker, source):
+def test_every_subscription_is_fuzzed(error_model, allocator, monitor, tracker, source, compensator,
+                                     compensated_source):
     """The callbacks fuzzed below are all the node classes subscribe to (robot_description further down)."""
-    assert error_model.topics() == ["joint_states", "tolerance/compute_error_jacobian/request", "tolerance_budget"]
+    assert error_model.topics() == ["joint_states", "tolerance/compute_error_jacobian/request", "tolerance_budget",
+                                    "tolerance_calibration"]
     assert allocator.topics() == ["tolerance/allocate_tolerances/request"]
-    assert monitor.topics() == ["joint_states", "measured_pose", "tolerance_budget"]
+    assert monitor.topics() == ["joint_states", "measured_pose", "tolerance/calibrate/request", "tolerance_budget",
+                                "tolerance_calibration"]
     assert tracker.topics() == ["joint_states"]
     assert source.topics() == []
+    assert compensator.topics() == ["joint_trajectory_in", "tolerance_calibration"]
+    assert compensated_source.topics() == ["joint_trajectory"]
 
 
 # Error-model server.
@@ -494,6 +506,222 @@ def test_joint_state_source_publishes_finite_states(source):
                                  for m in out)
 
 
+# Calibrations on the graph (tolerance_calibration), the calibrate service, trajectories.
+@pytest.fixture(scope="module")
+def calibration_text(tmp_path_factory):
+    """A calibration file's text for the gao2023 arm, as the calibrate service publishes it."""
+    q = GAO.sample_joints(30, 5)
+    cal = calibrate(GAO, q, measure(GAO, q, as_built_errors(BUDGET.vector_for(GAO), 1), 1e-5, 0.0, None, seed=2),
+                    folds=3)
+    return save_calibration(cal, tmp_path_factory.mktemp("cal") / "calibration.yaml").read_text()
+
+
+_PARSED = {}
+
+
+@st.composite
+def calibration_texts(draw, text):
+    """A calibration text mutated (a value, a key, YAML tokens, its bytes), another robot's, or not one."""
+    import copy
+    import yaml
+    kind = draw(st.sampled_from(["file"] * 6 + ["robot", "junk", "same"]))
+    if kind == "same":
+        return text
+    if kind == "junk":
+        return draw(st.one_of(texts, st.just(json.dumps(budget_doc())), st.just("- 1\n" * 1000), st.just("{" * 200)))
+    if text not in _PARSED:
+        _PARSED[text] = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    doc = copy.deepcopy(_PARSED[text])
+    if kind == "robot":
+        doc["robot"] = draw(st.one_of(st.sampled_from(["ur5", "rong2018_3pups", "", "x" * 300]), json_values()))
+        return ros_text(yaml.safe_dump(doc))
+    return ros_text(draw(yaml_file(doc)).decode("utf-8", errors="surrogateescape"))
+
+
+def error_model_serves_calibrated(error_model, model="calibrated"):
+    request = {"id": "cal", "joints": [Q], "model": model}
+    error_model.call("tolerance/compute_error_jacobian/request", String(data=json.dumps(request)))
+    return answer(error_model.take("tolerance/compute_error_jacobian/response")[-1].data, JACOBIAN_RESPONSE)
+
+
+@CALIBRATION_FUZZ
+@given(data=st.data())
+def test_error_model_takes_or_refuses_every_calibration(error_model, calibration_text, data):
+    error_model.call("tolerance_calibration", String(data=data.draw(calibration_texts(calibration_text))))
+    doc = error_model_serves_calibrated(error_model)
+    assert doc["ok"] or doc["error"]["code"] == "invalid_request"
+
+
+def test_error_model_takes_a_calibration_after_the_fuzz(error_model, calibration_text):
+    error_model.call("tolerance_calibration", String(data=calibration_text))
+    doc, nominal = error_model_serves_calibrated(error_model), error_model_serves_calibrated(error_model, "nominal")
+    assert doc["ok"] and nominal["ok"]
+    assert 0 < np.abs(np.array(doc["jacobian"]) - np.array(nominal["jacobian"])).max() < 0.5
+
+
+@st.composite
+def calibrate_requests(draw):
+    """Calibrate requests: valid ones (of the monitor's own log, short), status and cancel, hostile ones."""
+    valid = st.fixed_dictionaries({"id": st.text(max_size=8)}, optional={
+        "log": st.sampled_from(["current", "/nonexistent.jsonl"]), "window": st.lists(st.floats(-1e3, 1e3), min_size=2, max_size=2),
+        "registration": st.sampled_from(["base", "base+tool"]), "folds": st.integers(2, 4),
+        "parameters": st.sampled_from(["auto", "registration", "joint-offsets", "full", "full+elastic"]),
+        "prior": st.one_of(st.none(), st.lists(st.floats(1e-6, 1.0), min_size=2, max_size=2)), "time_limit": st.floats(0.5, 2.0)})
+    hostile = st.fixed_dictionaries({"id": st.one_of(st.text(max_size=12), st.integers(), st.sampled_from(ODD_IDS))},
+                                    optional={k: st.one_of(scalars(), json_values()) for k in (
+                                        "command", "robot", "log", "window", "registration", "parameters", "prior",
+                                        "noise", "orientation_noise", "folds", "seed", "robust", "time_limit",
+                                        "target", "zz")})
+    commands = st.fixed_dictionaries({"id": st.text(max_size=8), "command": st.sampled_from(["status", "cancel"])},
+                                     optional={"target": st.one_of(st.text(max_size=8), json_values())})
+    return draw(request_texts(st.one_of(valid, hostile, commands)))
+
+
+def calibrate_answers(monitor):
+    monitor.tick()
+    return [answer(m.data, CALIBRATE_RESPONSE) for m in monitor.take("tolerance/calibrate/response")]
+
+
+@FUZZ
+@given(text=calibrate_requests())
+def test_monitor_answers_every_calibrate_request(monitor, text):
+    monitor.call("tolerance/calibrate/request", String(data=text))
+    calibrate_answers(monitor)
+    for msg in monitor.take("tolerance/calibrate/progress"):
+        loads_strict(msg.data)
+
+
+@CALIBRATION_FUZZ
+@given(data=st.data())
+def test_monitor_takes_or_refuses_every_calibration(monitor, calibration_text, data):
+    monitor.call("tolerance_calibration", String(data=data.draw(calibration_texts(calibration_text))))
+    monitor_outputs(monitor)
+
+
+def test_monitor_calibrates_after_the_fuzz(monitor, calibration_text):
+    import time
+    node = monitor.node
+    deadline = time.monotonic() + 30
+    while node.calibrator.queue or node.calibrator._running_id() is not None:
+        assert time.monotonic() < deadline, "calibration jobs of the fuzz still running"
+        time.sleep(0.05)
+    calibrate_answers(monitor)
+    monitor.call("tolerance/calibrate/request", String(data='{"id": "st", "command": "status"}'))
+    assert [d for d in calibrate_answers(monitor) if d["id"] == "st"][0]["ok"]
+    monitor.call("tolerance_calibration", String(data=calibration_text))
+    assert node.logic.calibration is not None
+    monitor_outputs(monitor)
+
+
+@pytest.fixture(scope="module")
+def compensator(graph):
+    from tolerance_ros.nodes.trajectory_compensator import TrajectoryCompensator
+    return Harness(graph.start(TrajectoryCompensator, "/fuzz_compensator", on_flag="nominal"))
+
+
+@pytest.fixture(scope="module")
+def compensated_source(graph):
+    from tolerance_ros.nodes.joint_state_source import JointStateSource
+    return Harness(graph.start(JointStateSource, "/fuzz_compensated_source", compensated=True))
+
+
+@st.composite
+def trajectories(draw):
+    """JointTrajectory messages with hostile names, numbers, shapes and sizes."""
+    names = list(GAO.joint_names)
+    name = draw(st.one_of(st.just(names), st.permutations(names), st.just(names + ["gripper"]),
+                          st.lists(st.sampled_from(names + ["x", ""]), max_size=9), st.just(names * 2), st.just([])))
+    k = len(name)
+    m = draw(st.sampled_from([0, 1, 2, 3, 5, 40]))
+    sizes = draw(st.sampled_from(["same", "same", "ragged"]))
+    row = st.lists(st.one_of(st.floats(-1.0, 1.0), floats), min_size=k, max_size=k)
+    pts = []
+    for _ in range(m):
+        positions = draw(row if sizes == "same" else st.lists(floats, max_size=10))
+        rates = draw(st.sampled_from(["none", "row", "ragged"]))
+        velocities = [] if rates == "none" else draw(row if rates == "row" else st.lists(floats, max_size=10))
+        pt = JointTrajectoryPoint(positions=positions, velocities=velocities,
+                                  accelerations=draw(st.one_of(st.just([]), row)), effort=draw(st.lists(floats, max_size=3)))
+        pt.time_from_start.sec = draw(st.integers(-2 ** 31, 2 ** 31 - 1))
+        pts.append(pt)
+    msg = JointTrajectory(joint_names=name, points=pts)
+    return stamped(msg, draw(stamps), draw(frames))
+
+
+@st.composite
+def trajectory_bytes(draw):
+    """A serialized trajectory, or its bytes edited (cut, flipped, padded), or junk."""
+    raw = bytes(serialize_message(draw(trajectories())))
+    how = draw(st.sampled_from(["keep", "keep", "cut", "flip", "pad", "junk", "counts"]))
+    k = draw(st.integers(0, max(len(raw) - 1, 0)))
+    if how == "cut":
+        return raw[:k]
+    if how == "flip":
+        return raw[:k] + bytes([raw[k] ^ 0xFF]) + raw[k + 1:] if raw else raw
+    if how == "pad":
+        return raw + b"\x00" * draw(st.integers(1, 9))
+    if how == "junk":
+        return draw(st.binary(max_size=200))
+    if how == "counts":
+        return raw[:k - k % 4] + b"\xff\xff\xff\x7f" + raw[k - k % 4 + 4:]
+    return raw
+
+
+def published_trajectories(harness):
+    """The trajectories published on ``joint_trajectory`` (the compensator publishes their bytes)."""
+    return [deserialize_message(m, JointTrajectory) if isinstance(m, bytes) else m
+            for m in harness.take("joint_trajectory")]
+
+
+def compensator_outputs(compensator):
+    compensator.tick()
+    for out in published_trajectories(compensator):
+        for p in out.points:
+            assert np.all(np.isfinite(p.positions)) and np.all(np.isfinite(p.velocities))
+    assert compensator.take("/diagnostics")
+
+
+@FUZZ
+@given(raw=trajectory_bytes())
+def test_compensator_compensates_or_refuses_every_trajectory(compensator, calibration_text, raw):
+    if compensator.node.logic.calibration is None:
+        compensator.call("tolerance_calibration", String(data=calibration_text))
+    compensator.call("joint_trajectory_in", raw)
+    compensator_outputs(compensator)
+
+
+@CALIBRATION_FUZZ
+@given(data=st.data())
+def test_compensator_takes_or_refuses_every_calibration(compensator, calibration_text, data):
+    compensator.call("tolerance_calibration", String(data=data.draw(calibration_texts(calibration_text))))
+    compensator_outputs(compensator)
+
+
+def test_compensator_serves_after_the_fuzz(compensator, calibration_text):
+    compensator.call("tolerance_calibration", String(data=calibration_text))
+    assert compensator.node.logic.calibration is not None
+    q = GAO.sample_joints(3, 1) * 0.5
+    plan = JointTrajectory(joint_names=list(GAO.joint_names),
+                           points=[JointTrajectoryPoint(positions=row.tolist()) for row in q])
+    compensator.call("joint_trajectory_in", plan)
+    out = published_trajectories(compensator)
+    assert len(out) == 1 and len(out[0].points) == 3
+    assert 0 < np.abs(np.array([p.positions for p in out[0].points]) - q).max() < 0.05
+
+
+@FUZZ
+@given(msg=trajectories())
+def test_the_compensated_source_publishes_only_whole_finite_states(compensated_source, msg):
+    source = compensated_source
+    source.tick()
+    source.call("joint_trajectory", msg)
+    source.tick()
+    source.take("joint_trajectory_in")
+    for out in source.take("joint_states"):
+        assert list(out.name) == list(GAO.joint_names)
+        assert len(out.position) == GAO.dof and np.all(np.isfinite(out.position))
+
+
 # robot_description, for every node class that can take its robot from it.
 NODES_FROM_DESCRIPTION = {
     "error_model": ("tolerance_ros.nodes.error_model_server", "ErrorModelServer",
@@ -503,6 +731,8 @@ NODES_FROM_DESCRIPTION = {
     "monitor": ("tolerance_ros.nodes.accuracy_monitor", "AccuracyMonitor", {"robot": "robot_description"}),
     "tracker": ("tolerance_ros.nodes.simulated_tracker", "SimulatedTrackerNode", {"robot": "robot_description"}),
     "source": ("tolerance_ros.nodes.joint_state_source", "JointStateSource", {"robot": "robot_description"}),
+    "compensator": ("tolerance_ros.nodes.trajectory_compensator", "TrajectoryCompensator",
+                    {"robot": "robot_description"}),
 }
 
 
@@ -568,6 +798,11 @@ def test_the_robot_from_a_valid_description_after_the_fuzz(described):
         state = JointState(name=list(robots.single().joint_names), position=q)
         described.call("joint_states", state)
         assert len(described.take("measured_pose")) == 1
+    elif kind == "compensator":
+        assert node.logic.model.name == "ur5"
+        plan = JointTrajectory(joint_names=list(robots.single().joint_names), points=[JointTrajectoryPoint(positions=q)])
+        described.call("joint_trajectory_in", plan)
+        assert len(described.take("joint_trajectory")) == 1
     else:
         described.tick()
         assert list(described.take("joint_states")[-1].name) == list(robots.single().joint_names)

@@ -112,10 +112,11 @@ class ErrorModelServer(Node):
         compensate, and the predicted bound, which then comes from the calibrated robot)."""
         try:
             robot, cal = calibration_from_graph(msg.data, self.service.models)
+            calibrated = cal.mechanism(self.service.models[robot])
         except ValueError as exc:
             self.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused: {exc}")
             return
-        self.service.calibrations[robot] = cal.mechanism(self.service.models[robot])
+        self.service.calibrations[robot] = calibrated
         self.get_logger().info(f"calibrated model of {robot} from {CALIBRATION_TOPIC}")
 
     def on_budget(self, msg):

@@ -6,6 +6,8 @@ JointTrajectory on ``joint_trajectory_in``, and what comes back on ``joint_traje
 publishes. The robot may come from ``robot_description``."""
 from __future__ import annotations
 
+import math
+
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -62,8 +64,14 @@ class JointStateSource(Node):
 
     def on_compensated(self, msg):
         """The compensator's answer to the configuration sent last: what the controller executes."""
-        if msg.points and self.sent_step is not None and list(msg.joint_names) == self.names:
-            self.commanded = (self.sent_step, [float(v) for v in msg.points[0].positions])
+        if not (msg.points and self.sent_step is not None and list(msg.joint_names) == self.names):
+            return
+        q = [float(v) for v in msg.points[0].positions]
+        if len(q) != len(self.names) or not all(math.isfinite(v) for v in q):
+            self.get_logger().warning(f"compensated command ignored: expected {len(self.names)} finite positions, "
+                                      f"got {q[:12]}")
+            return
+        self.commanded = (self.sent_step, q)
 
     def publish_joint_state(self):
         if self.sequence is None:

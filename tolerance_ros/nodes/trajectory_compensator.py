@@ -12,7 +12,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
-from ..core.calibration.writers import CalibrationError, calibration_from_text, load_calibration
+from ..core.calibration.writers import calibration_from_text, load_calibration
 from ..services.trajectory import ON_FLAG, TrajectoryError, TrajectoryLogic
 from .common import CALIBRATION_TOPIC, LATCHED_QOS, STATUS_QOS, declare, follow_robot, guarded, robot_set, run, status_name
 
@@ -65,10 +65,10 @@ class TrajectoryCompensator(Node):
             return
         try:
             cal = calibration_from_text(msg.data, self.logic.model)
-        except CalibrationError as exc:
+            self.logic.set_calibration(cal, CALIBRATION_TOPIC)
+        except ValueError as exc:
             self.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused, the current one stays: {exc}")
             return
-        self.logic.set_calibration(cal, CALIBRATION_TOPIC)
         self.get_logger().info(f"calibration from {CALIBRATION_TOPIC}: {cal.model.get('label', 'identified')}")
 
     def on_trajectory(self, raw):

@@ -59,7 +59,7 @@ def calibration_from_graph(text, models: dict) -> tuple:
     from ..core.yamlio import loads_yaml
     doc = loads_yaml(text, "tolerance_calibration", CalibrationError) if isinstance(text, str) else None
     robot = doc.get("robot") if isinstance(doc, dict) else None
-    if robot not in models:
+    if not isinstance(robot, str) or robot not in models:
         raise CalibrationError(f"tolerance_calibration: robot {str(robot)[:80]!r} is not served ({sorted(models)})")
     return robot, calibration_from_text(text, models[robot])
 
