@@ -13,12 +13,14 @@ inflate it less). Each row gives the best of the rounds, the ratio to pinocchio 
 from pinocchio; the rounds' own bests at N = 10,000 are printed under each table. On a shared VM the same
 call can run 1.6x slower for a second at a time (its neighbours at work); the rounds, tens of seconds
 apart, show it.
-Then the 3-PUPS G (``fk_and_jacobian`` of rong2018_3pups) at N = 1 and 1,000, and the warm-up: a fresh
+Then a sweep of N = 1 ... 100,000 per chain: time per pose, the worst ratio between neighbouring sizes
+(at most 2: no cliff), the URDF writer chosen on this machine (``kernels.choose_writers``), and N = 10,000
+beside a fill of its answer's bytes (the memory-write floor). Then the 3-PUPS G (``fk_and_jacobian`` of rong2018_3pups) at N = 1 and 1,000, and the warm-up: a fresh
 process importing the models, warming up every kernel (``warm_up_kernels()``) and making its first call,
 with an empty kernel cache (compile) and again (load from the cache). Exits 1 when a target is missed or
 the results disagree.
 
-    python bench/bench_jacobian.py [--repeat 9] [--rounds 3] [--clock cpu|wall] [--skip-warm-up]
+    python bench/bench_jacobian.py [--repeat 9] [--rounds 3] [--clock cpu|wall] [--skip-warm-up] [--skip-sweep]
 """
 import os
 
@@ -47,6 +49,10 @@ from machine import load_average, machine, verdicts as print_verdicts  # noqa: E
 
 SIZES = (1, 100, 10_000)
 TARGETS_US = {1: 20.0, 100: 60.0, 10_000: 4000.0}  # compiled fk_and_jacobian, per call
+DH_TARGET_10K_US = 2500.0  # the D-H chain at N = 10,000
+SWEEP = tuple(m * 10 ** e for e in range(5) for m in (1, 2, 5)) + (100_000,)  # N of the per-pose sweep
+MAX_STEP = 2.0  # the largest per-pose time ratio allowed between neighbouring sizes of the sweep
+FLOOR_AIM = 3.0  # aim: compiled at N = 10,000 within this factor of a fill of its answer's bytes
 AGREE = 1e-12
 URDFS = (("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand"))
 
@@ -220,6 +226,8 @@ def run_chain(label, model, error_model, rounds, args, verdicts):
         verdicts.append((ok, f"{label} N={n}: compiled vs numpy reference max |diff| {diff_ref:.1e} "
                              f"({'<=' if ok else '>'} {AGREE:g})"))
         t_c, target = best["compiled"], TARGETS_US[n]
+        if n == 10_000 and model.compiled and type(model).__name__ == "DHChain":
+            target = DH_TARGET_10K_US
         met = t_c * 1e6 <= target
         verdicts.append((met, f"{label} N={n}: compiled {t_c * 1e6:.1f} us "
                               f"{'<=' if met else '>'} target {target:g} us"))
@@ -238,6 +246,40 @@ def run_chain(label, model, error_model, rounds, args, verdicts):
           f"first-touch page faults for their {q.shape[0] * 6 * model.n_params * 8 / 1e6:.1f} MB answer "
           f"({_median_ms(faulted)}, {max((f for _, f in calls), default=0)} faults at most), {len(clean)} reused "
           f"memory ({_median_ms(clean)})")
+
+
+def fill_floor(nbytes, args) -> float:
+    """Best seconds to allocate and fill ``nbytes`` (the memory-write floor of an answer of that size)."""
+    return best_time(lambda: np.empty(nbytes // 8).fill(1.0), args.repeat, args.clock)
+
+
+def run_sweep(chains, args, verdicts):
+    """Time per pose over N = 1 ... 100,000 for each chain (compiled), the worst ratio between neighbouring
+    sizes (a jump is a machine-specific cliff), and N = 10,000 beside the fill floor of its answer."""
+    from tolerance_ros.core.models import kernels
+    choice = kernels._choice or kernels.choose_writers()
+    print(f"\nPer-pose sweep, compiled, N = {SWEEP[0]} ... {SWEEP[-1]:,} (URDF writer by size class: "
+          + ", ".join(f"{c} {w}" for c, w in choice["writers"].items())
+          + f"; {choice['source']} on {choice['cpu']['cpu']}"
+          + (f"; timed us {choice['times_us']}" if choice.get("times_us") else "") + ")")
+    print(f"{'chain':<28}{'us/pose at N = ' + ', '.join(str(n) for n in SWEEP[::3]) + ' ...':<60}")
+    for label, model, _ in chains:
+        q_all = model.sample_joints(SWEEP[-1], 1)
+        per_pose = []
+        for n in SWEEP:
+            q = np.ascontiguousarray(q_all[:n])
+            per_pose.append(best_time(lambda: model.fk_and_jacobian(q), min(args.repeat, 5), args.clock) / n)
+        steps = [b / a for a, b in zip(per_pose, per_pose[1:])]
+        k = int(np.argmax(steps))
+        ok = steps[k] <= MAX_STEP
+        print(f"  {label:<26}" + " ".join(f"{t * 1e6:.3g}" for t in per_pose))
+        verdicts.append((ok, f"{label}: worst per-pose step N={SWEEP[k]:,} -> {SWEEP[k + 1]:,}: x{steps[k]:.2f} "
+                             f"({'<=' if ok else '>'} {MAX_STEP:g})"))
+        n = 10_000
+        t = per_pose[SWEEP.index(n)] * n
+        floor = fill_floor(n * (16 + 6 * model.n_params) * 8, args)
+        print(f"  {'':<26}N={n:,}: {t * 1e3:.2f} ms; fill of its {n * (16 + 6 * model.n_params) * 8 / 1e6:.1f} MB "
+              f"answer {floor * 1e3:.2f} ms: {t / floor:.2f}x the floor (aim <= {FLOOR_AIM:g}x)")
 
 
 def run_pups(args):
@@ -291,6 +333,7 @@ def main():
     ap.add_argument("--clock", choices=("cpu", "wall"), default="cpu",
                     help="cpu: this process's CPU time (default); wall: elapsed time")
     ap.add_argument("--skip-warm-up", action="store_true", help="skip the subprocess compile/load timings")
+    ap.add_argument("--skip-sweep", action="store_true", help="skip the per-pose sweep over N = 1 ... 100,000")
     args = ap.parse_args()
     threads = pin_blas_threads()
     print("FK + parameter-error Jacobian: tolerance_ros compiled / numpy reference / pinocchio")
@@ -310,6 +353,8 @@ def main():
     rounds = [[time_chain(model, error_model, args) for _, model, error_model in chains] for _ in range(args.rounds)]
     for i, (label, model, error_model) in enumerate(chains):
         run_chain(label, model, error_model, [r[i] for r in rounds], args, verdicts)
+    if not args.skip_sweep:
+        run_sweep(chains, args, verdicts)
     run_pups(args)
     if not args.skip_warm_up:
         run_warm_up()

@@ -195,24 +195,88 @@ def test_urdf_compiled_equals_numpy_reference_and_pinocchio(urdf_chains, case, n
     _assert_same(T_fk, T)
 
 
+@pytest.fixture
+def choice():
+    """The writer choice in force, restored after the test."""
+    saved = kernels._choice
+    yield
+    kernels._choice = saved
+
+
 @pytest.mark.parametrize("case", [1, 3])
-def test_urdf_streamed_answer_equals_the_one_written_in_place(urdf_chains, case):
-    """A J of STREAM_BYTES or more (streaming stores) holds the same bits as the same poses' J written in
-    place, and equals the numpy reference; for the Panda and the odd chain, without and with per-pose dx."""
+def test_urdf_every_writer_gives_the_same_bits_as_columns_in_place(urdf_chains, case, choice):
+    """A J of LARGE_BYTES or more holds the same bits whichever writer writes it (columns, rows, streaming
+    rows), the same as the same poses' J of a small call, and equals the numpy reference; for the Panda and
+    the odd chain, without and with per-pose dx."""
     chain = _with_backend(urdf_chains[case], "numba")
-    n = kernels.STREAM_BYTES // (6 * chain.n_params * 8) + 5
+    n = kernels.LARGE_BYTES // (6 * chain.n_params * 8) + 5
     rng = np.random.default_rng(20 + case)
     q = chain.sample_joints(n, rng)
     for dx in (None, rng.normal(0, 1e-2, (n, chain.n_params))):
-        T, EJ = chain.fk_and_jacobian(q, dx)
-        assert EJ.J.nbytes >= kernels.STREAM_BYTES
+        answers = {}
+        for name in kernels.WRITERS:
+            kernels.choose_writers(force=name)
+            T, EJ = chain.fk_and_jacobian(q, dx)
+            assert EJ.J.nbytes >= kernels.LARGE_BYTES and kernels.writer_for(EJ.J.nbytes) == kernels.WRITERS.index(name)
+            answers[name] = T, EJ.J
+        T, J = answers["columns"]
+        for name, (T_w, J_w) in answers.items():
+            assert np.array_equal(J_w, J) and np.array_equal(T_w, T), name
         for part in (slice(0, 40), slice(n - 40, n)):
             T_part, EJ_part = chain.fk_and_jacobian(q[part], None if dx is None else dx[part])
-            assert EJ_part.J.nbytes < kernels.STREAM_BYTES
-            assert np.array_equal(EJ.J[part], EJ_part.J) and np.array_equal(T[part], T_part)
+            assert EJ_part.J.nbytes < kernels.MID_BYTES
+            assert np.array_equal(J[part], EJ_part.J) and np.array_equal(T[part], T_part)
         T_ref, EJ_ref = _with_backend(chain, "numpy").fk_and_jacobian(q, dx)
         _assert_same(T, T_ref)
-        _assert_same(EJ.J, EJ_ref.J)
+        _assert_same(J, EJ_ref.J)
+
+
+def _timings(fastest):
+    """A fake measurement in which ``fastest`` is the fastest writer for every size class."""
+    def measure():
+        return {c: {w: (1e-3 if w == fastest else 30e-3) for w in kernels.WRITERS} for c in kernels.SIZES}
+    return measure
+
+
+@pytest.mark.parametrize("fastest", ["rows", "stream", "columns"])
+def test_the_writer_measured_fastest_is_chosen_and_remembered_for_this_cpu_only(tmp_path, fastest, choice,
+                                                                                 monkeypatch):
+    import json
+    monkeypatch.delenv(kernels.WRITER_ENV, raising=False)
+    path = tmp_path / kernels.CHOICE_FILE
+    made = kernels.choose_writers(_timings(fastest), path)
+    assert made["source"] == "measured" and made["writers"] == {c: fastest for c in kernels.SIZES}
+    assert kernels.writer_for(kernels.LARGE_BYTES) == kernels.WRITERS.index(fastest)
+    assert kernels.writer_for(kernels.MID_BYTES) == kernels.WRITERS.index(fastest)
+    assert kernels.writer_for(kernels.MID_BYTES - 1) == 0
+    other = next(w for w in kernels.WRITERS if w != fastest)
+
+    def not_measured():
+        raise AssertionError("measured again, though the choice for this CPU is remembered")
+    again = kernels.choose_writers(not_measured, path)
+    assert again["source"] == "remembered" and again["writers"] == made["writers"]
+    doc = json.loads(path.read_text())
+    doc["cpu"]["cpu"] = "another CPU"
+    path.write_text(json.dumps(doc))
+    assert kernels.choose_writers(_timings(other), path)["writers"]["large"] == other   # made elsewhere: measured
+    path.write_text("{not json")
+    assert kernels.choose_writers(_timings(fastest), path)["source"] == "measured"
+
+
+def test_a_forced_writer_is_used_without_measuring_and_a_bad_one_refused(tmp_path, choice, monkeypatch):
+    monkeypatch.setenv(kernels.WRITER_ENV, "rows")
+    forced = kernels.choose_writers(_timings("stream"), tmp_path / kernels.CHOICE_FILE)
+    assert forced["source"] == "forced" and kernels.writer_for(kernels.LARGE_BYTES) == 1
+    assert not (tmp_path / kernels.CHOICE_FILE).exists()
+    monkeypatch.setenv(kernels.WRITER_ENV, "fastest")
+    with pytest.raises(ValueError, match=kernels.WRITER_ENV):
+        kernels.choose_writers(_timings("stream"), tmp_path / kernels.CHOICE_FILE)
+
+
+def test_the_writers_are_timed_on_every_size_class(choice):
+    times = kernels.time_writers(rounds=1)
+    assert set(times) == set(kernels.SIZES)
+    assert all(set(t) == set(kernels.WRITERS) and all(0 < v < 5 for v in t.values()) for t in times.values())
 
 
 def test_urdf_offset_columns_are_pinocchio_joint_jacobian(urdf_chains):

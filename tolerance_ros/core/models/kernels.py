@@ -9,14 +9,17 @@ columns pose by pose in one compiled loop. Shared arguments:
   ``jacobian``); J's rows 0-2 are position (m per unit), rows 3-5 a small rotation in the base frame;
 - the return value is -1, or the flat index of the first non-finite joint value (nothing computed then).
 
-J is written column by column, in place, except that ``urdf_chain`` writes a J of ``STREAM_BYTES`` or more
-row by row in memory order, with non-temporal (streaming) stores: such an answer would not stay in the
-caches anyway, and a streaming store saves the read of each cache line before its write (a quarter of a
-10,000-pose Panda Jacobian's time on a 2-core AMD EPYC VM). Streaming is fast only while nothing flushes
-the partly written cache lines: no atomic instruction (numba's reference counting of an array passed to a
-helper) between the stores of one pose, and the stores in memory order. Variants of this code that broke
-either were 1.5x and 20x slower; ``bench/bench_jacobian.py`` shows it. Written in place, columns are faster
-(100 Panda poses: 29 us, rows 33 us); ``dh_chain``, 21 cache lines a pose, gained nothing from streaming.
+``dh_chain`` writes J column by column, in place (21 cache lines a pose; it gained nothing from other
+writers). ``urdf_chain`` has three writers (its ``writer`` argument): 0 columns in place; 1 rows in memory
+order; 2 rows in memory order with non-temporal (streaming) stores, which save the read of each cache line
+before its write (a quarter of a 10,000-pose Panda Jacobian's time on a 2-core AMD EPYC VM) but made the
+same call 30x slower on an Intel Xeon (Sapphire Rapids class, under KVM). Which is fastest depends on the
+CPU, so none is assumed: ``writer_for(nbytes)`` gives the writer measured fastest on this machine for an
+answer of that size (``choose_writers``: each candidate timed at warm-up on a J of ``SIZES`` bytes, the
+choice remembered beside the kernel cache with the CPU it was made on). Streaming is fast only while
+nothing flushes the partly written cache lines: no atomic instruction (numba's reference counting of an
+array passed to a helper) between the stores of one pose, and the stores in memory order; variants that
+broke either were 1.5x and 20x slower.
 
 ``base64_triples`` and ``base64_quads`` are the bulk of ``jsonio.b64encode`` and ``b64decode`` (the compact
 arrays of large answers).
@@ -73,8 +76,7 @@ def njit(fn):
 NO_DX = np.empty((0, 0))  # dx argument when there are no parameter errors
 NO_J = np.empty((0, 0, 0))  # J argument when only the poses are wanted
 BLOCK = 64  # poses per block: their joint angles' sines and cosines are computed together (SIMD)
-STREAM_BYTES = 8 << 20  # a J of this many bytes or more is written with streaming stores
-GROUP = 4  # poses whose J is streamed together (their chains' lines stay in the L1 cache)
+WRITERS = ("columns", "rows", "stream")  # urdf_chain's writers, by code 0, 1, 2 (module docstring)
 
 # sin and cos: reduction by pi/2 in three parts (Cody-Waite) and the fdlibm kernels' polynomials on
 # [-pi/4, pi/4]; within 1 ulp of libm for |x| <= SINCOS_LIMIT, libm beyond.
@@ -293,9 +295,10 @@ def _rpy(R, j, roll, pitch, yaw):
 
 
 @njit
-def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian):
+def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, writer):
     """URDF chain (see urdf.py): per joint j the fixed transform ``fixed[j]`` (4x4, m), the origin
-    parameters x y z (m), roll pitch yaw (rad) and the offset (rad or m), about or along ``axes[j]``."""
+    parameters x y z (m), roll pitch yaw (rad) and the offset (rad or m), about or along ``axes[j]``;
+    J written by ``writer`` (a code of WRITERS)."""
     bad = _first_nonfinite(q)
     if bad >= 0:
         return bad
@@ -325,7 +328,8 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian):
     turn = np.full(dof, -1, np.int64)
     turn_cs = np.empty((dof, 2))
     flat = J.reshape(-1)
-    stream = jacobian and J.size * 8 >= STREAM_BYTES
+    by_rows = jacobian and writer != 0
+    stream = writer == 2
     if not per_pose:
         for j in range(dof):
             roll, pitch, yaw = (_param(nominal, dx, 0, 7 * j + 3), _param(nominal, dx, 0, 7 * j + 4),
@@ -362,11 +366,11 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian):
                     _rpy_of(rpy, j, cs[e], sn[e], cs[e + 1], sn[e + 1], cs[e + 2], sn[e + 2])
                     pitch_axis[j, 0] = -sn[e + 2]
                     pitch_axis[j, 1] = cs[e + 2]
-            _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian and not stream, k, row,
+            _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian and not by_rows, k, row,
                        b * width, sn, cs, rpy, pitch_axis, plain, turn, turn_cs, along, lines)
-            if stream:
-                _urdf_rows(flat, k, dof, lines, revolute)
-    if stream:
+            if by_rows:
+                _urdf_rows(flat, k, dof, lines, revolute, stream)
+    if by_rows and stream:
         _fence()
     return -1
 
@@ -497,35 +501,44 @@ def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, columns, k, ro
 
 
 @njit
-def _urdf_rows(flat, k, dof, lines, revolute):
-    """J[k] of urdf_chain row by row in streaming stores (``flat``: J flattened), from the lines of
-    ``_urdf_pose``; called by urdf_chain itself (see the module docstring: called from ``_urdf_pose``, a
-    reference count came between the poses' stores, 1.5x slower)."""
+def _put(flat, i, value, stream):
+    """flat[i] = value, as a streaming store when ``stream``."""
+    if stream:
+        _stream(flat, i, value)
+    else:
+        flat[i] = value
+
+
+@njit
+def _urdf_rows(flat, k, dof, lines, revolute, stream):
+    """J[k] of urdf_chain row by row in memory order (``flat``: J flattened), streaming stores when
+    ``stream``, from the lines of ``_urdf_pose``; called by urdf_chain itself (see the module docstring:
+    called from ``_urdf_pose``, a reference count came between the poses' stores, 1.5x slower)."""
     i = k * 42 * dof
     for r in range(3):
         r1, r2 = (r + 1) % 3, (r + 2) % 3
         for j in range(dof):
             a1, a2 = lines[j, 18 + r1], lines[j, 18 + r2]
-            _stream(flat, i, lines[j, r])
-            _stream(flat, i + 1, lines[j, 3 + r])
-            _stream(flat, i + 2, lines[j, 6 + r])
-            _stream(flat, i + 3, lines[j, 9 + r1] * a2 - lines[j, 9 + r2] * a1)
-            _stream(flat, i + 4, lines[j, 12 + r1] * a2 - lines[j, 12 + r2] * a1)
-            _stream(flat, i + 5, lines[j, 6 + r1] * a2 - lines[j, 6 + r2] * a1)
+            _put(flat, i, lines[j, r], stream)
+            _put(flat, i + 1, lines[j, 3 + r], stream)
+            _put(flat, i + 2, lines[j, 6 + r], stream)
+            _put(flat, i + 3, lines[j, 9 + r1] * a2 - lines[j, 9 + r2] * a1, stream)
+            _put(flat, i + 4, lines[j, 12 + r1] * a2 - lines[j, 12 + r2] * a1, stream)
+            _put(flat, i + 5, lines[j, 6 + r1] * a2 - lines[j, 6 + r2] * a1, stream)
             if revolute[j]:
-                _stream(flat, i + 6, lines[j, 15 + r1] * a2 - lines[j, 15 + r2] * a1)
+                _put(flat, i + 6, lines[j, 15 + r1] * a2 - lines[j, 15 + r2] * a1, stream)
             else:
-                _stream(flat, i + 6, lines[j, 15 + r])
+                _put(flat, i + 6, lines[j, 15 + r], stream)
             i += 7
     for r in range(3):
         for j in range(dof):
-            _stream(flat, i, 0.0)
-            _stream(flat, i + 1, 0.0)
-            _stream(flat, i + 2, 0.0)
-            _stream(flat, i + 3, lines[j, 9 + r])
-            _stream(flat, i + 4, lines[j, 12 + r])
-            _stream(flat, i + 5, lines[j, 6 + r])
-            _stream(flat, i + 6, lines[j, 15 + r] if revolute[j] else 0.0)
+            _put(flat, i, 0.0, stream)
+            _put(flat, i + 1, 0.0, stream)
+            _put(flat, i + 2, 0.0, stream)
+            _put(flat, i + 3, lines[j, 9 + r], stream)
+            _put(flat, i + 4, lines[j, 12 + r], stream)
+            _put(flat, i + 5, lines[j, 6 + r], stream)
+            _put(flat, i + 6, lines[j, 15 + r] if revolute[j] else 0.0, stream)
             i += 7
 
 
@@ -578,5 +591,122 @@ def warm_up(which=("dh", "urdf", "base64")) -> float:
         dh_chain(q, np.zeros(4), NO_DX, revolute, True, eye, eye, T, np.empty((1, 6, 4)), True)
     if "urdf" in which:
         urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.array([[0.0, 0.0, 1.0]]), eye,
-                   T, np.empty((1, 6, 7)), True)
+                   T, np.empty((1, 6, 7)), True, 0)
+        choose_writers()
+    if {"dh", "urdf", "base64"} <= set(which):
+        from .warmup import write_marker
+        path = _choice_path()
+        write_marker(os.path.dirname(path) if path else None)
     return time.perf_counter() - t0
+
+
+# ------------------------------------------------------------------ the writer of urdf_chain, per machine
+
+MID_BYTES = 256 << 10    # a J below this many bytes is written in columns (it stays in the caches)
+LARGE_BYTES = 8 << 20    # a J of this many bytes or more: the writer chosen for "large", else for "mid"
+SIZES = {"mid": 2 << 20, "large": 16 << 20}  # bytes of the J that the candidates are timed on
+CHOICE_FILE = "tolerance_ros-writers.json"   # beside the kernel cache: the choice and the CPU it was made on
+WRITER_ENV = "TOLERANCE_ROS_JACOBIAN_WRITER"  # columns | rows | stream: no measurement, this writer
+_choice = None           # the choice in force: {"writers": {size class: name}, "source", "times_us", "cpu"}
+
+
+def writer_for(nbytes: int) -> int:
+    """Code of the writer of a J of ``nbytes`` bytes (columns below MID_BYTES; else this machine's choice)."""
+    if nbytes < MID_BYTES:
+        return 0
+    choice = _choice or choose_writers()
+    return WRITERS.index(choice["writers"]["large" if nbytes >= LARGE_BYTES else "mid"])
+
+
+def cpu_id() -> dict:
+    """What the choice depends on: the CPU model, its feature flags (a digest), the architecture, numba."""
+    import hashlib
+    import platform
+    model, flags = platform.processor() or platform.machine(), ""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                if key.strip() == "model name" and model == (platform.processor() or platform.machine()):
+                    model = value.strip()
+                elif key.strip() in ("flags", "Features") and not flags:
+                    flags = value.strip()
+    except OSError:
+        pass
+    return {"cpu": model, "flags": hashlib.sha1(flags.encode()).hexdigest()[:12], "machine": platform.machine(),
+            "numba": numba.__version__}
+
+
+def _choice_path():
+    """The file that remembers the choice (in the kernel cache's directory), or None without a cache."""
+    cache = getattr(getattr(urdf_chain, "_cache", None), "_cache_path", None)
+    return os.path.join(cache, CHOICE_FILE) if cache else None
+
+
+def choose_writers(measure=None, path="auto", force=None) -> dict:
+    """Put in force and return the writer of each size class: ``force`` (or the WRITER_ENV variable) when
+    given; else the choice remembered in ``path`` (default beside the kernel cache) when it was made on
+    this CPU; else each candidate timed by ``measure`` (default ``time_writers``), the fastest chosen and
+    remembered."""
+    import json
+    global _choice
+    force = force or os.environ.get(WRITER_ENV) or None
+    if force is not None:
+        if force not in WRITERS:
+            raise ValueError(f"{WRITER_ENV}: expected one of {list(WRITERS)}, got {force!r}")
+        _choice = {"writers": {c: force for c in SIZES}, "source": "forced", "times_us": None, "cpu": cpu_id()}
+        return _choice
+    path = _choice_path() if path == "auto" else path
+    cpu = cpu_id()
+    if path is not None:
+        try:
+            with open(path, encoding="utf-8") as f:
+                doc = json.load(f)
+            if doc.get("cpu") == cpu and set(doc["writers"]) == set(SIZES) and \
+                    all(w in WRITERS for w in doc["writers"].values()):
+                _choice = {**doc, "source": "remembered"}
+                return _choice
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            pass
+    times = (measure or time_writers)()
+    doc = {"writers": {c: min(t, key=t.get) for c, t in times.items()},
+           "times_us": {c: {w: round(v * 1e6, 1) for w, v in t.items()} for c, t in times.items()}, "cpu": cpu}
+    if path is not None:
+        try:
+            tmp = f"{path}.{os.getpid()}.tmp"
+            with open(tmp, "w", encoding="utf-8") as f:
+                json.dump(doc, f)
+            os.replace(tmp, path)
+        except OSError:
+            pass
+    _choice = {**doc, "source": "measured"}
+    return _choice
+
+
+def time_writers(rounds: int = 3) -> dict:
+    """{size class: {writer: best seconds}}: urdf_chain on a 7-joint chain (generic joint frames) for a J of
+    SIZES bytes, each writer in turn, ``rounds`` times after one untimed round, each call with freshly
+    allocated T and J as the models allocate them."""
+    rng = np.random.default_rng(0)
+    dof = 7
+    fixed = np.repeat(np.eye(4)[None], dof, axis=0)
+    for j in range(dof):
+        R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        fixed[j, :3, :3] = R * np.sign(np.linalg.det(R))
+        fixed[j, :3, 3] = rng.uniform(-0.2, 0.2, 3)
+    axes = np.tile([0.0, 0.0, 1.0], (dof, 1))
+    revolute = np.ones(dof, np.bool_)
+    nominal, tool = np.zeros(7 * dof), np.eye(4)
+    out = {}
+    for size_class, nbytes in SIZES.items():
+        q = rng.uniform(-np.pi, np.pi, (max(1, nbytes // (6 * 7 * dof * 8)), dof))
+        best = dict.fromkeys(WRITERS, math.inf)
+        for r in range(rounds + 1):  # the first round untimed (first touch of the memory, first calls)
+            for code, name in enumerate(WRITERS):
+                T, J = np.empty((len(q), 4, 4)), np.empty((len(q), 6, 7 * dof))
+                t0 = time.perf_counter()
+                urdf_chain(q, nominal, NO_DX, revolute, fixed, axes, tool, T, J, True, code)
+                if r:
+                    best[name] = min(best[name], time.perf_counter() - t0)
+        out[size_class] = best
+    return out

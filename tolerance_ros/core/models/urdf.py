@@ -177,7 +177,7 @@ class URDFChain(CompiledChain):
 
     def _run_kernel(self, kernels, q, dx, T, J, jacobian):
         return kernels.urdf_chain(q, self.nominal, dx, self._revolute, self._fixed, self._axes, self._tool, T, J,
-                                  jacobian)
+                                  jacobian, kernels.writer_for(J.nbytes) if jacobian else 0)
 
     def _fk_and_jacobian_numpy(self, q, dx=None, jacobian=True):
         """The numpy reference implementation of ``fk_and_jacobian``."""
