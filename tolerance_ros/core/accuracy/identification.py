@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import qr
 
 from ..geometry import exp_so3, rotation_error
 from .targets import Targets, shift_jacobian
@@ -250,6 +249,7 @@ def dependent_columns(Js, estimable, nuisance, tol_rank=1e-6) -> np.ndarray:
         Qb = Qb[:, np.abs(np.diag(Rb)) > 1e-12 * max(np.abs(Rb).max(), 1e-300)]
         A = A - Qb @ (Qb.T @ A)
     smax = _largest_singular_value(Js)
+    from scipy.linalg import qr  # here: importing scipy takes about 1 s of a node's start
     _, R, piv = qr(A, mode="economic", pivoting=True)
     pivots = np.zeros(len(estimable))
     k = min(R.shape)

@@ -22,8 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from .targets import Targets
 
@@ -180,6 +178,8 @@ def _global_points(Tn, M, idx, K, names):
     PG = G - D @ (Dp @ G)
     Pp = p - D @ (Dp @ p)
     Q, c = G.T @ PG, G.T @ Pp
+    from scipy.optimize import least_squares  # here: importing scipy takes about 1 s of a node's start
+    from scipy.spatial.transform import Rotation
     cover = Rotation.concatenate([Rotation.create_group("O"), Rotation.random(COVER, random_state=20261201)])
     cands = [cover.as_matrix()]
     r_free = np.linalg.lstsq(Q, c, rcond=None)[0]

@@ -15,7 +15,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from scipy.optimize import minimize
 
 from .. import interrupt
 from ..budget import Budget
@@ -209,6 +208,7 @@ def _solve_program(x0, cons, objective, K, alpha, tau, unit, w, scale, ceil):
         x_start = 1.0 + (x_start - 1.0) * 0.7
     else:
         x_start = np.ones_like(hi)
+    from scipy.optimize import minimize  # here: importing scipy.optimize takes 1 s (a node's start)
     res = minimize(fun, x_start, jac=True, method="SLSQP", bounds=bounds,
                    constraints=[{"type": "ineq", "fun": cfun, "jac": cjac}],
                    options={"maxiter": 500, "ftol": 1e-14})

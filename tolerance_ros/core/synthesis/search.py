@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from .. import interrupt
 
@@ -108,6 +107,7 @@ def maximize(model, f, n_samples=20000, n_starts=12, seed=0, q_extra=None, upper
 
     maxima_q, maxima = [], []
     for x0 in starts_x:
+        from scipy.optimize import minimize  # here: importing scipy.optimize takes 1 s (a node's start)
         res = minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=list(zip(lo, hi)),
                        options={"maxiter": maxiter, "ftol": 1e-15, "gtol": 1e-12})
         x = np.clip(res.x, lo, hi)
