@@ -39,7 +39,7 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [
-            "tolerance-ros = tolerance_ros.cli:main",
+            "tolerance-ros = tolerance_ros.cli:entry",
             "joint_state_source = tolerance_ros.nodes.joint_state_source:main",
             "error_model_server = tolerance_ros.nodes.error_model_server:main",
             "tolerance_allocator = tolerance_ros.nodes.tolerance_allocator:main",

@@ -586,3 +586,44 @@ def test_the_accuracy_loop_closes_on_the_graph(graph, ns, tmp_path):
         p = np.linalg.inv(T_tb) @ np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z, 1.0])
         errors.append(np.min(np.linalg.norm(nominal - p[:3], axis=1)))
     assert np.median(errors) <= 0.1 * before, (before, np.median(errors))
+
+
+SERVER_PROCESS = r"""
+import sys, time
+t0 = time.time()
+from tolerance_ros.nodes.error_model_server import main
+print(f"started {t0!r}", flush=True)
+main(["--ros-args", "-r", "__ns:=" + sys.argv[1]])
+"""
+
+
+def test_a_node_on_an_empty_kernel_cache_answers_within_2_s_and_loses_no_request(graph, ns, tmp_path):
+    """The error-model server in a child process with an empty NUMBA_CACHE_DIR: subscribed and answering
+    within 2 s of its start, every request of the compile window answered (from the numpy path), then the
+    compiled kernels in force (its log says so)."""
+    import signal
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), ROS_DOMAIN_ID=str(graph.context.get_domain_id()))
+    t_start = time.time()
+    node = subprocess.Popen([sys.executable, "-c", SERVER_PROCESS, ns], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        client = graph.client(ns)
+        if not client.wait_for_server("compute_error_jacobian", 20):
+            os.killpg(node.pid, signal.SIGINT)
+            raise AssertionError(f"no server within 20 s: {node.communicate(timeout=30)[0]}")
+        first = client.compute_error_jacobian(Q)
+        t_first = time.time() - t_start
+        answered, slowest = 0, 0.0
+        for k in range(20):
+            t = time.time()
+            r = client.compute_error_jacobian([q + 0.01 * k for q in Q])
+            slowest = max(slowest, time.time() - t)
+            answered += r["ok"]
+            time.sleep(0.25)
+        assert first["ok"] and answered == 20 and slowest < 1.0, (answered, slowest)
+        print(f"first answer {t_first:.2f} s after the start; slowest of the window {slowest:.3f} s")
+        assert t_first < 2.0, f"first answer {t_first:.2f} s after the start"
+    finally:
+        os.killpg(node.pid, signal.SIGINT)
+        out = node.communicate(timeout=60)[0]
+    assert "compiling the kernels in the background" in out, out

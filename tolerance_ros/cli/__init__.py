@@ -16,6 +16,6 @@ from ..core.threads import cap_environment
 
 cap_environment()  # before numpy loads: BLAS pools of one thread (see core/threads.py)
 
-from .main import build_parser, main  # noqa: E402
+from .main import build_parser, entry, main  # noqa: E402
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "entry", "main"]

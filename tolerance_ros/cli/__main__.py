@@ -1,6 +1,6 @@
 """``python -m tolerance_ros.cli``: the same as ``tolerance-ros``."""
 import sys
 
-from . import main
+from . import entry
 
-sys.exit(main())
+sys.exit(entry())

@@ -79,6 +79,16 @@ def _fail(prog, code, message, as_json) -> int:
     return EXIT_INTERNAL if code == "internal" else EXIT_INPUT
 
 
+def entry() -> int:
+    """The ``tolerance-ros`` process: ``main`` on the command line's arguments; on a cold kernel cache the
+    kernels compile in the background (said on stderr) while this call answers from the numpy path."""
+    from ..core.models import warmup
+    if not warmup.cached() and warmup.start(background=True) == "compiling":
+        print("tolerance-ros: compiling the kernels in the background (the first run after an install, 15-25 s); "
+              "this call answers from the numpy path meanwhile", file=sys.stderr)
+    return main()
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     as_json = "--json" in argv

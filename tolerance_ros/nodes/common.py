@@ -24,7 +24,7 @@ from std_msgs.msg import String
 
 from ..core.budget import BudgetError
 from ..core.campaign import CampaignError
-from ..core.models import ModelError, warm_up_kernels
+from ..core.models import ModelError, warmup
 from ..services.contracts import ContractError
 from ..services.robots import RobotSet
 
@@ -64,14 +64,17 @@ def guarded(node, callback):
 
 
 def robot_set(node, specs, default) -> RobotSet:
-    """The robots a node serves, with the ``tip_link`` / ``base_link`` parameters for ``robot_description``;
-    the compiled kernels of its robots, and the URDF kernel when it follows ``robot_description``, are warmed
-    up here, so that neither the first request nor the first description waits for a compilation."""
+    """The robots a node serves, with the ``tip_link`` / ``base_link`` parameters for ``robot_description``.
+    The compiled kernels are prepared in the background (``core.models.warmup``): the node serves from the
+    numpy path at once and switches to them when they are loaded (compiled first in a child process when
+    the cache is cold), so that no request waits for a compilation."""
     tip = declare(node, "tip_link", "", "robot_description: link the chain ends in (empty: the only moving leaf)")
     base = declare(node, "base_link", "", "robot_description: link the chain starts from (empty: the URDF root)")
     robots = RobotSet(specs, default, tip or None, base or None)
-    if robots.from_description:
-        warm_up_kernels(("urdf",))
+    state = warmup.start(background=True, log=node.get_logger().info)
+    if state == "compiling":
+        node.get_logger().info("compiling the kernels in the background (an empty cache: 15-25 s); the numpy "
+                               "path answers meanwhile")
     for model in robots.models.values():
         model.warm_up()
     return robots

@@ -22,12 +22,16 @@ PRISMATIC = "prismatic"
 UNIT_OF_KIND = {"length": "m", "angle": "rad"}
 BACKENDS = ("numba", "numpy")
 _FLOAT64 = np.dtype(np.float64)
-_KERNELS = None  # the compiled kernels module once imported, False when numba cannot be imported
+PENDING = "pending"  # _KERNELS while warmup.start prepares the kernels in the background
+_KERNELS = None  # the compiled kernels module once imported, False when numba cannot be imported, or PENDING
 
 
 def compiled_kernels():
-    """The compiled kernels module (imports numba on first use), or None when numba cannot be imported."""
+    """The compiled kernels module (imports numba on first use), or None when numba cannot be imported or
+    the kernels are being prepared in the background (``warmup.start``: the numpy path answers meanwhile)."""
     global _KERNELS
+    if _KERNELS is PENDING:
+        return None
     if _KERNELS is None:
         try:
             from . import kernels
@@ -115,7 +119,7 @@ class Mechanism(ABC):
             raise ModelError(f"backend: expected one of {list(BACKENDS)}, got {name!r}")
         if name == "numba" and not self.compiled:
             raise ModelError(f"backend: {type(self).__name__} has no compiled kernels")
-        if name == "numba" and compiled_kernels() is None:
+        if name == "numba" and _KERNELS is not PENDING and compiled_kernels() is None:
             raise ModelError("backend: numba cannot be imported (pip install numba)")
         self._backend = name
 
@@ -123,7 +127,8 @@ class Mechanism(ABC):
         """The kernels module when fk_and_jacobian takes the compiled path, else None."""
         if self._backend == "numpy" or not self.compiled:
             return None
-        return (_KERNELS if _KERNELS is not None else compiled_kernels()) or None
+        kernels = _KERNELS if _KERNELS is not None else compiled_kernels()
+        return kernels if kernels and kernels is not PENDING else None
 
     def warm_up(self) -> float:
         """Compile or load from the cache the kernels this model calls; returns the seconds it took."""

@@ -1,0 +1,95 @@
+"""The compiled kernels prepared in the background: a cold start serves at once from the numpy path and
+switches to the compiled kernels without a pause (in child processes with an empty NUMBA_CACHE_DIR)."""
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tolerance_ros.core.models import kernels, warmup
+
+ROOT = Path(__file__).resolve().parents[3]
+
+COLD_START = r"""
+import json, sys, time
+t0 = time.perf_counter()
+from tolerance_ros.core.models import load_robot, warmup
+state = warmup.start(background=True)
+model = load_robot(sys.argv[1], **json.loads(sys.argv[2]))
+q = model.sample_joints(50, 0)
+calls, first, numpy_answer = [], None, None
+while True:
+    t = time.perf_counter()
+    backend = model.backend
+    T, J = model.fk_and_jacobian(q)
+    calls.append(time.perf_counter() - t)
+    if first is None:
+        first, numpy_answer = time.perf_counter() - t0, (T, J.J)
+    if backend == "numba" or time.perf_counter() - t0 > 150:
+        break
+    time.sleep(0.02)
+import numpy as np
+diff = max(np.abs(T - numpy_answer[0]).max(), np.abs(J.J - numpy_answer[1]).max())
+print(json.dumps({"state": state, "first_s": first, "switched": backend == "numba", "after_s": time.perf_counter() - t0,
+                  "calls": len(calls), "slowest_call_s": max(calls), "diff": float(diff),
+                  "cached": warmup.cached(), "final": warmup.status}))
+"""
+
+
+def _env(cache):
+    return dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=os.pathsep.join(
+        [str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+
+
+def _run(code, cache, *args, timeout=240):
+    out = subprocess.run([sys.executable, "-c", code, *args], env=_env(cache), capture_output=True, text=True,
+                         timeout=timeout, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_the_marker_lives_where_numba_caches_the_kernels(tmp_path):
+    """cache_dir() (without numba) is the directory numba itself chose, here and with NUMBA_CACHE_DIR."""
+    assert warmup.cache_dir() == os.path.dirname(kernels._choice_path())
+    code = ("import json, os; from tolerance_ros.core.models import kernels, warmup; kernels.warm_up(('base64',)); "
+            "print(json.dumps([warmup.cache_dir(), os.path.dirname(kernels._choice_path())]))")
+    ours, numbas = _run(code, tmp_path)
+    assert ours == numbas and ours.startswith(str(tmp_path))
+
+
+def test_a_cold_start_serves_at_once_and_switches_to_the_compiled_kernels_without_a_pause(tmp_path):
+    """Empty cache: the first answer within 2 s of the start (imports included), from the numpy path; the
+    kernels compile in a child process and load; no call waits for them (none over 0.5 s); the compiled
+    answer equals the numpy one to 1e-12; the next start finds the cache warm and loads."""
+    cold = _run(COLD_START, tmp_path, "gao2023_7dof", "{}")
+    assert cold["state"] == "compiling" and cold["first_s"] < 2.0, cold
+    assert cold["switched"] and cold["calls"] > 1 and cold["slowest_call_s"] < 0.5, cold
+    assert cold["diff"] < 1e-12 and cold["cached"] and cold["final"]["state"] == "ready", cold
+    warm = _run(COLD_START, tmp_path, "gao2023_7dof", "{}")
+    assert warm["state"] == "loading" and warm["first_s"] < 2.0 and warm["switched"], warm
+    assert warm["after_s"] < cold["after_s"], (warm, cold)
+
+
+def test_a_stale_marker_is_not_trusted(tmp_path, monkeypatch):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    path = warmup.cache_dir()
+    assert path.startswith(str(tmp_path)) and not warmup.cached()
+    warmup.write_marker(path)
+    assert warmup.cached()
+    doc = json.loads(Path(path, warmup.MARKER).read_text())
+    Path(path, warmup.MARKER).write_text(json.dumps({**doc, "stamp": "another source"}))
+    assert not warmup.cached()
+
+
+def test_the_command_line_answers_at_once_on_a_cold_cache_and_says_it_compiles(tmp_path):
+    t0 = time.perf_counter()
+    out = subprocess.run([sys.executable, "-m", "tolerance_ros.cli", "jacobian", "--robot", "gao2023_7dof",
+                          "--random", "5", "--json"], env=_env(tmp_path), capture_output=True, text=True, timeout=60)
+    seconds = time.perf_counter() - t0
+    assert out.returncode == 0, out.stderr
+    assert "compiling the kernels in the background" in out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["ok"] and np.asarray(doc["jacobian"]).shape[0] == 5
+    assert seconds < 3.0, f"{seconds:.2f} s"

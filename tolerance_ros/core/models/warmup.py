@@ -1,0 +1,178 @@
+"""The compiled kernels without a stall: serve from the numpy path while a child process fills the cache.
+
+Compiling the kernels with an empty numba cache takes 15-25 s; loading them from the cache about 1 s
+(most of it importing numba). A node, or a one-shot command, that waited for either would lose its first
+requests. ``start(background=True)`` returns at once: the models answer from their numpy reference path
+(equal to the compiled one to 1e-12) while a background thread prepares the kernels (a child process
+``python -m tolerance_ros.core.models.warmup`` compiles them into the cache when it is cold, then this
+process loads them from there), and the models switch to them between two calls, without a pause.
+Without ``background`` (the library's default), the kernels compile or load on first use, in the caller.
+
+Whether the cache is warm is known without importing numba: ``kernels.warm_up`` writes ``MARKER`` into
+the kernel cache's directory (``cache_dir()``, numba's own choice of it) with the ``source_stamp`` of the
+kernels it compiled; a changed kernels module, numba or Python makes the marker stale.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from . import base
+
+MARKER = "tolerance_ros-kernels.json"
+KERNEL_MODULES = ("kernels.py",)  # the numba modules of this package whose compiled code the marker vouches for
+_HERE = Path(__file__).resolve().parent
+_lock = threading.Lock()
+status = {"state": "idle", "message": "", "seconds": None}  # idle | loading | compiling | ready | failed
+
+
+def source_stamp() -> str:
+    """Digest of what the cached code depends on: the kernel modules' text, numba's and Python's versions."""
+    from importlib.metadata import PackageNotFoundError, version
+    h = hashlib.sha256()
+    for name in KERNEL_MODULES:
+        h.update((_HERE / name).read_bytes())
+    try:
+        h.update(version("numba").encode())
+    except PackageNotFoundError:
+        pass
+    h.update(sys.version.encode())
+    return h.hexdigest()[:24]
+
+
+def cache_dir() -> str | None:
+    """The directory numba caches ``kernels.py`` in (its locators' order: ``NUMBA_CACHE_DIR``, the
+    ``__pycache__`` beside the file, the user-wide cache), computed without importing numba; None when
+    none is writable."""
+    source = str(_HERE / "kernels.py")
+    parent = os.path.dirname(os.path.abspath(source))
+    subpath = "_".join([os.path.split(parent)[-1], hashlib.sha1(parent.encode()).hexdigest()])
+    candidates = []
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        candidates.append(os.path.join(os.environ["NUMBA_CACHE_DIR"], subpath))
+    candidates.append(os.path.join(parent, "__pycache__"))
+    candidates.append(os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "numba",
+                                   subpath))
+    for path in candidates:
+        try:
+            os.makedirs(path, exist_ok=True)
+        except OSError:
+            continue
+        if os.access(path, os.W_OK):
+            return path
+    return None
+
+
+def cached() -> bool:
+    """True when the kernel cache holds the compiled kernels of this source (the marker is current)."""
+    path = cache_dir()
+    if path is None:
+        return False
+    try:
+        with open(os.path.join(path, MARKER), encoding="utf-8") as f:
+            return json.load(f).get("stamp") == source_stamp()
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def write_marker(path: str | None) -> None:
+    """Record in ``path`` (the kernel cache's directory) that it holds this source's compiled kernels."""
+    if path is None:
+        return
+    try:
+        tmp = os.path.join(path, f"{MARKER}.{os.getpid()}.tmp")
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump({"stamp": source_stamp(), "written": time.time()}, f)
+        os.replace(tmp, os.path.join(path, MARKER))
+    except OSError:
+        pass
+
+
+def start(background: bool = True, log=None) -> str:
+    """Make the compiled kernels available; returns the state: 'ready' (already, or loaded now without
+    ``background``), 'loading' / 'compiling' (in the background: the numpy path answers until then),
+    'unavailable' (no numba: the numpy path always). ``log(text)`` hears what happens in the background."""
+    with _lock:
+        if base._KERNELS not in (None, base.PENDING):
+            return "ready" if base._KERNELS else "unavailable"
+        if base._KERNELS is base.PENDING:
+            return status["state"]
+        if importlib.util.find_spec("numba") is None:
+            base._KERNELS = False
+            return "unavailable"
+        if not background:
+            kernels = base.compiled_kernels()
+            if kernels is None:
+                return "unavailable"
+            kernels.warm_up()
+            status.update(state="ready", message="loaded in the caller")
+            return "ready"
+        warm = cached()
+        status.update(state="loading" if warm else "compiling", message="", seconds=None)
+        base._KERNELS = base.PENDING
+    threading.Thread(target=_prepare, args=(warm, log or (lambda text: None)), name="tolerance_ros-kernels",
+                     daemon=True).start()
+    return status["state"]
+
+
+def _prepare(warm: bool, log):
+    """Background thread of ``start``: fill the cache in a child process when it is cold, then load."""
+    t0 = time.perf_counter()
+    if not warm:
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([str(_HERE.parents[2])] + [p for p in [env.get("PYTHONPATH")] if p])
+        try:
+            child = subprocess.run([sys.executable, "-m", "tolerance_ros.core.models.warmup"], env=env,
+                                   stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                   text=True, start_new_session=True)
+            failed = child.returncode != 0 and (child.stderr.strip().splitlines() or ["no message"])[-1]
+        except OSError as exc:
+            failed = str(exc)
+        if failed:
+            _give_up(f"compiling the kernels failed ({failed}); the numpy path serves", log)
+            return
+    try:
+        from . import kernels
+        kernels.warm_up()
+    except Exception as exc:  # numba broken in this environment: stay on the numpy path
+        _give_up(f"loading the compiled kernels failed ({type(exc).__name__}: {exc}); the numpy path serves", log)
+        return
+    seconds = time.perf_counter() - t0
+    with _lock:
+        base._KERNELS = kernels
+        status.update(state="ready", seconds=seconds,
+                      message=f"compiled kernels {'loaded' if warm else 'compiled and loaded'} in {seconds:.1f} s")
+    log(status["message"])
+
+
+def _give_up(message, log):
+    with _lock:
+        base._KERNELS = False
+        status.update(state="failed", message=message)
+    log(message)
+
+
+def wait(timeout: float | None = None) -> str:
+    """Block until a background ``start`` has finished (or ``timeout`` s); returns the state."""
+    deadline = None if timeout is None else time.monotonic() + timeout
+    while base._KERNELS is base.PENDING and (deadline is None or time.monotonic() < deadline):
+        time.sleep(0.05)
+    return status["state"] if base._KERNELS is base.PENDING else ("ready" if base._KERNELS else status["state"])
+
+
+def fill_cache() -> int:
+    """The child process: compile every kernel into the cache (and choose the writers); 0 on success."""
+    from . import kernels
+    kernels.warm_up()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(fill_cache())
