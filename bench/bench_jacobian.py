@@ -15,8 +15,8 @@ call can run 1.6x slower for a second at a time (its neighbours at work); the ro
 apart, show it.
 Then a sweep of N = 1 ... 100,000 per chain: time per pose, the worst ratio between neighbouring sizes
 (at most 2: no cliff), the URDF writer chosen on this machine (``kernels.choose_writers``), and N = 10,000
-beside a fill of its answer's bytes (the memory-write floor). Then the 3-PUPS G (``fk_and_jacobian`` of rong2018_3pups) at N = 1 and 1,000, and the warm-up: a fresh
-process importing the models, warming up every kernel (``warm_up_kernels()``) and making its first call,
+beside a fill of its answer's bytes (the memory-write floor). Then the 3-PUPS G (``fk_and_jacobian`` of
+rong2018_3pups) at N = 1 and 1,000, and the warm-up: a fresh process importing the models, warming up every kernel (``warm_up_kernels()``) and making its first call,
 with an empty kernel cache (compile) and again (load from the cache); and the same without waiting
 (``warmup.start(background=True)``, as the nodes start: the first answer from the numpy path while a
 child process compiles, then the compiled kernels), and a one-shot command on an empty cache. Exits 1
@@ -354,17 +354,18 @@ def run_background(verdicts):
                   f"{r['switched']:.1f} s; slowest call meanwhile {r['slowest'] * 1e3:.1f} ms); process "
                   f"{time.perf_counter() - t0:.1f} s")
             ok = r["first"] <= SERVE_WITHIN_S and r["backend"] == "numba"
-            verdicts.append((ok, f"{label}: first answer {r['first']:.2f} s ({'<=' if ok else '>'} {SERVE_WITHIN_S:g} s), "
-                                 f"then the compiled kernels"))
+            verdicts.append((ok, f"{label}: first answer {r['first']:.2f} s "
+                                 f"({'<=' if ok else '>'} {SERVE_WITHIN_S:g} s), then the compiled kernels"))
     with tempfile.TemporaryDirectory(prefix="numba-cache-") as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(ROOT))
         t0 = time.perf_counter()
-        out = subprocess.run([sys.executable, "-m", "tolerance_ros.cli", "jacobian", "--robot", str(urdf), "--tip-link",
-                              "tool0", "--random", "100", "--json"], env=env, capture_output=True, text=True)
+        out = subprocess.run([sys.executable, "-m", "tolerance_ros.cli", "jacobian", "--robot", str(urdf),
+                              "--tip-link", "tool0", "--random", "100", "--json"], env=env, capture_output=True,
+                             text=True)
         t = time.perf_counter() - t0
         said = "compiling the kernels in the background" in out.stderr
-        print(f"  one-shot `tolerance-ros jacobian --robot ur5_robot.urdf --random 100 --json`, empty cache: {t:.2f} s, "
-              f"exit {out.returncode}; stderr: {out.stderr.strip()[:120]!r}")
+        print(f"  one-shot `tolerance-ros jacobian --robot ur5_robot.urdf --random 100 --json`, empty cache: "
+              f"{t:.2f} s, exit {out.returncode}; stderr: {out.stderr.strip()[:120]!r}")
         ok = out.returncode == 0 and t <= CLI_WITHIN_S and said
         verdicts.append((ok, f"one-shot command on a cold cache: {t:.2f} s ({'<=' if t <= CLI_WITHIN_S else '>'} "
                              f"{CLI_WITHIN_S:g} s){', says it compiles' if said else ', silent'}"))
