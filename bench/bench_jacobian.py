@@ -17,10 +17,11 @@ Then a sweep of N = 1 ... 100,000 per chain: time per pose, the worst ratio betw
 (at most 2: no cliff), the URDF writer chosen on this machine (``kernels.choose_writers``), and N = 10,000
 beside a fill of its answer's bytes (the memory-write floor). Then the 3-PUPS G (``fk_and_jacobian`` of
 rong2018_3pups) at N = 1 and 1,000, and the warm-up: a fresh process importing the models, warming up
-every kernel (``warm_up_kernels()``) and making its first call, with an empty kernel cache (compile) and again (load from the cache); and the same without waiting
-(``warmup.start(background=True)``, as the nodes start: the first answer from the numpy path while a
-child process compiles, then the compiled kernels), and a one-shot command on an empty cache. Exits 1
-when a target is missed or the results disagree.
+every kernel (``warm_up_kernels()``) and making its first call, with an empty kernel cache (compile) and
+again (load from the cache); and the same without waiting (``warmup.start(background=True)``, as the
+nodes start: the first answer from the numpy path while a child process compiles, then the compiled
+kernels), and a one-shot command on an empty cache. Exits 1 when a target is missed or the results
+disagree.
 
     python bench/bench_jacobian.py [--repeat 9] [--rounds 3] [--clock cpu|wall] [--skip-warm-up] [--skip-sweep]
 """
