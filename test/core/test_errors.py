@@ -40,11 +40,27 @@ def test_worst_case_equals_brute_force(seed, p, kind):
     rng = np.random.default_rng(seed)
     J = _degenerate(rng.standard_normal((6, 3, p)), kind, rng)
     delta = rng.uniform(0, 1, p)
-    w, s = worst_case_bound(J, delta, return_signs=True)
     ref = brute_force(J, delta)
-    assert np.allclose(w, ref, rtol=1e-9, atol=1e-12)
-    # The returned signs attain the bound.
-    assert np.allclose(error_norms(J, s * delta), w, rtol=1e-12, atol=1e-12)
+    for backend in ("numba", "numpy"):  # the compiled kernel and the numpy reference
+        w, s = worst_case_bound(J, delta, return_signs=True, backend=backend)
+        assert np.allclose(w, ref, rtol=1e-9, atol=1e-12), backend
+        # The returned signs attain the bound.
+        assert np.allclose(error_norms(J, s * delta), w, rtol=1e-12, atol=1e-12), backend
+
+
+@pytest.mark.parametrize("kind", ["generic", "parallel", "zero", "half-coplanar"])
+def test_the_compiled_worst_case_equals_the_numpy_reference_on_many_generators(kind):
+    """42 generators (a 6-joint URDF chain's position rows), where brute force cannot follow: the kernel's
+    values equal the reference's to 1e-12, and its signs attain them."""
+    from tolerance_ros.core.models.base import compiled_kernels
+    assert compiled_kernels() is not None
+    rng = np.random.default_rng(len(kind))
+    J = _degenerate(rng.standard_normal((200, 3, 42)), kind, rng)
+    delta = rng.uniform(1e-6, 1e-4, 42)
+    ref = worst_case_bound(J, delta, backend="numpy")
+    w, s = worst_case_bound(J, delta, return_signs=True, backend="numba")
+    assert np.allclose(w, ref, rtol=1e-12, atol=0)
+    assert np.allclose(error_norms(J, s * delta), w, rtol=1e-12, atol=0)
 
 
 def test_worst_case_on_robot_jacobians_equals_brute_force():

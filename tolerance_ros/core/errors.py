@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import interrupt
+from .models.base import compiled_kernels
 
 _PERTURB = 1e-9
 
@@ -81,7 +82,7 @@ def confidence_for_k(k_sigma: float) -> float:
     return float(2.0 * norm.cdf(k_sigma) - 1.0)
 
 
-def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: float = 64e6):
+def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: float = 64e6, backend: str = "numba"):
     """(n,) exact ``max over s in {-1,+1}^p of |J (s * delta)|``; optionally the maximising signs (n, p).
 
     The maximum of a norm over a zonotope sits at a vertex, and each vertex is ``sum_j s_j g_j`` for the
@@ -91,7 +92,9 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
     generators, which robot Jacobians have by construction) are resolved by a 1e-9 relative
     perturbation used only to choose the candidate sign vectors; every candidate is evaluated on the
     unperturbed generators, so the result is an attained value and is exact in generic position
-    (within 2e-9 relative otherwise). O(n p^3) work.
+    (within 2e-9 relative otherwise). O(n p^3) work: ``backend`` 'numba' runs the compiled kernel
+    ``kernels.zonotope_max`` (10x faster) when the kernels are available, 'numpy' (the reference, and
+    the fallback) the batched numpy code below.
     """
     J, delta = _check(J, delta)
     n, k, p = J.shape
@@ -113,6 +116,18 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
     scale = np.abs(Ga).max(axis=(1, 2), keepdims=True)
     rng = np.random.default_rng(12345)
     Gp = Ga + _PERTURB * np.where(scale > 0, scale, 1.0) * rng.standard_normal(Ga.shape)
+    kernels = compiled_kernels() if backend == "numba" else None
+    if kernels is not None:
+        best_s = np.empty((n, m))
+        for a in range(0, n, 256):
+            interrupt.check()
+            b = min(n, a + 256)
+            kernels.zonotope_max(np.ascontiguousarray(Ga[a:b]), np.ascontiguousarray(Gp[a:b]), out[a:b],
+                                 best_s[a:b], return_signs)
+        if return_signs:
+            signs[:, active] = best_s
+            return out, signs
+        return out
     ii, jj = np.triu_indices(m, 1)
     npairs = ii.size
     combos = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=float)

@@ -21,7 +21,8 @@ nothing flushes the partly written cache lines: no atomic instruction (numba's r
 array passed to a helper) between the stores of one pose, and the stores in memory order; variants that
 broke either were 1.5x and 20x slower.
 
-``base64_triples`` and ``base64_quads`` are the bulk of ``jsonio.b64encode`` and ``b64decode`` (the compact
+``zonotope_max`` is the exact worst case of ``errors.worst_case_bound``, one pose at a time (the numpy
+version there, batched over poses, is the reference). ``base64_triples`` and ``base64_quads`` are the bulk of ``jsonio.b64encode`` and ``b64decode`` (the compact
 arrays of large answers).
 
 Compiled code is cached on disk: in ``NUMBA_CACHE_DIR`` when set, else beside this file when its
@@ -59,18 +60,20 @@ def _private_cache_dir():
     return path
 
 
-def njit(fn):
+def njit(fn=None, **options):
     """``numba.njit(cache=True)``, with the fallbacks of the module docstring when no cache directory is writable.
     Every helper is inlined where it is called (numba IR inlining: the small tuple-returning helpers are
-    otherwise real calls, about 10 % of a chain's time)."""
+    otherwise real calls, about 10 % of a chain's time). ``options`` go to numba (``fastmath``)."""
+    if fn is None:
+        return lambda f: njit(f, **options)
     try:
-        return numba.njit(cache=True, inline="always")(fn)
+        return numba.njit(cache=True, inline="always", **options)(fn)
     except RuntimeError:  # "cannot cache function ...: no locator available"
         path = _private_cache_dir()
         if path is None:
-            return numba.njit(inline="always")(fn)
+            return numba.njit(inline="always", **options)(fn)
         numba.config.CACHE_DIR = path
-        return numba.njit(cache=True, inline="always")(fn)
+        return numba.njit(cache=True, inline="always", **options)(fn)
 
 
 NO_DX = np.empty((0, 0))  # dx argument when there are no parameter errors
@@ -542,6 +545,49 @@ def _urdf_rows(flat, k, dof, lines, revolute, stream):
             i += 7
 
 
+@njit(fastmath={"reassoc", "contract"})  # the sums over generators vectorised (their order is free)
+def zonotope_max(G, Gp, out, signs, want_signs):
+    """out[k] = max over s in {-1,+1}^m of |G[k] s| for each pose k (G (n, 3, m) generators), by the cells
+    of the arrangement around each line Gp_i x Gp_j (Gp: G perturbed, used only to choose the signs); the
+    algorithm and the candidates' order of ``errors.worst_case_bound``, one pose at a time. With
+    ``want_signs`` the maximising signs go to ``signs`` (n, m)."""
+    n, _, m = G.shape
+    for k in range(n):
+        best, bi, bj, ba, bb = -1.0, 0, 1, 1.0, 1.0
+        for i in range(m):
+            pi0, pi1, pi2 = Gp[k, 0, i], Gp[k, 1, i], Gp[k, 2, i]
+            for j in range(i + 1, m):
+                pj0, pj1, pj2 = Gp[k, 0, j], Gp[k, 1, j], Gp[k, 2, j]
+                v0, v1, v2 = pi1 * pj2 - pi2 * pj1, pi2 * pj0 - pi0 * pj2, pi0 * pj1 - pi1 * pj0
+                z0, z1, z2 = 0.0, 0.0, 0.0
+                for l in range(m):  # every generator; i and j taken out after (a branch-free loop)
+                    s = 1.0 - 2.0 * (v0 * Gp[k, 0, l] + v1 * Gp[k, 1, l] + v2 * Gp[k, 2, l] < 0.0)
+                    z0 += s * G[k, 0, l]
+                    z1 += s * G[k, 1, l]
+                    z2 += s * G[k, 2, l]
+                si = 1.0 - 2.0 * (v0 * pi0 + v1 * pi1 + v2 * pi2 < 0.0)
+                sj = 1.0 - 2.0 * (v0 * pj0 + v1 * pj1 + v2 * pj2 < 0.0)
+                z0 -= si * G[k, 0, i] + sj * G[k, 0, j]
+                z1 -= si * G[k, 1, i] + sj * G[k, 1, j]
+                z2 -= si * G[k, 2, i] + sj * G[k, 2, j]
+                for a, b in ((1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)):
+                    c0 = z0 + a * G[k, 0, i] + b * G[k, 0, j]
+                    c1 = z1 + a * G[k, 1, i] + b * G[k, 1, j]
+                    c2 = z2 + a * G[k, 2, i] + b * G[k, 2, j]
+                    norm = c0 * c0 + c1 * c1 + c2 * c2
+                    if norm > best:
+                        best, bi, bj, ba, bb = norm, i, j, a, b
+        out[k] = math.sqrt(best)
+        if want_signs:
+            pi0, pi1, pi2 = Gp[k, 0, bi], Gp[k, 1, bi], Gp[k, 2, bi]
+            pj0, pj1, pj2 = Gp[k, 0, bj], Gp[k, 1, bj], Gp[k, 2, bj]
+            v0, v1, v2 = pi1 * pj2 - pi2 * pj1, pi2 * pj0 - pi0 * pj2, pi0 * pj1 - pi1 * pj0
+            for l in range(m):
+                signs[k, l] = -1.0 if v0 * Gp[k, 0, l] + v1 * Gp[k, 1, l] + v2 * Gp[k, 2, l] < 0.0 else 1.0
+            signs[k, bi] = ba
+            signs[k, bj] = bb
+
+
 _B64 = np.frombuffer(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/", dtype=np.uint8)
 # The two base64 characters of every 12-bit value, as one native-order uint16 (their bytes in order).
 B64_PAIRS = np.stack([_B64[np.arange(4096) >> 6], _B64[np.arange(4096) & 63]], axis=1).copy().view(np.uint16)[:, 0]
@@ -576,10 +622,14 @@ def base64_quads(src, values, out):
     return -1
 
 
-def warm_up(which=("dh", "urdf", "base64")) -> float:
+def warm_up(which=("dh", "urdf", "base64", "zonotope")) -> float:
     """Compile, or load from the on-disk cache, the kernels named in ``which`` ('dh': dh_chain, 'urdf':
-    urdf_chain, 'base64': the base64 kernels) in every signature the models call; returns seconds."""
+    urdf_chain, 'base64': the base64 kernels, 'zonotope': zonotope_max) in every signature the models
+    call; returns seconds."""
     t0 = time.perf_counter()
+    if "zonotope" in which:
+        G = np.zeros((1, 3, 2))
+        zonotope_max(G, G, np.empty(1), np.empty((1, 2)), True)
     if "base64" in which:
         base64_triples(np.zeros(3, np.uint8), B64_PAIRS, np.empty(2, np.uint16))
         base64_quads(np.frombuffer(b"AAAA", np.uint8), B64_VALUES, np.empty(3, np.uint8))
@@ -593,7 +643,7 @@ def warm_up(which=("dh", "urdf", "base64")) -> float:
         urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.array([[0.0, 0.0, 1.0]]), eye,
                    T, np.empty((1, 6, 7)), True, 0)
         choose_writers()
-    if {"dh", "urdf", "base64"} <= set(which):
+    if {"dh", "urdf", "base64", "zonotope"} <= set(which):
         from .warmup import write_marker
         path = _choice_path()
         write_marker(os.path.dirname(path) if path else None)
