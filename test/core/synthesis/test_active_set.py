@@ -85,3 +85,19 @@ def test_worst_case_at_the_paper_floors_is_infeasible(gao):
     p = build_problem(gao, 1.4e-3, criterion="worst-case", samples=5000)
     with pytest.raises(SynthesisError, match="worst-case position error reaches"):
         solve_active_set(p, "min-cost")
+
+
+def test_progress_moves_through_the_feasibility_search_the_iterations_and_the_verification(arm):
+    """Progress never goes back, moves during the feasibility search (before the first iteration), moves at
+    every iteration, stays within the solve's share until the verification, and ends at 100 %."""
+    from tolerance_ros.core.synthesis import SOLVE_SHARE, allocate
+    calls = []
+    res = allocate(arm, 1e-3, criterion="worst-case", floors={"length": 1e-5, "angle": 1e-5}, n_mc=500,
+                   progress=lambda done, total: calls.append(done / total))
+    assert res.status == "converged"
+    assert calls == sorted(calls) and calls[-1] == 1.0
+    iterations = len(res.history)
+    solve = [f for f in calls if f <= SOLVE_SHARE]
+    assert len([f for f in solve if f <= 0.2 * SOLVE_SHARE]) >= 5                  # the feasibility search
+    assert len(set(solve)) >= iterations + 5
+    assert len({f for f in calls if SOLVE_SHARE < f < 1.0}) >= 5                  # the verification's searches

@@ -111,16 +111,20 @@ class Allocation:
                 "verification": self.verification, "warnings": self.warnings, "history": self.history}
 
 
+SOLVE_SHARE = 0.8  # of an allocation's progress: the solve; the rest is the verification
+
+
 def supremum(problem: SynthesisProblem, delta, criterion=None, rows="position", n_samples=20000, n_starts=12,
-             seed=0) -> dict:
-    """Largest error of ``delta`` over the joint space under a criterion (search: sample + local)."""
+             seed=0, tick=None) -> dict:
+    """Largest error of ``delta`` over the joint space under a criterion (search: sample + local);
+    ``tick(done, total)`` as the search goes (``search.maximize``)."""
     model = problem.model
     crit = criterion or problem.criterion
     d = np.where(problem.active, delta, 0.0)
     res = maximize(model, lambda q: problem.values(model.error_jacobian(q).select(rows), d, crit),
                    n_samples=n_samples, n_starts=n_starts, seed=seed,
                    upper=(lambda q: problem.upper(model.error_jacobian(q).select(rows), d, crit))
-                   if crit == "worst-case" else None)
+                   if crit == "worst-case" else None, tick=tick)
     return {"value": res.value, "q": res.q, "sample_max": res.sample_max, "samples": res.samples,
             "starts": len(res.maxima), "evaluations": res.evaluations}
 
@@ -135,15 +139,20 @@ def verify_allocation(problem: SynthesisProblem, delta, n_mc=10000, seed=0, n_sa
     return _verify(problem, delta, n_mc, seed, n_samples, n_starts, correlation_threshold, distribution)[0]
 
 
-def _verify(problem, delta, n_mc, seed, n_samples=20000, n_starts=12, correlation_threshold=0.7, distribution=None):
-    """(verification dict, the Monte Carlo Verification with its per-pose errors)."""
+def _verify(problem, delta, n_mc, seed, n_samples=20000, n_starts=12, correlation_threshold=0.7, distribution=None,
+            progress=None):
+    """(verification dict, the Monte Carlo Verification with its per-pose errors); ``progress(share)`` with
+    the share of the searches done."""
     model = problem.model
     d = np.where(problem.active, delta, 0.0)
     sup = {}
-    for crit in LIMIT_CRITERIA:
+    searches = len(LIMIT_CRITERIA) * len(problem.rows)
+    for c, crit in enumerate(LIMIT_CRITERIA):
         sup[crit] = {}
-        for rows, lim in problem.rows:
-            s = supremum(problem, d, crit, rows, n_samples, n_starts, seed)
+        for r, (rows, lim) in enumerate(problem.rows):
+            k = c * len(problem.rows) + r
+            tick = None if progress is None else (lambda done, total, k=k: progress((k + done / total) / searches))
+            s = supremum(problem, d, crit, rows, n_samples, n_starts, seed, tick)
             s["limit"] = lim
             s["pass"] = bool(s["value"] <= lim)
             sup[crit][rows] = s
@@ -216,13 +225,20 @@ def _allocate(model, limit, model_type, solver, criterion, orientation_limit, fl
     t0 = time.perf_counter()
     if problem is None:
         problem = build_problem(model, limit, orientation_limit, criterion, floors, k_sigma, seed=seed)
+    # progress in thousandths: the solve up to SOLVE_SHARE (all of it without the verification), then the
+    # verification's searches
+    share = SOLVE_SHARE if verify else 1.0
+    solving = None if progress is None else (lambda done, total: progress(int(1000 * share * done / total), 1000))
+    checking = None if progress is None else (lambda f: progress(int(1000 * (share + (1 - share) * f)), 1000))
     if solver == "active-set":
-        raw = solve_active_set(problem, model_type, seed=seed, progress=progress, **(solver_options or {}))
+        raw = solve_active_set(problem, model_type, seed=seed, progress=solving, **(solver_options or {}))
     else:
-        raw = solve_ga(problem, model_type, seed=seed, progress=progress, **(solver_options or {}))
+        raw = solve_ga(problem, model_type, seed=seed, progress=solving, **(solver_options or {}))
     delta = raw["delta"]
     solve_time = time.perf_counter() - t0
-    ver, mc = _verify(problem, delta, n_mc, seed) if verify else ({}, None)
+    ver, mc = _verify(problem, delta, n_mc, seed, progress=checking) if verify else ({}, None)
+    if progress is not None:
+        progress(1000, 1000)
     warns = _warnings(problem, delta, ver) if verify else []
     res = Allocation(delta, problem, model_type, solver, False, raw["status"], raw["message"], solve_time,
                      problem.cost(delta), problem.index_I(delta), ver, raw.get("history", []), warns, seed,

@@ -66,10 +66,12 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
     scale0 = _objective(np.ones(pa), objective, K, alpha, tau, unit, w, 1.0)[0]
     x = np.minimum(ceil / tau, 1e6)
     history = []
+    report = _Progress(progress)
     # Feasibility: with every tolerance at its floor the criterion must stay within the limit.
-    for rows, lim in problem.rows:
+    for r, (rows, lim) in enumerate(problem.rows):
         res = maximize(model, lambda qq, rows=rows: _values(problem, model.error_jacobian(qq).select(rows)[:, :, a], tau),
                        n_samples=min(n_check, 5000), n_starts=n_starts, seed=rng,
+                       tick=lambda done, total, r=r: report.feasibility((r + done / total) / len(problem.rows)),
                        upper=(lambda qq, rows=rows: per_axis_bound(model.error_jacobian(qq).select(rows)[:, :, a], tau))
                        if problem.criterion == "worst-case" else None)
         if res.value > lim * (1.0 - MARGIN):
@@ -102,7 +104,7 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
             for rows, lim in problem.rows:
                 res = maximize(model, lambda qq, rows=rows: _values(
                     problem, model.error_jacobian(qq).select(rows)[:, :, a], delta_a), n_samples=0, n_starts=0,
-                    q_extra=_worst(problem, J_check[rows], delta_a, q_check, n_starts), seed=rng)
+                    q_extra=_worst(problem, J_check[rows], delta_a, q_check, n_starts), seed=rng, tick=report.search)
                 over = res.maxima > lim * (1.0 - MARGIN) * (1.0 + 1e-9)
                 if over.any():
                     Jq = model.error_jacobian(res.maxima_q[over]).select(rows)[:, :, a]
@@ -116,21 +118,51 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
                         "added": added, "elapsed_s": time.perf_counter() - t0})
         if log:
             log(history[-1])
-        if progress:
-            progress(it + 1, max_iter)
+        report.iteration()
         if not added:
             status, message = "converged", "no pose of the joint-space search exceeds the limit"
             _record_best(problem, np.clip(x * tau, tau, ceil), "the joint-space search of the active-set solver "
                                                                 "(not the final verification)")
             break
         x = _solve_program(x, cons, objective, K, alpha, tau, unit, w, scale0, ceil)
-    if progress:
-        progress(max_iter, max_iter)
+    report.done()
     delta = np.zeros(model.n_params)
     delta[a] = np.clip(x * tau, tau, ceil)
     return {"delta": delta, "status": status, "message": message, "history": history,
             "iterations": len(history), "constraints": sum(len(c) for c in cons.values()),
             "time_s": time.perf_counter() - t0}
+
+
+class _Progress:
+    """The solver's progress as ``progress(done, total)`` in thousandths, never backwards: the feasibility
+    search (its local searches, one by one) up to FEASIBILITY; then each iteration, and each joint-space
+    search within one, halves what remains up to LAST (how many iterations the solve needs is not known in
+    advance); the end is 100 %."""
+
+    FEASIBILITY, LAST, TOTAL = 0.2, 0.95, 1000
+
+    def __init__(self, progress):
+        self.progress, self.fraction, self.search_from = progress, 0.0, 0.0
+
+    def _emit(self, fraction):
+        self.fraction = max(self.fraction, min(fraction, 1.0))
+        if self.progress:
+            self.progress(int(self.fraction * self.TOTAL), self.TOTAL)
+
+    def feasibility(self, share):
+        self._emit(self.FEASIBILITY * share)
+
+    def iteration(self):
+        start = max(self.fraction, self.FEASIBILITY)
+        self._emit(start + (self.LAST - start) / 2)
+
+    def search(self, done, total):
+        if done == 1:
+            self.search_from = max(self.fraction, self.FEASIBILITY)
+        self._emit(self.search_from + (self.LAST - self.search_from) / 2 * done / total)
+
+    def done(self):
+        self._emit(1.0)
 
 
 def _record_best(problem, delta_active, verified_by):

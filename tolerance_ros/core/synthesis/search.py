@@ -65,12 +65,16 @@ def top_samples(f, q, k, upper=None):
 
 
 def maximize(model, f, n_samples=20000, n_starts=12, seed=0, q_extra=None, upper=None, h=1e-6,
-             maxiter=200) -> SearchResult:
-    """Largest value of ``f`` (vectorised: (m, dof) -> (m,)) over the joint space of ``model``."""
+             maxiter=200, tick=None) -> SearchResult:
+    """Largest value of ``f`` (vectorised: (m, dof) -> (m,)) over the joint space of ``model``;
+    ``tick(done, total)`` after the samples and after each local search."""
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     q = model.sample_joints(n_samples, rng) if n_samples else np.zeros((0, model.dof))
     idx, vals, evals = top_samples(f, q, n_starts, upper)
     starts = q[idx]
+    total = 1 + len(starts) + (len(np.atleast_2d(q_extra)) if q_extra is not None and len(q_extra) else 0)
+    if tick:
+        tick(1, total)
     if q_extra is not None and len(q_extra):
         starts = np.vstack([starts, np.atleast_2d(q_extra)])
     bounds, to_joints, from_joints = model.search_space()
@@ -116,6 +120,8 @@ def maximize(model, f, n_samples=20000, n_starts=12, seed=0, q_extra=None, upper
             x, value = x0, float(g(np.asarray(x0)[None])[0])
         maxima_q.append(x if to_joints is None else to_joints(x[None])[0])
         maxima.append(value)
+        if tick:
+            tick(1 + len(maxima), total)
     maxima_q, maxima = np.array(maxima_q), np.array(maxima)
     sample_best = float(vals[0]) if len(vals) else -np.inf
     order = np.argsort(-maxima, kind="stable")
