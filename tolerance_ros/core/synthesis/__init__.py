@@ -225,11 +225,11 @@ def _allocate(model, limit, model_type, solver, criterion, orientation_limit, fl
     t0 = time.perf_counter()
     if problem is None:
         problem = build_problem(model, limit, orientation_limit, criterion, floors, k_sigma, seed=seed)
-    # progress in thousandths: the solve up to SOLVE_SHARE (all of it without the verification), then the
+    # progress in millionths: the solve up to SOLVE_SHARE (all of it without the verification), then the
     # verification's searches
-    share = SOLVE_SHARE if verify else 1.0
-    solving = None if progress is None else (lambda done, total: progress(int(1000 * share * done / total), 1000))
-    checking = None if progress is None else (lambda f: progress(int(1000 * (share + (1 - share) * f)), 1000))
+    share, total = (SOLVE_SHARE if verify else 1.0), 10 ** 6
+    solving = None if progress is None else (lambda done, of: progress(int(total * share * done / of), total))
+    checking = None if progress is None else (lambda f: progress(int(total * (share + (1 - share) * f)), total))
     if solver == "active-set":
         raw = solve_active_set(problem, model_type, seed=seed, progress=solving, **(solver_options or {}))
     else:
@@ -238,7 +238,7 @@ def _allocate(model, limit, model_type, solver, criterion, orientation_limit, fl
     solve_time = time.perf_counter() - t0
     ver, mc = _verify(problem, delta, n_mc, seed, progress=checking) if verify else ({}, None)
     if progress is not None:
-        progress(1000, 1000)
+        progress(total, total)
     warns = _warnings(problem, delta, ver) if verify else []
     res = Allocation(delta, problem, model_type, solver, False, raw["status"], raw["message"], solve_time,
                      problem.cost(delta), problem.index_I(delta), ver, raw.get("history", []), warns, seed,

@@ -89,7 +89,7 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
         worst_ratio = 0.0
         for rows, lim in problem.rows:
             J = J_check[rows]
-            v = _values(problem, J, delta_a, prune=True)
+            v = _values(problem, J, delta_a, prune=True, tick=report.nudge)
             ratio = float(v.max() / lim)
             worst_ratio = max(worst_ratio, ratio)
             bad = np.flatnonzero(v > lim * (1.0 - MARGIN) * (1.0 + 1e-9))
@@ -104,7 +104,8 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
             for rows, lim in problem.rows:
                 res = maximize(model, lambda qq, rows=rows: _values(
                     problem, model.error_jacobian(qq).select(rows)[:, :, a], delta_a), n_samples=0, n_starts=0,
-                    q_extra=_worst(problem, J_check[rows], delta_a, q_check, n_starts), seed=rng, tick=report.search)
+                    q_extra=_worst(problem, J_check[rows], delta_a, q_check, n_starts, report.nudge), seed=rng,
+                    tick=report.search)
                 over = res.maxima > lim * (1.0 - MARGIN) * (1.0 + 1e-9)
                 if over.any():
                     Jq = model.error_jacobian(res.maxima_q[over]).select(rows)[:, :, a]
@@ -134,32 +135,36 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
 
 
 class _Progress:
-    """The solver's progress as ``progress(done, total)`` in thousandths, never backwards: the feasibility
-    search (its local searches, one by one) up to FEASIBILITY; then each iteration, and each joint-space
-    search within one, halves what remains up to LAST (how many iterations the solve needs is not known in
-    advance); the end is 100 %."""
+    """The solver's progress as ``progress(done, TOTAL)``, never backwards: the feasibility search (its local
+    searches, one by one) up to FEASIBILITY; then, as the number of iterations is not known in advance,
+    ``u / (u + HALF)`` of the way on to LAST after ``u`` units of work (an iteration ITERATION units, a
+    block of exact worst cases or a local search one); the end is 100 %."""
 
-    FEASIBILITY, LAST, TOTAL = 0.2, 0.95, 1000
+    FEASIBILITY, LAST, TOTAL, HALF, ITERATION = 0.2, 0.95, 10 ** 6, 40.0, 10.0
 
     def __init__(self, progress):
-        self.progress, self.fraction, self.search_from = progress, 0.0, 0.0
+        self.progress, self.fraction, self.units = progress, 0.0, 0.0
 
     def _emit(self, fraction):
         self.fraction = max(self.fraction, min(fraction, 1.0))
         if self.progress:
             self.progress(int(self.fraction * self.TOTAL), self.TOTAL)
 
+    def _work(self, units):
+        self.units += units
+        self._emit(self.FEASIBILITY + (self.LAST - self.FEASIBILITY) * self.units / (self.units + self.HALF))
+
     def feasibility(self, share):
         self._emit(self.FEASIBILITY * share)
 
     def iteration(self):
-        start = max(self.fraction, self.FEASIBILITY)
-        self._emit(start + (self.LAST - start) / 2)
+        self._work(self.ITERATION)
+
+    def nudge(self):
+        self._work(1.0)
 
     def search(self, done, total):
-        if done == 1:
-            self.search_from = max(self.fraction, self.FEASIBILITY)
-        self._emit(self.search_from + (self.LAST - self.search_from) / 2 * done / total)
+        self._work(1.0)
 
     def done(self):
         self._emit(1.0)
@@ -175,14 +180,15 @@ def _record_best(problem, delta_active, verified_by):
     interrupt.record_best({"budget": budget.to_dict(), "cost_index": problem.cost(delta), "verified_by": verified_by})
 
 
-def _worst(problem, J, delta_a, q, n):
-    v = _values(problem, J, delta_a, prune=True)
+def _worst(problem, J, delta_a, q, n, tick=None):
+    v = _values(problem, J, delta_a, prune=True, tick=tick)
     return q[np.argsort(-v)[:n]]
 
 
-def _values(problem, J, delta_a, prune=False):
+def _values(problem, J, delta_a, prune=False, tick=None):
     """Criterion values with J restricted to the active columns; ``prune`` computes the exact worst case
-    only where its per-axis upper bound can reach the largest value (elsewhere a lower bound)."""
+    only where its per-axis upper bound can reach the largest value (elsewhere a lower bound), calling
+    ``tick()`` after each block."""
     c = problem.criterion
     if c == "paper":
         return paper_bound(J, delta_a)
@@ -201,6 +207,8 @@ def _values(problem, J, delta_a, prune=False):
             break
         out[blk] = worst_case_bound(J[blk], delta_a)
         best = max(best, float(out[blk].max()))
+        if tick:
+            tick()
     return out
 
 
