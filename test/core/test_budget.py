@@ -96,3 +96,12 @@ def test_json_budgets_refuse_duplicate_keys_and_deep_nesting(gao, tmp_path):
     p.write_text('{"tolerances": {"a1": 0.001}, "default": 0, "meta": ' + "[" * 100_000 + "]" * 100_000 + "}")
     with pytest.raises(BudgetError, match=rf"^{p}: nested deeper than 32 levels"):
         load_budget(p, gao)
+
+
+def test_a_budget_for_another_robot_says_so_before_its_fields(gao, tmp_path):
+    """A UR10 budget given for the gao2023 arm: the robot named, not one of its parameters."""
+    p = tmp_path / "ur10_budget.yaml"
+    p.write_text("robot: ur10\nunits: {length: mm, angle: mrad}\n"
+                 "tolerances: {shoulder_pan_joint.offset: 0.1, shoulder_pan_joint.x: 0.01}\n")
+    with pytest.raises(BudgetError, match=r"this budget is for robot 'ur10', not 'gao2023_7dof'$"):
+        load_budget(p, gao)

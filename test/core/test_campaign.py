@@ -85,3 +85,11 @@ def test_a_campaign_of_20000_poses_loads_fast(gao, tmp_path):
     c = load_campaign(p, gao)
     assert time.perf_counter() - t0 < 8.0  # 1 s on an idle core, 5 s at load average 5; PyYAML's Python loader: 12-18 s
     assert len(c.poses) == 20_000 and c.poses[-1].joints[-1] == pytest.approx(np.deg2rad(19_999 % 90))
+
+
+def test_a_campaign_for_another_robot_says_so_before_its_poses(gao, tmp_path):
+    """A 6-joint UR10 campaign given for the 7-joint gao2023 arm: the robot named, not a pose's length."""
+    p = tmp_path / "ur10_campaign.yaml"
+    p.write_text("robot: ur10\nunits: {angle: deg}\nposes:\n  - {name: P1, joints: [0, -90, 90, 0, 90, 0]}\n")
+    with pytest.raises(CampaignError, match=r"this campaign is for robot 'ur10', not 'gao2023_7dof'$"):
+        load_campaign(p, gao)

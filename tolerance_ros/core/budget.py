@@ -197,11 +197,12 @@ def load_budget(spec, model=None) -> Budget:
     path = resolve("budgets", spec, suffixes=(".yaml", ".yml", ".json"))
     data = read_json(path, BudgetError) if path.suffix == ".json" else read_yaml(path, BudgetError)
     kinds = dict(zip(model.param_names, model.param_kinds)) if model is not None else None
+    robot = data.get("robot") if isinstance(data, dict) else None
+    if model is not None and robot and str(robot) != model.name:  # before its fields: they are another robot's
+        raise BudgetError(f"{path}: this budget is for robot {str(robot)[:80]!r}, not {model.name!r}")
     try:
         budget = budget_from_dict(data, kinds)
     except BudgetError as exc:
         raise BudgetError(f"{path}: {exc}") from None
-    if model is not None and budget.robot and budget.robot != model.name:
-        raise BudgetError(f"{path}: budget is for robot {budget.robot!r}, not {model.name!r}")
     budget.path = str(path)
     return budget

@@ -206,10 +206,11 @@ def load_campaign(spec, model=None) -> Campaign:
     checked against the model's joint count and limits."""
     path = resolve("campaigns", spec)
     data = read_yaml(path, CampaignError)
+    robot = data.get("robot") if isinstance(data, dict) else None
+    if model is not None and robot and str(robot) != model.name:  # before its poses: they are another robot's
+        raise CampaignError(f"{path}: this campaign is for robot {str(robot)[:80]!r}, not {model.name!r}")
     try:
         camp = campaign_from_dict(data, model=model)
     except CampaignError as exc:
         raise CampaignError(f"{path}: {exc}") from None
-    if model is not None and camp.robot and camp.robot != model.name:
-        raise CampaignError(f"{path}: campaign is for robot {camp.robot!r}, not {model.name!r}")
     return camp
