@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from tolerance_ros.core.models import ModelError, load_robot
+from tolerance_ros.core.models import ModelError, URDFChain, load_robot
 
 GOOD = """
 name: two_link
@@ -98,8 +98,10 @@ def test_an_error_of_a_urdf_robot_file_names_the_file(tmp_path):
     from helpers import example_urdf
     p = tmp_path / "panda.urdf"
     p.write_text(example_urdf("panda.urdf").read_text())
-    with pytest.raises(ModelError, match=rf"^{p}: urdf branches: its chains end in the links"):
+    with pytest.raises(ModelError, match=rf"^{p} \(robot 'panda'\): the URDF branches, its chains end in the links"):
         load_robot(p)
+    with pytest.raises(ModelError, match=r"^robot 'panda': the URDF branches"):  # a URDF given as text
+        URDFChain(p.read_text())
 
 
 @pytest.mark.parametrize("kind", ["{a: 1}", "[dh]", "7"])

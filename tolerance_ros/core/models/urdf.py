@@ -68,7 +68,8 @@ class URDFChain(CompiledChain):
         self.source = source
         joints_xml = {j.get("name"): j for j in root.findall("joint")}
         self.tip_chosen = tip_link is None
-        tip_fid, tip_link = self._tip_frame(model, root, tip_link)
+        where = f"robot {self.name!r}" if source == "<string>" else f"{source} (robot {self.name!r})"
+        tip_fid, tip_link = self._tip_frame(model, root, tip_link, where)
         chain = []
         jid = model.frames[tip_fid].parentJoint
         while jid > 0:
@@ -151,16 +152,18 @@ class URDFChain(CompiledChain):
         self.nominal = np.concatenate([np.append(o, 0.0) for o in origins])
 
     @staticmethod
-    def _tip_frame(model, root, tip_link):
-        """Frame id and name of the tip: ``tip_link``, or else the one leaf link moved by a joint."""
+    def _tip_frame(model, root, tip_link, where):
+        """Frame id and name of the tip: ``tip_link``, or else the one leaf link moved by a joint; ``where``
+        (the file and robot) heads the errors."""
         if tip_link is not None:
             if not model.existFrame(tip_link):
-                raise ModelError(f"tip_link: no link or frame named {tip_link!r} in the URDF")
+                raise ModelError(f"tip_link: no link or frame named {tip_link!r} in {where}")
             return model.getFrameId(tip_link), tip_link
         leaves = moving_leaves(model, root)
         if len(leaves) != 1:
-            raise ModelError(f"urdf branches: its chains end in the links {leaves}; give tip_link (--tip-link on the command line) to choose one"
-                             if leaves else "urdf: no link is moved by a joint; nothing to model")
+            raise ModelError(f"{where}: the URDF branches, its chains end in the links {leaves}; give tip_link "
+                             f"(--tip-link on the command line) to choose one"
+                             if leaves else f"{where}: no link is moved by a joint; nothing to model")
         return model.getFrameId(leaves[0]), leaves[0]
 
     @staticmethod
