@@ -108,8 +108,7 @@ def print_allocation(doc):
     print(f"status: {doc['status']} ({doc['message']}); solved in {doc['time_s']:.2f} s\n")
     rows = []
     for r in doc["parameters"]:
-        sc = 1e3 if r["unit"] == "m" else 1.0
-        u = "mm" if r["unit"] == "m" else "rad"
+        sc, u = 1e3, ("mm" if r["unit"] == "m" else "mrad")  # 0.05 mrad, not 0.0001 rad
         if r["free"]:
             rows.append([r["name"], u, "-", "-", "free (no effect)", "-", ""])
             continue

@@ -77,7 +77,9 @@ def test_orientation_limit_is_respected():
 
 def test_infeasible_problem_names_the_floors(arm):
     p = build_problem(arm, 1e-4, floors={"length": 5e-5, "angle": 1e-4}, samples=2000)
-    with pytest.raises(SynthesisError, match="infeasible: with every tolerance at its floor.*contribute most"):
+    with pytest.raises(SynthesisError, match=r"infeasible: with every tolerance at its floor the paper position "
+                                             r"error reaches \d\.\d+ mm \(limit 0\.1 mm\).*contribute most there: "
+                                             r"lower the floors \(--floor-length"):
         solve_active_set(p, "min-cost", n_check=2000)
 
 

@@ -76,10 +76,13 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
                        if problem.criterion == "worst-case" else None)
         if res.value > lim * (1.0 - MARGIN):
             contrib = _largest_contributors(model, res.q, rows, tau, a)
+            scale, unit = (1e3, "mm") if rows == "position" else (1e3, "mrad")
             raise InfeasibleError(
                 f"infeasible: with every tolerance at its floor the {problem.criterion} {rows} error reaches "
-                f"{res.value:.6g} (limit {lim:.6g}) at q = {np.round(res.q, 4).tolist()}; the floors of "
-                f"{contrib} contribute most there: lower them or raise the limit")
+                f"{res.value * scale:.4g} {unit} (limit {lim * scale:.4g} {unit}) at q = "
+                f"{np.round(res.q, 4).tolist()}; the floors of {contrib} contribute most there: lower the floors "
+                f"(--floor-length, --floor-angle or --floor NAME=VALUE on the command line, \"floors\" in a "
+                f"request) or raise the limit")
     status, message = "max_iter", f"stopped after {max_iter} iterations"
     _record_best(problem, tau, "the joint-space search of the feasibility check (every tolerance at its floor)")
     for it in range(max_iter):
