@@ -533,3 +533,12 @@ def test_calibrate_a_urdf_robot_writes_a_urdf(capsys, tmp_path):
     np.testing.assert_allclose(load_robot(doc["files"]["robot"]).fk(q), cal.fk(ur5, q), atol=1e-12)
     np.testing.assert_allclose(URDFChain(urdf, tip_link="tool0").fk(q), cal.fk(ur5, q), atol=1e-12)
     assert calibration_robot(tmp_path / "cal" / "calibration.yaml").tip_link == "tool0"
+
+
+def test_version_and_an_unknown_option_before_a_missing_one(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0 and capsys.readouterr().out.startswith("tolerance-ros ")
+    assert main(["allocate", "--robot", "gao2023_7dof", "--limt", "1.4mm"]) == 2
+    err = capsys.readouterr().err
+    assert "unrecognized arguments: --limt (did you mean --limit?)" in err and "required" not in err

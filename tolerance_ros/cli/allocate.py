@@ -26,7 +26,7 @@ def add_arguments(p):
     p.add_argument("--floor-length", default="0.05mm", help="floor of length tolerances (default 0.05mm)")
     p.add_argument("--floor-angle", default="0.0003rad", help="floor of angle tolerances (default 0.0003rad)")
     p.add_argument("--floor", action="append", metavar="NAME=VALUE", help="floor of one parameter, e.g. d2=0.02mm")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the joint-space samples and of the GA (default 0)")
     p.add_argument("--mc-poses", type=int, default=10000, help="Monte Carlo verification poses")
     p.add_argument("--ga-tol", type=int, default=1000, help="GA: Tol of section 4.3 (max solves per round)")
     p.add_argument("--ga-rounds", type=int, default=50, help="GA: max rounds of section 4.3")

@@ -22,10 +22,35 @@ class UsageError(CLIError):
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse, but a usage error becomes a UsageError (one line, or JSON with --json), not an exit."""
+    """argparse, but a usage error becomes a UsageError (one line, or JSON with --json), not an exit; an
+    option the command does not know is reported before a required one that is missing (``--limt``: did
+    you mean ``--limit``?, not "--limit is required")."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._args = list(args) if args is not None else []
+        return super().parse_known_args(args, namespace)
 
     def error(self, message):
+        if message.startswith("the following arguments are required"):
+            unknown = self._unknown_options()
+            if unknown:
+                message = "unrecognized arguments: " + " ".join(unknown)
         raise UsageError(f"{message} (see '{self.prog} --help')")
+
+    def _unknown_options(self) -> list:
+        """The options of the arguments being parsed that are neither this parser's nor an abbreviation of
+        one, each with the closest known option."""
+        import difflib
+        known = [o for o in self._option_string_actions if o.startswith("--")]
+        out = []
+        for arg in getattr(self, "_args", []):
+            name = arg.split("=", 1)[0]
+            if not name.startswith("--") or name == "--" or name in known or \
+                    (self.allow_abbrev and any(o.startswith(name) for o in known)):
+                continue
+            close = difflib.get_close_matches(name, known, n=1)
+            out.append(f"{name} (did you mean {close[0]}?)" if close else name)
+        return out
 
 
 def quantity(text, kind, option, positive=True):

@@ -24,7 +24,9 @@ def build_parser() -> argparse.ArgumentParser:
     """The ``tolerance-ros`` parser: one subcommand per module of ``COMMANDS`` (its NAME, HELP, ROBOT,
     ``add_arguments`` and ``run``)."""
     from . import __doc__ as doc
+    from .. import __version__
     parser = Parser(prog="tolerance-ros", description=doc.split("\n\n")[0])
+    parser.add_argument("--version", action="version", version=f"tolerance-ros {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for command in COMMANDS:
         p = common_arguments(sub.add_parser(command.NAME, help=command.HELP), robot=command.ROBOT)

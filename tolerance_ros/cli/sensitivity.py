@@ -17,8 +17,9 @@ ROBOT = True
 
 def add_arguments(p):
     p.add_argument("--samples", type=int, default=1000, help="joint-space samples (default 1000, as the paper)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--rows", choices=["position", "orientation"], default="position")
+    p.add_argument("--seed", type=int, default=0, help="seed of the joint-space samples (default 0)")
+    p.add_argument("--rows", choices=["position", "orientation"], default="position",
+                   help="the error rows judged: position (default) or orientation")
     p.add_argument("--length-unit", default="mm", help="length unit for salience and the table (default mm)")
     p.add_argument("--limit", help="design limit for the eq. 18 ceilings, e.g. 1.4mm")
     p.add_argument("--correlation", type=float, default=0.8, help="|rho| threshold for correlated pairs")

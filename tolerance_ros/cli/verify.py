@@ -19,8 +19,8 @@ def add_arguments(p):
     p.add_argument("--tolerances", required=True, help="budget file (YAML/JSON) or shipped budget name")
     p.add_argument("--limit", help="position limit, e.g. 1.4mm (default: the budget's)")
     p.add_argument("--orientation-limit", help="orientation limit, e.g. 1mrad (default: the budget's)")
-    p.add_argument("--samples", type=int, default=10000)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--samples", type=int, default=10000, help="Monte Carlo poses (default 10000)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the poses and the errors drawn (default 0)")
     p.add_argument("--errors", choices=analysis.DISTRIBUTIONS, default="extreme",
                    help="fixed: all at +delta (the paper); extreme: +-delta random signs; uniform; "
                         "normal: sigma = delta/3")
