@@ -56,18 +56,22 @@ def _private_cache_dir():
     return path
 
 
-def njit(fn):
+def njit(fn=None, **options):
     """``numba.njit(cache=True)``, with the fallbacks of the module docstring when no cache directory is writable.
     Every helper is inlined where it is called (numba IR inlining: the small tuple-returning helpers are
-    otherwise real calls, about 10 % of a chain's time)."""
+    otherwise real calls, about 10 % of a chain's time). ``njit(**options)`` passes more options to numba
+    (``pups_kernels``: ``error_model='numpy'``)."""
+    if fn is None:
+        return lambda f: njit(f, **options)
+    options = {"inline": "always", **options}
     try:
-        return numba.njit(cache=True, inline="always")(fn)
+        return numba.njit(cache=True, **options)(fn)
     except RuntimeError:  # "cannot cache function ...: no locator available"
         path = _private_cache_dir()
         if path is None:
-            return numba.njit(inline="always")(fn)
+            return numba.njit(**options)(fn)
         numba.config.CACHE_DIR = path
-        return numba.njit(cache=True, inline="always")(fn)
+        return numba.njit(cache=True, **options)(fn)
 
 
 NO_DX = np.empty((0, 0))  # dx argument when there are no parameter errors
