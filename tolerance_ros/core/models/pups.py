@@ -54,6 +54,10 @@ fails).  It returns the assembly it reaches; other assemblies of the same joints
 singularities close by, so ``sample_joints`` keeps only configurations whose forward kinematics
 returns the sampled pose.  Joints that do not close the loop raise ModelError; ``tolerant()`` gives a
 copy that returns NaN rows instead (for searches that step outside the assemblable joint set).
+
+``fk_and_jacobian`` and ``passive_angles`` run a compiled kernel (``pups_kernels``: the same algorithm pose by
+pose, about 5 us a pose against 45 us here) unless ``backend`` is 'numpy' or numba cannot be imported; this
+module's numpy code is the reference the tests hold it to.
 """
 from __future__ import annotations
 
