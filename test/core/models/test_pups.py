@@ -500,3 +500,10 @@ def test_without_numba_the_numpy_path_runs(model, ws, monkeypatch):
         fresh.backend = "numba"
     T, G = fresh.fk_and_jacobian(ws[0][:5])
     np.testing.assert_array_equal(G.J, _backend(model, "numpy").fk_and_jacobian(ws[0][:5])[1].J)
+
+
+def test_no_poses_give_empty_answers_on_both_paths(model):
+    """(0, 9) joints: empty T, G and theta (the numpy start's max over no poses raised a bare ValueError)."""
+    for m in _pair(model):
+        T, G = m.fk_and_jacobian(np.zeros((0, 9)), np.zeros(27))
+        assert T.shape == (0, 4, 4) and G.J.shape == (0, 6, 27) and m.passive_angles(np.zeros((0, 9))).shape == (0, 3)

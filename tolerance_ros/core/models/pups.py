@@ -254,7 +254,7 @@ class PUPS3(Mechanism):
             step = _solve_rows(np.einsum("nki,nkj->nij", J, J) + 1e-12 * np.eye(3),
                                np.einsum("nki,nk->ni", J, f)[:, :, None])[:, :, 0]
             p = p - step
-            if np.max(np.abs(step)) < 1e-10:
+            if np.max(np.abs(step), initial=0.0) < 1e-10:
                 break
         return p, np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
 
