@@ -16,14 +16,16 @@ apart, show it.
 Then a sweep of N = 1 ... 100,000 per chain: time per pose, the worst ratio between neighbouring sizes
 (at most 2: no cliff), the URDF writer chosen on this machine (``kernels.choose_writers``), and N = 10,000
 beside a fill of its answer's bytes (the memory-write floor). Then the 3-PUPS G (``fk_and_jacobian`` of
-rong2018_3pups) at N = 1 and 1,000, and the warm-up: a fresh process importing the models, warming up
-every kernel (``warm_up_kernels()``) and making its first call, with an empty kernel cache (compile) and
-again (load from the cache); and the same without waiting (``warmup.start(background=True)``, as the
-nodes start: the first answer from the numpy path while a child process compiles, then the compiled
-kernels), and a one-shot command on an empty cache. Exits 1 when a target is missed or the results
-disagree.
+rong2018_3pups, compiled and numpy) at N = 1 and 1,000, with its targets (compiled: <= 100 us at N = 1,
+<= 10 us per pose at N = 1,000, equal to the numpy reference to 1e-12), and the warm-up: a fresh process
+importing the models, warming up every kernel (``warm_up_kernels()``) and making its first call, with an
+empty kernel cache (compile) and again (load from the cache); and the same without waiting
+(``warmup.start(background=True)``, as the nodes start: the first answer from the numpy path while a
+child process compiles, then the compiled kernels), and a one-shot command on an empty cache. Exits 1
+when a target is missed or the results disagree. ``--pups-only`` runs the 3-PUPS part alone.
 
     python bench/bench_jacobian.py [--repeat 9] [--rounds 3] [--clock cpu|wall] [--skip-warm-up] [--skip-sweep]
+                                   [--pups-only]
 """
 import os
 
@@ -31,6 +33,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import copy  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import resource  # noqa: E402
@@ -57,6 +60,7 @@ SWEEP = tuple(m * 10 ** e for e in range(5) for m in (1, 2, 5)) + (100_000,)  # 
 MAX_STEP = 2.0  # the largest per-pose time ratio allowed between neighbouring sizes of the sweep
 FLOOR_AIM = 3.0  # aim: compiled at N = 10,000 within this factor of a fill of its answer's bytes
 AGREE = 1e-12
+PUPS_TARGETS_US = {1: 100.0, 1000: 10.0}  # compiled 3-PUPS fk_and_jacobian, per pose
 URDFS = (("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand"))
 
 
@@ -285,14 +289,38 @@ def run_sweep(chains, args, verdicts):
               f"answer {floor * 1e3:.2f} ms: {t / floor:.2f}x the floor (aim <= {FLOOR_AIM:g}x)")
 
 
-def run_pups(args):
+def run_pups(args, verdicts):
+    """The 3-PUPS G: compiled and numpy paths at N = 1 and 1,000 (best of the rounds), their largest difference
+    and the targets (PUPS_TARGETS_US, per pose)."""
     model = load_robot("rong2018_3pups")
-    print(f"\n3-PUPS {model.name}: G = J1^-1 J2 (fk_and_jacobian, 6x{model.n_params}; numpy, no compiled path)")
-    print(f"{'N':>7}{'us/call':>12}{'us/pose':>10}")
-    for n in (1, 1000):
+    t_warm = model.warm_up()
+    ref = copy.copy(model)
+    ref.backend = "numpy"
+    print(f"\n3-PUPS {model.name}: G = J1^-1 J2 (fk_and_jacobian, 6x{model.n_params}); compiled ({model.backend}, "
+          f"warm-up {t_warm:.2f} s) against the numpy reference")
+    print("targets (compiled, per pose): " + ", ".join(f"N={n}: <= {t:g} us" for n, t in PUPS_TARGETS_US.items()))
+    print(f"{'N':>7} {'method':<10}{'us/call':>12}{'us/pose':>10}{'vs numpy':>10}{'max |diff|':>12}")
+    for n, target in PUPS_TARGETS_US.items():
         q = model.sample_joints(n, 0)
-        t = best_time(lambda: model.fk_and_jacobian(q), args.repeat, args.clock)
-        print(f"{n:>7}{t * 1e6:>12.1f}{t / n * 1e6:>10.2f}")
+        best = {}
+        for _ in range(args.rounds):
+            for method, m in (("compiled", model), ("numpy", ref)):
+                t = best_time(lambda: m.fk_and_jacobian(q), args.repeat, args.clock)
+                best[method] = min(best.get(method, math.inf), t)
+        (T_c, G_c), (T_n, G_n) = model.fk_and_jacobian(q), ref.fk_and_jacobian(q)
+        diff = max(np.abs(T_c - T_n).max(), np.abs(G_c.J - G_n.J).max())
+        for method in ("compiled", "numpy"):
+            t = best[method]
+            ratio = "1 (ref)" if method == "numpy" else f"{t / best['numpy']:.4f}x"
+            print(f"{n:>7} {method:<10}{t * 1e6:>12.1f}{t / n * 1e6:>10.2f}{ratio:>10}"
+                  + (f"{diff:>12.1e}" if method == "compiled" else f"{'-':>12}"))
+        t_c = best["compiled"] / n * 1e6
+        met = t_c <= target
+        verdicts.append((met, f"3-PUPS N={n}: compiled {t_c:.2f} us/pose {'<=' if met else '>'} target {target:g} us "
+                              f"({best['numpy'] / best['compiled']:.0f}x faster than numpy)"))
+        ok = diff <= AGREE
+        verdicts.append((ok, f"3-PUPS N={n}: compiled vs numpy reference max |diff| {diff:.1e} "
+                             f"({'<=' if ok else '>'} {AGREE:g})"))
 
 
 WARM_UP_PROBE = """
@@ -394,6 +422,7 @@ def main():
                     help="cpu: this process's CPU time (default); wall: elapsed time")
     ap.add_argument("--skip-warm-up", action="store_true", help="skip the subprocess compile/load timings")
     ap.add_argument("--skip-sweep", action="store_true", help="skip the per-pose sweep over N = 1 ... 100,000")
+    ap.add_argument("--pups-only", action="store_true", help="time the 3-PUPS G only (no chains, no warm-up)")
     args = ap.parse_args()
     threads = pin_blas_threads()
     print("FK + parameter-error Jacobian: tolerance_ros compiled / numpy reference / pinocchio")
@@ -401,8 +430,12 @@ def main():
     print(f"python {sys.version.split()[0]}, numpy {np.__version__}, pinocchio {pin.__version__}; BLAS: {threads}; "
           f"clock: {'CPU time' if args.clock == 'cpu' else 'wall time'}, best of {args.rounds} rounds of up to "
           f"{args.repeat} repeats")
-    print("targets (compiled, per call): " + ", ".join(f"N={n}: <= {t:g} us" for n, t in TARGETS_US.items()))
     verdicts = []
+    if args.pups_only:
+        run_pups(args, verdicts)
+        print(f"\n{load_average()} (after)")
+        return print_verdicts(verdicts)
+    print("targets (compiled, per call): " + ", ".join(f"N={n}: <= {t:g} us" for n, t in TARGETS_US.items()))
     dh = load_robot("gao2023_7dof")
     chains = [("D-H gao2023_7dof", dh, dh_error_model(dh))]
     for name, tip in URDFS:
@@ -415,7 +448,7 @@ def main():
         run_chain(label, model, error_model, [r[i] for r in rounds], args, verdicts)
     if not args.skip_sweep:
         run_sweep(chains, args, verdicts)
-    run_pups(args)
+    run_pups(args, verdicts)
     if not args.skip_warm_up:
         run_warm_up()
         run_background(verdicts)

@@ -1,5 +1,6 @@
 """The 3-PUPS model: kinematics, the completed error transfer G, variants, sampling, file validation."""
 import copy
+import re
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ from helpers import fd_jacobian, pose_difference
 from tolerance_ros.core import analysis
 from tolerance_ros.core.campaign import load_campaign
 from tolerance_ros.core.models import ModelError, load_robot
-from tolerance_ros.core.geometry import transform
+from tolerance_ros.core.geometry import exp_so3, transform
 from tolerance_ros.core.geometry import axis_rotations as axis_rotation
 from tolerance_ros.core.models.pups import PUPS3, pups_from_dict
 from tolerance_ros.core.resources import config_dir
@@ -321,3 +322,188 @@ def test_sampled_poses_lie_in_the_workspace_box_read_with_rep103_angles(model):
     box = model.workspace
     assert np.all(T[:, :3, 3] >= box[:3, 0] - 1e-12) and np.all(T[:, :3, 3] <= box[:3, 1] + 1e-12)
     assert np.all(rpy >= box[3:, 0] - 1e-9) and np.all(rpy <= box[3:, 1] + 1e-9)
+
+
+# ------------------------------------------------------------------ the compiled kernel against the numpy reference
+# The compiled path (pups_kernels) and the numpy reference run the same algorithm; they differ by rounding, and by
+# where the start's Gauss-Newton stops (pose by pose, against batch-wide in the numpy code). In the workspace J1 is
+# well conditioned (cond <= 3) and T and G agree to 1e-12 absolute. Elsewhere G's sensitivity to rounding grows
+# like cond(J1)^2 |G|, T's and theta's like cond(J1): there the numpy reference does not reproduce itself better
+# (one pose alone and in a batch differ as much), and the checks are |dT|, |dtheta| <= 1e-12 cond and
+# |dG| <= 1e-12 cond^2 max(1, |G|) per pose.
+
+ATOL = 1e-12
+
+
+def _backend(model, name):
+    out = copy.copy(model)
+    out.backend = name
+    return out
+
+
+def _pair(model):
+    return _backend(model, "numba"), _backend(model, "numpy")
+
+
+def _assert_agree(model, q, dx=None):
+    """The compiled and the numpy path agree on the failing rows (NaN in both, tolerant), T, G and theta."""
+    fast, ref = (m.tolerant() for m in _pair(model))
+    (T1, G1), (T2, G2) = fast.fk_and_jacobian(q, dx), ref.fk_and_jacobian(q, dx)
+    bad = np.isnan(T2[:, 0, 0])
+    np.testing.assert_array_equal(np.isnan(T1), np.broadcast_to(bad[:, None, None], T1.shape))
+    np.testing.assert_array_equal(np.isnan(G1.J), np.broadcast_to(bad[:, None, None], G1.J.shape))
+    ok = ~bad
+    s = ref._solve(q, dx)
+    cond = s["cond"][ok]
+    assert np.all(np.abs(T1[ok] - T2[ok]).max(axis=(1, 2), initial=0.0) <= ATOL * cond)
+    dG = np.abs(G1.J[ok] - G2.J[ok]).max(axis=(1, 2), initial=0.0)
+    assert np.all(dG <= ATOL * cond ** 2 * np.maximum(1.0, np.abs(G2.J[ok]).max(axis=(1, 2), initial=0.0)))
+    th1, th2 = fast.passive_angles(q, dx), np.where(s["ok"][:, None], s["theta"], np.nan)  # ref.passive_angles
+    np.testing.assert_array_equal(np.isnan(th1), np.isnan(th2))
+    assert np.all(np.abs(th1[ok] - th2[ok]).max(axis=1, initial=0.0) <= ATOL * cond)
+    return ok, cond, dG
+
+
+def test_the_compiled_path_is_the_default_and_the_numpy_one_the_reference(model):
+    assert model.compiled and model.backend == "numba"
+    assert _backend(model, "numpy")._kernels() is None
+    assert model.warm_up() >= 0.0 and _backend(model, "numpy").warm_up() < 0.1
+
+
+@pytest.mark.parametrize("dx", ["none", "shared", "per pose"])
+def test_compiled_equals_the_numpy_reference_to_1e12_in_the_workspace(model, pe, ws, dx):
+    q = np.concatenate([pe[1], ws[0]])
+    rng = np.random.default_rng(21)
+    d = {"none": None, "shared": rng.uniform(-1e-4, 1e-4, 27), "per pose": rng.uniform(-1e-4, 1e-4, (len(q), 27))}[dx]
+    fast, ref = _pair(model)
+    (T1, G1), (T2, G2) = fast.fk_and_jacobian(q, d), ref.fk_and_jacobian(q, d)
+    assert np.abs(T1 - T2).max() <= ATOL and np.abs(G1.J - G2.J).max() <= ATOL
+    assert G1.names == G2.names and G1.units == G2.units
+    np.testing.assert_array_equal(fast.fk(q, d), T1)
+    assert np.abs(fast.passive_angles(q, d) - ref.passive_angles(q, d)).max() <= ATOL
+    # One pose at a time: the same numbers, bit for bit (each pose is computed on its own), and the reference's.
+    for i in (0, 7, len(q) - 1):
+        one = None if d is None or d.ndim == 1 else d[i]
+        T, G = fast.fk_and_jacobian(q[i], d if one is None else one)
+        np.testing.assert_array_equal(T[0], T1[i])
+        np.testing.assert_array_equal(G.J[0], G1.J[i])
+        Tr, Gr = ref.fk_and_jacobian(q[i], d if one is None else one)
+        assert np.abs(T[0] - Tr[0]).max() <= ATOL and np.abs(G.J[0] - Gr.J[0]).max() <= ATOL
+    assert fast.fk_and_jacobian(q, d, jacobian=False)[1] is None
+
+
+@pytest.mark.parametrize("axes", [("x", "y"), ("y", "x")])
+def test_compiled_equals_the_numpy_reference_on_random_joints_in_and_out_of_limits(raw, axes):
+    """Uniform joints within the limits and within the limits widened by 30 %: most cannot close the loop; the
+    ones that do are mostly outside the workspace, some with cond(J1) above 5."""
+    model = pups_from_dict(dict(raw, u_joint_axes=list(axes)))
+    rng = np.random.default_rng(5)
+    lo, hi = model.joint_limits.T
+    q = np.concatenate([lo + (hi - lo) * rng.random((600, 9)),
+                        lo - 0.3 * (hi - lo) + 1.6 * (hi - lo) * rng.random((600, 9))])
+    ok, cond, _ = _assert_agree(model, q)
+    assert 8 < ok.sum() < 300 and cond.max() > 5 and model.out_of_limits(q[ok]).any()
+    some = np.concatenate([q[ok], q[~ok][:30]])
+    _assert_agree(model, some, rng.uniform(-1e-3, 1e-3, 27))
+    _assert_agree(model, some, rng.uniform(-1e-3, 1e-3, (len(some), 27)))
+
+
+def test_compiled_equals_the_numpy_reference_near_a_singularity(raw, pe):
+    """With eq. 2's literal axes PE1 is singular: poses 1e-1 ... 1e-8 from it (cond 10 ... 1e10) are assembled
+    alike, and singular alike beyond the condition-number limit, with the same message."""
+    lit = pups_from_dict(dict(raw, u_joint_axes=["y", "x"]))
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(32, 6))
+    u *= np.repeat(10.0 ** -np.arange(1, 9), 4)[:, None] / np.linalg.norm(u, axis=1, keepdims=True)
+    T = np.repeat(pe[0][:1], len(u), axis=0)
+    T[:, :3, 3] += u[:, :3]
+    T[:, :3, :3] = exp_so3(u[:, 3:]) @ T[:, :3, :3]
+    q, _, _ = lit._ik(T)
+    q = np.asarray(q, dtype=float)
+    ok, cond, _ = _assert_agree(lit, q)
+    assert cond.max() > 1e5 and 0 < ok.sum() < len(q)
+    fast, ref = _pair(lit)
+    for i in np.flatnonzero(~ok)[:3]:
+        msgs = []
+        for m in (fast, ref):
+            with pytest.raises(ModelError, match="J1 is singular") as exc:
+                m.fk_and_jacobian(np.vstack([q[ok][:2], q[i]]))
+            msgs.append(str(exc.value))
+        # The same text; the condition number (beyond 1e6, computed at poses that differ by cond x 1e-14) to 1 %.
+        number = r"condition number ([0-9.e+]+) >"
+        conds = [float(re.search(number, m).group(1)) for m in msgs]
+        assert re.sub(number, "", msgs[0]) == re.sub(number, "", msgs[1]) and msgs[0].startswith("joints[2] = ")
+        assert conds[1] == pytest.approx(conds[0], rel=1e-2)
+
+
+@pytest.mark.parametrize("q, dx, match", [
+    (lambda q: np.where(np.arange(9) == 4, np.nan, q), None, r"joints\[0\]\[4\] \(psi2\): not a finite number"),
+    (lambda q: np.where(np.arange(9) == 0, np.inf, q), None, r"joints\[0\]\[0\] \(a1\): not a finite number"),
+    (lambda q: q[:8], None, r"expected shape \(n, 9\)"),
+    (lambda q: [["a"] * 9], None, "expected numbers"),
+    (lambda q: q, np.full(27, np.nan), "dx: parameter errors must be finite"),
+    (lambda q: q, np.zeros(26), r"dx: expected shape \(27,\) or \(1, 27\)"),
+    (lambda q: np.where(np.arange(9) == 7, 1e10, q), None, r"joints\[0\] = .*: the legs cannot close"),
+    (lambda q: np.array([0.3, 0.2, 0.3, 0.26, np.pi / 4, -np.pi / 4, 1.1, 1.6, 1.6]), None, "cannot close the"),
+])
+def test_bad_input_gives_the_same_clean_error_on_both_paths(model, ws, q, dx, match):
+    msgs = []
+    for m in _pair(model):
+        with pytest.raises(ModelError, match=match) as exc:
+            m.fk_and_jacobian(q(ws[0][0].copy()), dx)
+        msgs.append(str(exc.value))
+    assert msgs[0] == msgs[1]
+
+
+def test_compiled_locked_variant_and_turned_over_platforms(model, ws):
+    ups = model.with_locked(a=[0.22, 0.25, 0.28])
+    q = ups.inverse_kinematics(ws[1][:20])
+    _assert_agree(ups, q)
+    for m in _pair(ups):
+        with pytest.raises(ModelError, match="a1 is locked at 0.22"):
+            m.fk(model.inverse_kinematics(ws[1][:1]))
+    # Joints far outside the ranges whose only assembly found has the platform turned over (R_zz <= 0).
+    over = np.array([[0.2958, 0.1822, 0.3108, 2.0914, -1.7586, 1.719, 0.6892, 1.1712, 1.2447],
+                     [0.1189, 0.337, 0.1087, 1.9712, -1.7084, -1.2616, 0.9739, 1.0897, 0.7888],
+                     [0.1514, 0.2418, 0.2776, -0.508, -1.0588, -2.0682, 1.247, 1.4951, 1.56]])
+    ok, _, _ = _assert_agree(model, np.concatenate([ws[0][:3], over]))
+    np.testing.assert_array_equal(ok, [True] * 3 + [False] * 3)
+    for i in range(3):
+        msgs = []
+        for m in _pair(model):
+            with pytest.raises(ModelError, match="the only assembly found has the platform turned over") as exc:
+                m.fk(over[i])
+            msgs.append(str(exc.value))
+        assert msgs[0] == msgs[1]
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_G_against_central_differences_on_both_paths(model, pe, ws, backend):
+    m = _backend(model, backend)
+    q = np.concatenate([pe[1], ws[0][10:20]])
+    G = m.error_jacobian(q).J
+    fd = fd_jacobian(lambda p: m.fk(q, p), np.zeros(27), h=1e-6)
+    assert np.abs(G - fd).max() < 1e-6 * np.abs(G).max()
+    # And with parameter errors: G at dx is the derivative there.
+    dx0 = np.random.default_rng(2).uniform(-1e-3, 1e-3, 27)
+    G = m.error_jacobian(q, dx0).J
+    fd = fd_jacobian(lambda p: m.fk(q, p), dx0, h=1e-6)
+    assert np.abs(G - fd).max() < 1e-6 * np.abs(G).max()
+
+
+def test_without_numba_the_numpy_path_runs(model, ws, monkeypatch):
+    from tolerance_ros.core.models import base
+    monkeypatch.setattr(base, "_KERNELS", False)  # as when numba cannot be imported
+    fresh = load_robot("rong2018_3pups")
+    assert fresh.backend == "numpy" and fresh._kernels() is None
+    with pytest.raises(ModelError, match="numba cannot be imported"):
+        fresh.backend = "numba"
+    T, G = fresh.fk_and_jacobian(ws[0][:5])
+    np.testing.assert_array_equal(G.J, _backend(model, "numpy").fk_and_jacobian(ws[0][:5])[1].J)
+
+
+def test_no_poses_give_empty_answers_on_both_paths(model):
+    """(0, 9) joints: empty T, G and theta (the numpy start's max over no poses raised a bare ValueError)."""
+    for m in _pair(model):
+        T, G = m.fk_and_jacobian(np.zeros((0, 9)), np.zeros(27))
+        assert T.shape == (0, 4, 4) and G.J.shape == (0, 6, 27) and m.passive_angles(np.zeros((0, 9))).shape == (0, 3)

@@ -42,7 +42,7 @@ def compiled_kernels():
     return _KERNELS or None
 
 
-def warm_up_kernels(which=("dh", "urdf", "base64")) -> float:
+def warm_up_kernels(which=("dh", "urdf", "base64", "zonotope", "pups")) -> float:
     """Compile, or load from the cache, the compiled kernels named in ``which`` (see ``kernels.warm_up``;
     none without numba); returns seconds."""
     kernels = compiled_kernels()

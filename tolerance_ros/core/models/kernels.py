@@ -63,17 +63,19 @@ def _private_cache_dir():
 def njit(fn=None, **options):
     """``numba.njit(cache=True)``, with the fallbacks of the module docstring when no cache directory is writable.
     Every helper is inlined where it is called (numba IR inlining: the small tuple-returning helpers are
-    otherwise real calls, about 10 % of a chain's time). ``options`` go to numba (``fastmath``)."""
+    otherwise real calls, about 10 % of a chain's time). ``njit(**options)`` passes more options to numba
+    (``fastmath`` for zonotope_max; ``pups_kernels``: ``error_model='numpy'``)."""
     if fn is None:
         return lambda f: njit(f, **options)
+    options = {"inline": "always", **options}
     try:
-        return numba.njit(cache=True, inline="always", **options)(fn)
+        return numba.njit(cache=True, **options)(fn)
     except RuntimeError:  # "cannot cache function ...: no locator available"
         path = _private_cache_dir()
         if path is None:
-            return numba.njit(inline="always", **options)(fn)
+            return numba.njit(**options)(fn)
         numba.config.CACHE_DIR = path
-        return numba.njit(cache=True, inline="always", **options)(fn)
+        return numba.njit(cache=True, **options)(fn)
 
 
 NO_DX = np.empty((0, 0))  # dx argument when there are no parameter errors
@@ -622,10 +624,13 @@ def base64_quads(src, values, out):
     return -1
 
 
-def warm_up(which=("dh", "urdf", "base64", "zonotope")) -> float:
+ALL = ("dh", "urdf", "base64", "zonotope", "pups")
+
+
+def warm_up(which=ALL) -> float:
     """Compile, or load from the on-disk cache, the kernels named in ``which`` ('dh': dh_chain, 'urdf':
-    urdf_chain, 'base64': the base64 kernels, 'zonotope': zonotope_max) in every signature the models
-    call; returns seconds."""
+    urdf_chain, 'base64': the base64 kernels, 'zonotope': zonotope_max, 'pups': the 3-PUPS kernel of
+    ``pups_kernels``) in every signature the models call; returns seconds."""
     t0 = time.perf_counter()
     if "zonotope" in which:
         G = np.zeros((1, 3, 2))
@@ -643,7 +648,10 @@ def warm_up(which=("dh", "urdf", "base64", "zonotope")) -> float:
         urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.array([[0.0, 0.0, 1.0]]), eye,
                    T, np.empty((1, 6, 7)), True, 0)
         choose_writers()
-    if {"dh", "urdf", "base64", "zonotope"} <= set(which):
+    if "pups" in which:
+        from .pups_kernels import warm_up as warm_up_pups
+        warm_up_pups()
+    if set(ALL) <= set(which):
         from .warmup import write_marker
         path = _choice_path()
         write_marker(os.path.dirname(path) if path else None)

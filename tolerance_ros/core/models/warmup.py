@@ -27,7 +27,7 @@ from pathlib import Path
 from . import base
 
 MARKER = "tolerance_ros-kernels.json"
-KERNEL_MODULES = ("kernels.py",)  # the numba modules of this package whose compiled code the marker vouches for
+KERNEL_MODULES = ("kernels.py", "pups_kernels.py")  # numba modules whose compiled code the marker vouches for
 _HERE = Path(__file__).resolve().parent
 _lock = threading.Lock()
 status = {"state": "idle", "message": "", "seconds": None}  # idle | loading | compiling | ready | failed
