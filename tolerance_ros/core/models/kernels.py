@@ -22,8 +22,8 @@ array passed to a helper) between the stores of one pose, and the stores in memo
 broke either were 1.5x and 20x slower.
 
 ``zonotope_max`` is the exact worst case of ``errors.worst_case_bound``, one pose at a time (the numpy
-version there, batched over poses, is the reference). ``base64_triples`` and ``base64_quads`` are the bulk of ``jsonio.b64encode`` and ``b64decode`` (the compact
-arrays of large answers).
+version there, batched over poses, is the reference). ``base64_triples`` and ``base64_quads`` are the
+bulk of ``jsonio.b64encode`` and ``b64decode`` (the compact arrays of large answers).
 
 Compiled code is cached on disk: in ``NUMBA_CACHE_DIR`` when set, else beside this file when its
 directory is writable, else in numba's per-user cache directory (``~/.cache/numba``). When none of these
