@@ -542,3 +542,40 @@ def test_version_and_an_unknown_option_before_a_missing_one(capsys):
     assert main(["allocate", "--robot", "gao2023_7dof", "--limt", "1.4mm"]) == 2
     err = capsys.readouterr().err
     assert "unrecognized arguments: --limt (did you mean --limit?)" in err and "required" not in err
+
+
+def test_compensate_writes_a_flagged_target_with_its_nominal_joints_unless_accepted(capsys, tmp_path, gao):
+    """The arm stretched out (all joints 0) is near a singularity, where the correction reaches 15 degrees:
+    --out writes its nominal joints and names it in the notes; --accept-flagged writes the correction."""
+    import yaml
+    from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.calibration.calibrate import calibrate
+    from tolerance_ros.core.calibration.planning import campaign_dict
+    from tolerance_ros.core.calibration.writers import save_calibration
+    from tolerance_ros.core.campaign import load_campaign
+    q = gao.sample_joints(30, 5)
+    dx = as_built_errors(load_budget("gao2023_delta2", gao).vector_for(gao), 1)
+    cal = save_calibration(calibrate(gao, q, measure(gao, q, dx, 1e-5, 0.0, None, seed=2), folds=3),
+                           tmp_path / "calibration.yaml")
+    targets = tmp_path / "targets.yaml"
+    targets.write_text(yaml.safe_dump(campaign_dict(gao, [[0.0] * 7, [0, 0.5, 0, 0, 0, 0, 0]], "t")))
+    for accept in (False, True):
+        out_file = tmp_path / f"out_{accept}.yaml"
+        code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration", str(cal), "--targets",
+                             str(targets), "--out", str(out_file), "--json", *(["--accept-flagged"] if accept else []))
+        assert code == 0, err
+        doc = json.loads(out)
+        home, bent = doc["targets"]
+        assert home["near_singularity"] and not bent["near_singularity"]
+        assert np.abs(home["correction"]).max() > 0.1                       # rad: what would have been written
+        written = load_campaign(out_file, gao).joints_for(gao)
+        np.testing.assert_allclose(written[1], bent["joints"], atol=1e-12)
+        if accept:
+            np.testing.assert_allclose(written[0], home["joints"], atol=1e-12)
+            assert home["written"] == "compensated" and "notes" not in yaml.safe_load(out_file.read_text())
+        else:
+            np.testing.assert_allclose(written[0], home["nominal_joints"], atol=1e-12)
+            assert home["written"] == "nominal" and bent["written"] == "compensated"
+            assert "C1 (near singularity)" in yaml.safe_load(out_file.read_text())["notes"]
+            assert "written with their nominal joints" in err

@@ -1,6 +1,7 @@
 """`tolerance-ros compensate`: joints that put the calibrated robot's tool at each target."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,11 @@ def add_arguments(p):
     p.add_argument("--seed", type=int, default=0, help="seed of the starts for tool-pose targets")
     p.add_argument("--target", help="the calibration's target whose point is the tool point (default: its first; "
                                     "pose targets are tool poses there)")
-    p.add_argument("--out", metavar="FILE", help="write the compensated joints as a campaign file")
+    p.add_argument("--out", metavar="FILE", help="write the compensated joints as a campaign file (a flagged "
+                                                  "target with its nominal joints, named in the file's notes)")
+    p.add_argument("--accept-flagged", action="store_true",
+                   help="write the compensated joints of flagged targets too (out of reach, near a singularity, out "
+                        "of limits)")
 
 
 def run(args):
@@ -57,14 +62,26 @@ def run(args):
     unreached = [r["name"] for r in results if not r["reached"]]
     if unreached:
         missed(args, f"{len(unreached)} target(s) out of reach of the calibrated robot: {', '.join(unreached)}")
+    for r in results:
+        r["flags"] = [f for f, on in (("out of reach", not r["reached"]), ("near singularity", r["near_singularity"]),
+                                      ("out of limits", r["out_of_limits"])) if on]
+        r["written"] = "nominal" if r["flags"] and not args.accept_flagged else "compensated"
     out_path = None
     if args.out:
         from ..core.calibration.planning import campaign_dict
-        doc = campaign_dict(model, np.array([r["joints"] for r in results]), f"{targets.name}_compensated",
+        doc = campaign_dict(model, np.array([r["joints"] if r["written"] == "compensated" else r["nominal_joints"]
+                                             for r in results]), f"{targets.name}_compensated",
                             targets.cycles, targets.dwell_s,
                             f"{targets.name} compensated with {Path(args.calibration).name} (tolerance-ros compensate)")
         for entry, r in zip(doc["poses"], results):
             entry["name"] = r["name"]
+        kept = [f"{r['name']} ({', '.join(r['flags'])})" for r in results if r["written"] == "nominal"]
+        if kept:
+            doc["notes"] = ("flagged, written with their nominal joints (--accept-flagged writes their compensated "
+                            "joints): " + "; ".join(kept))
+            if not args.quiet:
+                print(f"compensate: {len(kept)} flagged target(s) written with their nominal joints: "
+                      f"{'; '.join(kept)} (--accept-flagged to write the corrections)", file=sys.stderr)
         out_path = Path(args.out)
         out_path.parent.mkdir(parents=True, exist_ok=True)
         import yaml
@@ -83,9 +100,7 @@ def run(args):
     print(table(["target", "given", "compensated joints", "correction", "residual um", "flags"],
                 [[r["name"], r["target"], shown(r["joints"], 180 / np.pi, 1e3),
                   shown(r["correction"], 18e4 / np.pi, 1e6), f"{r['residual_position_m'] * 1e6:.3g}",
-                  ", ".join(f for f, on in (("out of reach", not r["reached"]),
-                                            ("near singularity", r["near_singularity"]),
-                                            ("out of limits", r["out_of_limits"])) if on)]
+                  ", ".join(r["flags"]) + (" (nominal written)" if out_path and r["written"] == "nominal" else "")]
                  for r in results]))
     if out_path:
         print(f"wrote {out_path}")
