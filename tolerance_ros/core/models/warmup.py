@@ -27,10 +27,12 @@ from pathlib import Path
 from . import base
 
 MARKER = "tolerance_ros-kernels.json"
+LOCK = "tolerance_ros-kernels.lock"  # held by the process whose child fills the cache
 KERNEL_MODULES = ("kernels.py", "pups_kernels.py")  # numba modules whose compiled code the marker vouches for
 _HERE = Path(__file__).resolve().parent
 _lock = threading.Lock()
-status = {"state": "idle", "message": "", "seconds": None}  # idle | loading | compiling | ready | failed
+status = {"state": "idle", "message": "", "seconds": None, "filled": False}  # state: idle | loading | compiling |
+# ready | failed; filled: this process's child filled the cache
 
 
 def source_stamp() -> str:
@@ -123,21 +125,21 @@ def start(background: bool = True, log=None) -> str:
 
 
 def _prepare(warm: bool, log):
-    """Background thread of ``start``: fill the cache in a child process when it is cold, then load."""
+    """Background thread of ``start``: fill the cache in a child process when it is cold, then load. One
+    process at a time fills a cache (a lock beside it): the nodes of a launch started together on a cold
+    cache compile once, the others wait for it."""
     t0 = time.perf_counter()
-    if not warm:
-        env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join([str(_HERE.parents[2])] + [p for p in [env.get("PYTHONPATH")] if p])
-        try:
-            child = subprocess.run([sys.executable, "-m", "tolerance_ros.core.models.warmup"], env=env,
-                                   stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                   text=True, start_new_session=True)
-            failed = child.returncode != 0 and (child.stderr.strip().splitlines() or ["no message"])[-1]
-        except OSError as exc:
-            failed = str(exc)
-        if failed:
-            _give_up(f"compiling the kernels failed ({failed}); the numpy path serves", log)
-            return
+    lock = None if warm else _lock_cache()
+    try:
+        if not warm and not cached():
+            status["filled"] = True
+            failed = _fill_in_child()
+            if failed:
+                _give_up(f"compiling the kernels failed ({failed}); the numpy path serves", log)
+                return
+    finally:
+        if lock is not None:
+            lock.close()
     try:
         from . import kernels
         kernels.warm_up()
@@ -150,6 +152,38 @@ def _prepare(warm: bool, log):
         status.update(state="ready", seconds=seconds,
                       message=f"compiled kernels {'loaded' if warm else 'compiled and loaded'} in {seconds:.1f} s")
     log(status["message"])
+
+
+def _lock_cache():
+    """An exclusive lock on ``LOCK`` in the cache's directory (waits while another process holds it), or None
+    where there is no cache directory or no flock."""
+    path = cache_dir()
+    if path is None:
+        return None
+    try:
+        import fcntl
+        f = open(os.path.join(path, LOCK), "a")
+    except (ImportError, OSError):
+        return None
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX)
+    except OSError:
+        f.close()
+        return None
+    return f
+
+
+def _fill_in_child():
+    """Run ``fill_cache`` in a child process; None on success, else the reason."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(_HERE.parents[2])] + [p for p in [env.get("PYTHONPATH")] if p])
+    try:
+        child = subprocess.run([sys.executable, "-m", "tolerance_ros.core.models.warmup"], env=env,
+                               stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    except OSError as exc:
+        return str(exc)
+    return None if child.returncode == 0 else (child.stderr.strip().splitlines() or ["no message"])[-1]
 
 
 def _give_up(message, log):
