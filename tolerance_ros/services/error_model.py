@@ -229,7 +229,7 @@ class ErrorModelService:
         except ModelError as exc:
             raise ContractError("invalid_request", f"joints: {str(exc)[:300]}") from None
         rows = 3 if outputs == "position" else 6
-        J = EJ.J[:, :rows]
+        J = EJ.J if rows == 6 else EJ.J[:, :rows]
         P = J[:, :3]
         sens = np.sqrt(np.vecdot(P, P, axis=1) if len(q) <= 8 else np.einsum("nip,nip->np", P, P))  # the faster
         if _COUNT(_FINITE(T)) != T.size or _COUNT(_FINITE(J)) != J.size:

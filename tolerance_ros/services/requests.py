@@ -56,9 +56,9 @@ def _parse_joints(value, model, limits: Limits, allow_out_of_limits: bool, bound
         raise ContractError("invalid_request", "joints: a value is too large for a float") from None
     if bounds is None:
         bounds = (model.joint_limits[:, 0] - 1e-12, model.joint_limits[:, 1] + 1e-12)
-    if n <= _FEW and len(bounds) == 4:
+    if n <= _FEW and len(bounds) == 4:  # the numbers as given (an int compares exactly; limits are far below 2**53)
         lo, hi = bounds[2], bounds[3]
-        if all([all(map(le, lo, r)) and all(map(le, r, hi)) for r in q.tolist()]):
+        if all([all(map(le, lo, r)) and all(map(le, r, hi)) for r in rows]):
             return q, None
     lo, hi = bounds[0], bounds[1]
     within = (q >= lo) & (q <= hi)  # False for NaN too: all True means finite and within the limits
