@@ -53,6 +53,40 @@ class Parser(argparse.ArgumentParser):
         return out
 
 
+# The largest value of each count option (its argparse dest): what it counts and why it is bounded. Above the
+# cap a command refuses up front, in one line naming the option, instead of filling the memory or running
+# for hours; each command's own work is done in chunks with progress.
+CAPS = {
+    "random": (10_000, "configurations", "each pose's pose and Jacobian are printed"),
+    "n": (1_000, "test poses", "each exchange of the pose selection scores every candidate"),
+    "candidates": (20_000, "candidate poses", "the information matrices of the candidates are held in memory"),
+    "samples": (500_000, "samples", "the errors of every sample are held in memory"),
+    "poses": (100_000, "poses", "the Jacobians of the poses are held in memory"),
+    "mc_poses": (200_000, "Monte Carlo poses", "the errors of every pose are held in memory"),
+    "ga_tol": (100_000, "solves per round", "each solve is a full allocation"),
+    "ga_rounds": (10_000, "rounds", "each round runs up to --ga-tol solves"),
+    "folds": (1_000, "folds", "each fold is a calibration"),
+}
+CHECKED_BY_COMMAND = ("random",)  # checked by the command itself, which knows the size each one needs
+# sensitivity holds (samples, 6, p) Jacobians and their statistics: a smaller cap than verify's chunked samples
+SENSITIVITY_SAMPLES = 50_000
+
+
+def check_cap(value, dest: str, cap: int | None = None, need: str = ""):
+    """CLIError (one line naming the option) when a count option exceeds its cap in ``CAPS`` (or ``cap``);
+    ``need`` says what the run would need (e.g. its memory)."""
+    limit, what, why = CAPS[dest]
+    limit = limit if cap is None else cap
+    if value is not None and value > limit:
+        raise CLIError(f"--{dest.replace('_', '-')}: {value} {what} exceed the cap of {limit} ({why}"
+                       f"{'; ' + need if need else ''}); ask for at most {limit}")
+
+
+def gigabytes(n_bytes: float) -> str:
+    """A size for messages: '1.2 GB', '340 MB'."""
+    return f"{n_bytes / 1e9:.1f} GB" if n_bytes >= 1e9 else f"{n_bytes / 1e6:.0f} MB"
+
+
 def quantity(text, kind, option, positive=True):
     """SI value of an option written with its unit (``1.4mm``); None stays None; CLIError otherwise."""
     if text is None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..render.text import table
-from .common import CLIError, load_model
+from .common import CAPS, CLIError, check_cap, gigabytes, load_model
 
 NAME = "jacobian"
 HELP = "nominal pose and parameter-error Jacobian at configurations"
@@ -15,7 +15,8 @@ def add_arguments(p):
     p.add_argument("--joints", action="append", metavar="Q1,Q2,...",
                    help="a joint configuration (rad, m); repeat for several")
     p.add_argument("--deg", action="store_true", help="revolute joints in --joints are in degrees")
-    p.add_argument("--random", type=int, default=1, metavar="N", help="N random configurations if no --joints")
+    p.add_argument("--random", type=int, default=1, metavar="N",
+                   help=f"N random configurations if no --joints (at most {CAPS['random'][0]})")
     p.add_argument("--seed", type=int, default=0)
 
 
@@ -39,8 +40,16 @@ def _joints(args, model):
     return model.sample_joints(args.random, args.seed)
 
 
+BYTES_PER_FLOAT = 100  # a float of the JSON document in memory: the Python float, its list slot and its text
+
+
 def run(args):
     model = load_model(args)
+    if not args.joints:
+        n = args.random
+        check_cap(n, "random", need=f"the answer for {n} poses would take about "
+                                    f"{gigabytes(n * (17 + model.dof + 6 * model.n_params) * BYTES_PER_FLOAT)} "
+                                    f"in memory")
     q = _joints(args, model)
     T, EJ = model.fk_and_jacobian(q)
     outside = model.out_of_limits(q)

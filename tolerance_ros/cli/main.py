@@ -13,8 +13,8 @@ from ..core.synthesis.problem import InfeasibleError
 from ..core.threads import limited
 from . import (allocate, calibrate, compensate, import_table, jacobian, paper, plan_campaign, report, robots,
                sensitivity, validate, verify)
-from .common import (EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError, Parser, UsageError,
-                     common_arguments)
+from .common import (CAPS, CHECKED_BY_COMMAND, EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError,
+                     Parser, UsageError, check_cap, common_arguments)
 
 COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, calibrate, validate, compensate, plan_campaign,
             import_table, paper)
@@ -105,6 +105,9 @@ def main(argv=None) -> int:
     prog = f"{parser.prog} {args.command}"
     args.missed = []
     try:
+        for name in CAPS:  # a count above its cap is refused before any work
+            if name not in CHECKED_BY_COMMAND and isinstance(getattr(args, name, None), int):
+                check_cap(getattr(args, name), name)
         with limited(1):
             out = args.func(args)
         if as_json and out is not None:

@@ -5,21 +5,24 @@ from pathlib import Path
 
 from ..core.budget import load_budget
 from ..render.text import Progress, table
-from .common import CLIError, load_model, quantity
+from .common import CAPS, CLIError, load_model, quantity
 
 NAME = "plan-campaign"
 HELP = "test poses that make the identification best conditioned"
 ROBOT = True
 
 
+MAX_WORK = 2_000_000  # --n x --candidates: the work of the pose selection, besides the caps of each
+
+
 def add_arguments(p):
-    p.add_argument("--n", type=int, default=30, help="number of test poses (default 30)")
+    p.add_argument("--n", type=int, default=30, help=f"number of test poses (default 30, at most {CAPS['n'][0]})")
     p.add_argument("--criterion", choices=["observability", "condition", "min-singular", "noise-amplification"],
                    default="observability",
                    help="observability: O1 (Borm & Menq 1991); condition: O2; min-singular: O3; "
                         "noise-amplification: O4 (Nahvi & Hollerbach 1996)")
     p.add_argument("--candidates", type=int, default=2000,
-                   help="candidate poses within the joint limits (default 2000)")
+                   help=f"candidate poses within the joint limits (default 2000, at most {CAPS['candidates'][0]})")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--cycles", type=int, default=3, help="visits per test pose in the campaign file (default 3)")
     p.add_argument("--budget", help="scale each parameter by its tolerance (default 1 mm / 1 mrad)")
@@ -39,6 +42,13 @@ def run(args):
     for name in ("candidates", "cycles"):
         if getattr(args, name) < 1:
             raise CLIError(f"--{name}: must be >= 1")
+    if args.n * args.candidates > MAX_WORK:
+        raise CLIError(f"--n x --candidates: {args.n} x {args.candidates} = {args.n * args.candidates} exceeds the cap "
+                       f"of {MAX_WORK} (each of up to 20 x --n exchanges scores every candidate); lower --n or "
+                       f"--candidates")
+    if args.n > args.candidates:
+        raise CLIError(f"--n: {args.n} test poses cannot be chosen from {args.candidates} candidates; give "
+                       f"--candidates >= {args.n}")
     noise = quantity(args.noise, "length", "--noise")
     onoise = quantity(args.orientation_noise, "angle", "--orientation-noise")
     delta = load_budget(args.budget, model).vector_for(model) if args.budget else None
@@ -46,7 +56,7 @@ def run(args):
     prog = Progress("plan-campaign", not args.quiet)
     prog(0, 1)
     pl = plan(model, args.n, args.criterion, args.candidates, args.seed, delta,
-              noise / onoise if onoise else None, iso)
+              noise / onoise if onoise else None, iso, progress=prog)
     prog(1, 1)
     out_path = Path(args.out or f"{model.name}_planned.yaml")
     idx = CRITERIA[args.criterion]

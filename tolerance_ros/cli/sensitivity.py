@@ -8,7 +8,7 @@ import numpy as np
 from ..core import analysis
 from ..core.units import parse_quantity
 from ..render.text import Progress, fmt, table
-from .common import load_model, quantity
+from .common import SENSITIVITY_SAMPLES, check_cap, load_model, quantity
 
 NAME = "sensitivity"
 HELP = "sensitivity, salience, ceilings and correlation"
@@ -16,7 +16,8 @@ ROBOT = True
 
 
 def add_arguments(p):
-    p.add_argument("--samples", type=int, default=1000, help="joint-space samples (default 1000, as the paper)")
+    p.add_argument("--samples", type=int, default=1000,
+                   help=f"joint-space samples (default 1000, as the paper; at most {SENSITIVITY_SAMPLES})")
     p.add_argument("--seed", type=int, default=0, help="seed of the joint-space samples (default 0)")
     p.add_argument("--rows", choices=["position", "orientation"], default="position",
                    help="the error rows judged: position (default) or orientation")
@@ -28,6 +29,7 @@ def add_arguments(p):
 
 
 def run(args):
+    check_cap(args.samples, "samples", SENSITIVITY_SAMPLES)
     model = load_model(args)
     limit = quantity(args.limit, "length" if args.rows == "position" else "angle", "--limit")
     prog = Progress("sensitivity", not args.quiet)

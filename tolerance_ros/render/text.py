@@ -8,7 +8,10 @@ import numpy as np
 
 
 class Progress:
-    """Progress on stderr: a bar on a terminal, a line every 10 % otherwise; silent with --quiet."""
+    """Progress on stderr: a bar on a terminal, a line every 10 % otherwise, and at least every ``EVERY``
+    seconds while it is called (a long step shows that the run moves); silent with --quiet."""
+
+    EVERY = 2.0
 
     def __init__(self, label: str, enabled: bool = True, stream=None):
         self.label = label
@@ -16,17 +19,19 @@ class Progress:
         self.enabled = enabled
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
         self.last = -1
-        self.start = time.perf_counter()
+        self.start = self.written = time.perf_counter()
 
     def __call__(self, done, total):
         if not self.enabled or total <= 0:
             return
         frac = min(1.0, done / total)
         step = int(frac * (50 if self.tty else 10))
-        if step == self.last and done < total:
+        now = time.perf_counter()
+        if step == self.last and done < total and now - self.written < self.EVERY:
             return
         self.last = step
-        elapsed = time.perf_counter() - self.start
+        self.written = now
+        elapsed = now - self.start
         if self.tty:
             bar = "#" * int(frac * 30)
             self.stream.write(f"\r{self.label} [{bar:<30}] {frac * 100:5.1f}% {elapsed:6.1f}s")

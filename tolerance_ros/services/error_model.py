@@ -31,6 +31,8 @@ JACOBIAN_FIELDS = {"robot": ((str,), False), "joints": ((list,), False), "output
                    "arrays": ((str,), False), "command": ((str,), False), "model": ((str,), False),
                    "poses": ((list,), False), "seed": ((list,), False), "match": ((str,), False)}
 ARRAYS = ("json", "base64")
+_COMPENSATE_ONLY = frozenset(COMPENSATE_ONLY)
+_COUNT, _FINITE = np.count_nonzero, np.isfinite
 
 
 def parse_tolerances(value, model, current_budget=None) -> tuple:
@@ -101,8 +103,8 @@ def jacobian_model(req: dict, robots, calibrations: dict):
     if command != "compute_error_jacobian":
         raise ContractError("invalid_request", f"command: expected 'compute_error_jacobian' or 'compensate', "
                                                f"got {command[:40]!r}")
-    stray = [f for f in COMPENSATE_ONLY if f in req]
-    if stray:
+    if not _COMPENSATE_ONLY.isdisjoint(req):
+        stray = [f for f in COMPENSATE_ONLY if f in req]
         raise ContractError("invalid_request", f"{stray[0]}: only with command 'compensate'")
     if "joints" not in req:
         raise ContractError("invalid_request", "joints: required")
@@ -227,10 +229,11 @@ class ErrorModelService:
         except ModelError as exc:
             raise ContractError("invalid_request", f"joints: {str(exc)[:300]}") from None
         rows = 3 if outputs == "position" else 6
-        J = EJ.J[:, :rows]
+        J = EJ.J if rows == 6 else EJ.J[:, :rows]
         P = J[:, :3]
-        sens = np.sqrt((P * P).sum(axis=1))
-        if not (np.isfinite(T).all() and np.isfinite(J).all()):
+        # the same sums of squares: vecdot costs less per call, einsum less per pose
+        sens = np.sqrt(np.vecdot(P, P, axis=1) if len(q) <= 8 else np.einsum("nip,nip->np", P, P))
+        if _COUNT(_FINITE(T)) != T.size or _COUNT(_FINITE(J)) != J.size:
             raise ContractError("invalid_request", "joints: the configurations give non-finite poses (values too "
                                                    "large for this robot)")
         resp = {"id": req["id"], "ok": True, "robot": name, "n": len(q), "joint_names": list(static["joint_names"]),
@@ -255,13 +258,14 @@ class ErrorModelService:
 
     def _static(self, model) -> dict:
         """What every request to ``model`` shares, computed once per model object: the joint names and
-        the limits widened by 1e-12 (as ``Mechanism.out_of_limits``)."""
+        the limits widened by 1e-12 (as ``Mechanism.out_of_limits``), as arrays and as lists."""
         entry = self._per_model.get(id(model))
         if entry is None or entry[0] is not model or entry[1] is not model.joint_limits:
             if len(self._per_model) > 32:  # models replaced over time (robot_description) are dropped
                 self._per_model.clear()
             lim = model.joint_limits
+            lo, hi = lim[:, 0] - 1e-12, lim[:, 1] + 1e-12
             entry = (model, lim, {"joint_names": tuple(model.joint_names),
-                                  "bounds": (lim[:, 0] - 1e-12, lim[:, 1] + 1e-12)})
+                                  "bounds": (lo, hi, lo.tolist(), hi.tolist())})
             self._per_model[id(model)] = entry
         return entry[2]

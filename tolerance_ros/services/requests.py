@@ -4,12 +4,16 @@ imports only the contracts below it."""
 from __future__ import annotations
 
 from itertools import chain
+from operator import le
 
 import numpy as np
 
 from ..core.geometry import quat_to_matrices
 from ..core.ingest import MAX_POSITION_M
 from .contracts import ContractError, Limits
+
+_NUMBERS = {int, float}
+_FEW = 8  # poses checked against the limits in Python lists rather than numpy
 
 
 def parse_joints(value, model, limits: Limits, allow_out_of_limits: bool) -> np.ndarray:
@@ -19,31 +23,46 @@ def parse_joints(value, model, limits: Limits, allow_out_of_limits: bool) -> np.
 
 def _parse_joints(value, model, limits: Limits, allow_out_of_limits: bool, bounds=None) -> tuple:
     """``parse_joints`` and the (n, dof) mask of joints outside their limits (None when there are none).
-    ``bounds``: the model's (lower - 1e-12, upper + 1e-12), when the caller keeps them. The checks run over
-    whole rows and arrays in C (``map``, numpy); the loops that name the offending entry run only on a failure."""
+    ``bounds``: the model's (lower - 1e-12, upper + 1e-12), when the caller keeps them (optionally followed
+    by the same two as lists of floats). The checks run over whole rows and arrays in C (``map``, numpy; a
+    few poses against lists of floats, cheaper than numpy's calls); the loops that name the offending entry
+    run only on a failure."""
     if not isinstance(value, list) or not value:
         raise ContractError("invalid_request", "joints: expected a non-empty list (one configuration) or a list of lists")
     rows = value if isinstance(value[0], list) else [value]
-    if len(rows) > limits.max_poses:
-        raise ContractError("too_large", f"joints: {len(rows)} configurations exceed the cap of {limits.max_poses}")
+    n = len(rows)
+    if n > limits.max_poses:
+        raise ContractError("too_large", f"joints: {n} configurations exceed the cap of {limits.max_poses}")
     dof = model.dof
-    if set(map(type, rows)) != {list} or set(map(len, rows)) != {dof}:
+    if n == 1:
+        shaped = type(rows[0]) is list and len(rows[0]) == dof
+        kinds = set(map(type, rows[0])) if shaped else None
+    else:
+        shaped = set(map(type, rows)) == {list} and set(map(len, rows)) == {dof}
+        kinds = set(map(type, chain.from_iterable(rows))) if shaped else None
+    if not shaped:
         for i, r in enumerate(rows):
             if not isinstance(r, list) or len(r) != dof:
                 got = len(r) if isinstance(r, list) else type(r).__name__
                 raise ContractError("invalid_request", f"joints[{i}]: expected {dof} values "
                                                        f"({', '.join(model.joint_names)}), got {got}")
-    kinds = set(map(type, chain.from_iterable(rows)))
-    if not kinds <= {int, float}:
+    if not kinds <= _NUMBERS:
         i, j = next((i, j) for i, r in enumerate(rows) for j, v in enumerate(r) if type(v) not in (int, float))
         raise ContractError("invalid_request", f"joints[{i}][{j}]: expected a number, got {type(rows[i][j]).__name__}")
     try:
-        q = np.fromiter(chain.from_iterable(rows), dtype=float, count=len(rows) * dof).reshape(len(rows), dof)
+        q = (np.array(rows, dtype=float) if n <= _FEW else
+             np.fromiter(chain.from_iterable(rows), dtype=float, count=n * dof).reshape(n, dof))
     except OverflowError:
         raise ContractError("invalid_request", "joints: a value is too large for a float") from None
-    lo, hi = bounds if bounds is not None else (model.joint_limits[:, 0] - 1e-12, model.joint_limits[:, 1] + 1e-12)
+    if bounds is None:
+        bounds = (model.joint_limits[:, 0] - 1e-12, model.joint_limits[:, 1] + 1e-12)
+    if n <= _FEW and len(bounds) == 4:  # the numbers as given (an int compares exactly; limits are far below 2**53)
+        lo, hi = bounds[2], bounds[3]
+        if all([all(map(le, lo, r)) and all(map(le, r, hi)) for r in rows]):
+            return q, None
+    lo, hi = bounds[0], bounds[1]
     within = (q >= lo) & (q <= hi)  # False for NaN too: all True means finite and within the limits
-    if within.all():
+    if np.count_nonzero(within) == within.size:
         return q, None
     if not np.isfinite(q).all():
         i, j = np.argwhere(~np.isfinite(q))[0]

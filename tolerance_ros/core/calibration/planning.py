@@ -37,20 +37,32 @@ REFERENCES = {"O1": "Borm & Menq 1991", "O2": "Driels & Pathre 1990", "O3": "Nah
               "O4": "Nahvi & Hollerbach 1996"}
 
 
-def pose_blocks(model: Mechanism, q, delta=None, sigma_ratio=None, held=None):
+def pose_blocks(model: Mechanism, q, delta=None, sigma_ratio=None, held=None, tick=None, chunk=2000):
     """((n, r, L) scaled identification Jacobian per pose, names of its L columns, (p,) held mask).
 
     ``sigma_ratio`` = sigma_position / sigma_orientation (m/rad) adds the orientation rows; ``held``
-    ((p,) mask) drops those parameters, by default ``dependent_parameters`` over these poses.
+    ((p,) mask) drops those parameters, by default ``dependent_parameters`` over these poses. The poses'
+    Jacobians are evaluated ``chunk`` at a time, ``tick(fraction done)`` after each.
     """
     q = model.check_joints(q)
     p = model.n_params
-    T, EJ = model.fk_and_jacobian(q)
+    T, EJ = model.fk_and_jacobian(q[:chunk])
+    if len(q) > chunk:
+        Ts, Js = [T], [EJ.J]
+        for a in range(chunk, len(q), chunk):
+            if tick is not None:
+                tick(a / len(q))
+            Ta, EJa = model.fk_and_jacobian(q[a:a + chunk])
+            Ts.append(Ta)
+            Js.append(EJa.J)
+        T, EJ = np.concatenate(Ts), type(EJ)(np.concatenate(Js), EJ.names, EJ.units)
     Jb = base_jacobian(T[:, :3, 3])
     rows = [np.concatenate([EJ.position, Jb[:, :3]], axis=2)]
     if sigma_ratio is not None:
         rows.append(sigma_ratio * np.concatenate([EJ.orientation, Jb[:, 3:]], axis=2))
     G = np.concatenate(rows, axis=1) * column_scale(delta, p)
+    if tick is not None:
+        tick(0.9)
     if held is None:
         held = dependent_parameters(G.reshape(-1, p + 6), p)
     keep = np.r_[~np.asarray(held, bool), np.ones(6, bool)]
@@ -91,18 +103,23 @@ def _score(M, index):
     return lmin / np.sqrt(lmax)
 
 
-def _gains(M, G, index, sign, chunk=500):
+def _gains(M, G, index, sign, chunk=500, tick=None):
     """Criterion of M + sign * G_c^T G_c for every block G_c of G (k, r, L); for O1 the change of
-    log det (the same maximiser as O1 for a fixed number of poses), by the determinant lemma."""
+    log det (the same maximiser as O1 for a fixed number of poses), by the determinant lemma. In chunks
+    of ``chunk`` blocks, ``tick(fraction done)`` after each."""
+    out = np.empty(len(G))
     if index == "O1":
         Minv = np.linalg.inv(M)
-        S = np.eye(G.shape[1]) + sign * np.einsum("kri,ij,ksj->krs", G, Minv, G)
-        sgn, logdet = np.linalg.slogdet(S)
-        return np.where(sgn > 0, logdet, -np.inf)
-    out = np.empty(len(G))
+        eye = np.eye(G.shape[1])
     for a in range(0, len(G), chunk):
         g = G[a:a + chunk]
-        out[a:a + chunk] = _score(M[None] + sign * np.einsum("kri,krj->kij", g, g), index)
+        if index == "O1":
+            sgn, logdet = np.linalg.slogdet(eye + sign * np.einsum("kri,ij,ksj->krs", g, Minv, g))
+            out[a:a + chunk] = np.where(sgn > 0, logdet, -np.inf)
+        else:
+            out[a:a + chunk] = _score(M[None] + sign * np.einsum("kri,krj->kij", g, g), index)
+        if tick is not None:
+            tick(min(1.0, (a + chunk) / len(G)))
     return out
 
 
@@ -132,19 +149,24 @@ class Plan:
                 "iso_cube_note": self.iso_cube_note, "singular_values": self.spectra}
 
 
-def select(G, n: int, index="O1", seed=0, max_exchanges=None):
-    """(design (n,) indices into G, exchanges made): DETMAX exchange (see the module docstring)."""
+def select(G, n: int, index="O1", seed=0, max_exchanges=None, tick=None):
+    """(design (n,) indices into G, exchanges made): DETMAX exchange (see the module docstring).
+    ``tick(fraction of the most exchanges)`` as the candidates of each exchange are scored."""
     k, _, L = G.shape
     if n > k:
         raise ValueError(f"n: {n} poses requested from {k} candidates")
     rng = np.random.default_rng(seed)
     design = list(rng.choice(k, n, replace=False))
+    if tick is not None:
+        tick(0.0)
     info = np.einsum("kri,krj->kij", G, G)
     M = info[design].sum(axis=0) + 1e-12 * np.eye(L)
     exchanges = 0
-    for exchanges in range(max_exchanges or 20 * n):
+    most = max_exchanges or 20 * n
+    for exchanges in range(most):
         outside = np.setdiff1d(np.arange(k), design)
-        add = outside[np.argmax(_gains(M, G[outside], index, +1.0))]
+        scored = None if tick is None else (lambda f, e=exchanges: tick((e + f) / most))
+        add = outside[np.argmax(_gains(M, G[outside], index, +1.0, tick=scored))]
         M1 = M + info[add]
         pool = np.array(design + [add])
         drop = pool[np.argmax(_gains(M1, G[pool], index, -1.0))]
@@ -184,24 +206,39 @@ def iso_cube_joints(model: Mechanism, q_candidates, rng=0, centres=10):
     return None, "ISO 9283 cube: no reachable cube found in front of the robot"
 
 
+PROGRESS_STEPS = 1000  # the total of ``plan``'s progress
+
+
 def plan(model: Mechanism, n: int, criterion="observability", candidates=2000, seed=0, delta=None,
-         sigma_ratio=None, iso_joints=None, random_draws=20) -> Plan:
+         sigma_ratio=None, iso_joints=None, random_draws=20, progress=None) -> Plan:
     """Choose ``n`` poses within the joint limits that maximise the criterion (see the module docstring).
 
     iso_joints : (k, dof) joints of an ISO 9283 cube campaign to compare with (default: built by
     ``iso_cube_joints``). The random set's indices are the medians over ``random_draws`` seeded draws
-    of ``n`` candidates.
+    of ``n`` candidates. ``progress(done, PROGRESS_STEPS)`` is called as the work goes: the candidates'
+    Jacobians (the first 10 %), each chunk of candidates scored by each exchange (up to 90 %; the exchange
+    stops early when no swap helps), then the comparisons.
     """
     if criterion not in CRITERIA:
         raise ValueError(f"criterion: expected one of {sorted(CRITERIA)}, got {criterion!r}")
+    if n > candidates:
+        raise ValueError(f"n: {n} poses requested from {candidates} candidates")
     index = CRITERIA[criterion]
+
+    def stage(lo, hi):
+        if progress is None:
+            return None
+        return lambda f: progress(int(PROGRESS_STEPS * (lo + (hi - lo) * min(max(f, 0.0), 1.0))), PROGRESS_STEPS)
+
     rng = np.random.default_rng(seed)
     qc = model.sample_joints(int(candidates), rng)
-    G, columns, held = pose_blocks(model, qc, delta, sigma_ratio)
+    G, columns, held = pose_blocks(model, qc, delta, sigma_ratio, tick=stage(0.0, 0.1))
     if n * G.shape[1] < G.shape[2]:
         raise ValueError(f"n: {n} poses give {n * G.shape[1]} equations for {G.shape[2]} unknowns; "
                          f"plan at least {-(-G.shape[2] // G.shape[1])} poses")
-    design, exchanges = select(G, n, index, seed)
+    design, exchanges = select(G, n, index, seed, tick=stage(0.1, 0.9))
+    if progress is not None:
+        progress(int(0.9 * PROGRESS_STEPS), PROGRESS_STEPS)
     chosen = design_indices(G, design)
     spectra = {"planned": chosen.pop("s")}
     draws = [design_indices(G, rng.choice(len(qc), n, replace=False)) for _ in range(random_draws)]
