@@ -579,3 +579,13 @@ def test_compensate_writes_a_flagged_target_with_its_nominal_joints_unless_accep
             assert home["written"] == "nominal" and bent["written"] == "compensated"
             assert "C1 (near singularity)" in yaml.safe_load(out_file.read_text())["notes"]
             assert "written with their nominal joints" in err
+
+
+def test_every_option_of_every_command_says_what_it_does():
+    import argparse
+    from tolerance_ros.cli import build_parser
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    silent = [f"{name} {'/'.join(a.option_strings)}" for name, p in sub.choices.items() for a in p._actions
+              if a.option_strings and not a.help and a.help != argparse.SUPPRESS]
+    assert not silent, silent

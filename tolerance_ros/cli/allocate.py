@@ -17,7 +17,8 @@ ROBOT = True
 def add_arguments(p):
     p.add_argument("--limit", required=True, help="position limit, e.g. 1.4mm")
     p.add_argument("--orientation-limit", help="orientation limit, e.g. 1mrad (optional)")
-    p.add_argument("--model", choices=["min-cost", "optimal-precision"], default="min-cost")
+    p.add_argument("--model", choices=["min-cost", "optimal-precision"], default="min-cost",
+                   help="min-cost (the cheapest parts, default) or optimal-precision (the largest weighted tolerances)")
     p.add_argument("--solver", choices=["active-set", "ga"], default="active-set",
                    help="active-set: exact convex method with adversarial pose search; ga: the paper's GA")
     p.add_argument("--criterion", choices=errors.LIMIT_CRITERIA, default="paper",

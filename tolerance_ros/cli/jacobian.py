@@ -17,7 +17,7 @@ def add_arguments(p):
     p.add_argument("--deg", action="store_true", help="revolute joints in --joints are in degrees")
     p.add_argument("--random", type=int, default=1, metavar="N",
                    help=f"N random configurations if no --joints (at most {CAPS['random'][0]})")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the random joints (default 0)")
 
 
 def _joints(args, model):

@@ -10,7 +10,7 @@ ROBOT = False
 
 def add_arguments(p):
     p.add_argument("name", help="gao2023 or rong2018")
-    p.add_argument("--poses", type=int, default=10000)
+    p.add_argument("--poses", type=int, default=10000, help="joint-space poses of the analysis and of the Monte Carlo checks (default 10000)")
     p.add_argument("--seed", type=int, default=2023, help="seed of the samples and the GA (default 2023)")
     p.add_argument("--plot", metavar="DIR", help="write the figures into DIR")
     p.add_argument("--no-synthesis", action="store_true", help="only the analysis, no allocation")

@@ -23,7 +23,7 @@ def add_arguments(p):
                         "noise-amplification: O4 (Nahvi & Hollerbach 1996)")
     p.add_argument("--candidates", type=int, default=2000,
                    help=f"candidate poses within the joint limits (default 2000, at most {CAPS['candidates'][0]})")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the candidate configurations (default 0)")
     p.add_argument("--cycles", type=int, default=3, help="visits per test pose in the campaign file (default 3)")
     p.add_argument("--budget", help="scale each parameter by its tolerance (default 1 mm / 1 mrad)")
     p.add_argument("--noise", default="10um", help="tracker position noise (default 10um)")
