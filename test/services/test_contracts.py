@@ -3,6 +3,8 @@ import json
 import re
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.services.contracts import (MAX_DEPTH, ContractError, Limits, answer_id, budget_from_message,
@@ -116,3 +118,31 @@ def test_budget_messages(gao):
     with pytest.raises(ContractError) as exc:
         budget_from_message('{"a":' * 1000 + '0' + '}' * 1000, {"gao2023_7dof": gao})
     assert exc.value.code == "invalid_json"
+
+
+def _depth_by_hand(text):
+    """The deepest nesting, character by character (strings and their escapes skipped)."""
+    depth = best = 0
+    in_string = escaped = False
+    for ch in text:
+        if in_string:
+            escaped, in_string = (False, True) if escaped else (ch == "\\", ch != '"')
+        elif ch == '"':
+            in_string = True
+        elif ch in "[{":
+            depth += 1
+            best = max(best, depth)
+        elif ch in "]}":
+            depth -= 1
+    return best
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(st.sampled_from(["[", "]", "{", "}", ",", "1.5", '"a"', '"[{"', '"\\\\"', '"\\""', " "]),
+                max_size=300),
+       st.integers(0, 40))
+def test_the_depth_of_any_text_is_the_depth_counted_by_hand(parts, nest):
+    """Exact past MAX_DEPTH; within it, a bound that never crosses it (the count of openings)."""
+    text = "[" * nest + "".join(parts) + "]" * nest
+    depth, by_hand = nesting_depth(text), _depth_by_hand(text)
+    assert depth == by_hand if by_hand > MAX_DEPTH else by_hand <= depth <= MAX_DEPTH

@@ -134,15 +134,18 @@ _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.S)
 _NOT_BRACKET = bytes(sorted(set(range(256)) - set(b"[]{}")))
 _STEPS = bytes.maketrans(b"[{]}", b"\x01\x01\xff\xff")
 _NOT_MARK = bytes(sorted(set(range(256)) - set(b'[]{}"\\')))
+_SQUARE = bytes.maketrans(b"{}", b"[]")
 
 
 def nesting_depth(text: str) -> int:
-    """Deepest nesting of arrays and objects in JSON text (brackets inside strings do not count), found
+    """Deepest nesting of arrays and objects in JSON text (brackets inside strings do not count; up to
+    MAX_DEPTH the count of opening brackets may stand for it, a bound that decides the same), found
     without parsing, in C-speed passes (``bytes.translate`` keeps the brackets and quotes, the strings between
     pairs of quotes are dropped, or with escapes a regular expression drops them, then a cumulative sum)."""
-    opening = text.count("[") + text.count("{")
-    if opening <= MAX_DEPTH:
-        return opening
+    if len(text) <= 256:
+        opening = text.count("[") + text.count("{")
+        if opening <= MAX_DEPTH:
+            return opening
     marks = text.encode("utf-8", "surrogatepass").translate(None, _NOT_MARK)  # brackets, quotes, backslashes
     if b"\\" not in marks and marks.count(b'"') % 2 == 0:  # the strings are the text between pairs of quotes
         brackets = b"".join(marks.split(b'"')[::2])
@@ -150,6 +153,17 @@ def nesting_depth(text: str) -> int:
         brackets = "".join(_STRING.split(text)).encode("utf-8", "surrogatepass").translate(None, _NOT_BRACKET)
     if not brackets:
         return 0
+    if len(brackets) - brackets.count(b"]") - brackets.count(b"}") <= MAX_DEPTH:  # the openings bound the depth
+        return len(brackets) - brackets.count(b"]") - brackets.count(b"}")
+    # Balanced brackets: each pass drops the innermost pairs, so a depth of d empties in d passes.
+    pairs = brackets.translate(_SQUARE)
+    for depth in range(1, MAX_DEPTH + 2):
+        shorter = pairs.replace(b"[]", b"")
+        if not shorter:
+            return depth
+        if len(shorter) == len(pairs):
+            break  # unbalanced (not JSON): the exact count below
+        pairs = shorter
     steps = np.frombuffer(brackets.translate(_STEPS), dtype=np.int8)  # +1 for [ and {, -1 for ] and }
     return int(np.cumsum(steps, dtype=np.int64).max())
 

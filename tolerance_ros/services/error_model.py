@@ -17,7 +17,7 @@ from ..core.budget import BudgetError, budget_from_dict
 from ..core.errors import CRITERIA, criterion_bound
 from ..core.ingest import IngestError, JointOrder, stamp_seconds
 from ..core.jsonio import compact_array, dumps_fast, encode_arrays
-from ..core.models.base import ModelError
+from ..core.models.base import CompiledChain, ModelError
 from .compensation import COMPENSATE_ONLY, MODELS, compensate_request
 from .contracts import (MAX_TOLERANCE, ContractError, Limits, answer_id, check_budget, error_response, number,
                         parse_request)
@@ -233,7 +233,9 @@ class ErrorModelService:
         P = J[:, :3]
         # the same sums of squares: vecdot costs less per call, einsum less per pose
         sens = np.sqrt(np.vecdot(P, P, axis=1) if len(q) <= 8 else np.einsum("nip,nip->np", P, P))
-        if _COUNT(_FINITE(T)) != T.size or _COUNT(_FINITE(J)) != J.size:
+        # a serial chain gives finite poses for joints within finite limits; anything else is checked
+        if not (out is None and static["finite_chain"]) and (_COUNT(_FINITE(T)) != T.size or
+                                                               _COUNT(_FINITE(J)) != J.size):
             raise ContractError("invalid_request", "joints: the configurations give non-finite poses (values too "
                                                    "large for this robot)")
         resp = {"id": req["id"], "ok": True, "robot": name, "n": len(q), "joint_names": list(static["joint_names"]),
@@ -257,8 +259,9 @@ class ErrorModelService:
         return resp
 
     def _static(self, model) -> dict:
-        """What every request to ``model`` shares, computed once per model object: the joint names and
-        the limits widened by 1e-12 (as ``Mechanism.out_of_limits``), as arrays and as lists."""
+        """What every request to ``model`` shares, computed once per model object: the joint names, the
+        limits widened by 1e-12 (as ``Mechanism.out_of_limits``), as arrays and as lists, and whether it is a
+        serial chain with finite parameters and limits (whose poses and Jacobians are finite within them)."""
         entry = self._per_model.get(id(model))
         if entry is None or entry[0] is not model or entry[1] is not model.joint_limits:
             if len(self._per_model) > 32:  # models replaced over time (robot_description) are dropped
@@ -266,6 +269,8 @@ class ErrorModelService:
             lim = model.joint_limits
             lo, hi = lim[:, 0] - 1e-12, lim[:, 1] + 1e-12
             entry = (model, lim, {"joint_names": tuple(model.joint_names),
-                                  "bounds": (lo, hi, lo.tolist(), hi.tolist())})
+                                  "bounds": (lo, hi, lo.tolist(), hi.tolist()),
+                                  "finite_chain": isinstance(model, CompiledChain) and bool(np.all(np.abs(lim) <= 1e6))
+                                  and bool(np.all(np.isfinite(model.nominal)))})
             self._per_model[id(model)] = entry
         return entry[2]
