@@ -86,8 +86,8 @@ def entry() -> int:
     kernels compile in the background (said on stderr) while this call answers from the numpy path."""
     from ..core.models import warmup
     if not warmup.cached() and warmup.start(background=True) == "compiling":
-        print("tolerance-ros: compiling the kernels in the background (the first run after an install, 15-25 s); "
-              "this call answers from the numpy path meanwhile", file=sys.stderr)
+        print("tolerance-ros: compiling the kernels in the background (the first run after an install, about a "
+              "minute); this call answers from the numpy path meanwhile", file=sys.stderr)
     return main()
 
 

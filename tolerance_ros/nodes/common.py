@@ -73,7 +73,7 @@ def robot_set(node, specs, default) -> RobotSet:
     robots = RobotSet(specs, default, tip or None, base or None)
     state = warmup.start(background=True, log=node.get_logger().info)
     if state == "compiling":
-        node.get_logger().info("compiling the kernels in the background (an empty cache: 15-25 s); the numpy "
+        node.get_logger().info("compiling the kernels in the background (an empty cache: about a minute); the numpy "
                                "path answers meanwhile")
     for model in robots.models.values():
         model.warm_up()

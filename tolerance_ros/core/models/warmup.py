@@ -1,6 +1,6 @@
 """The compiled kernels without a stall: serve from the numpy path while a child process fills the cache.
 
-Compiling the kernels with an empty numba cache takes 15-25 s; loading them from the cache about 1 s
+Compiling the kernels with an empty numba cache takes 30-40 s on a 2-core VM; loading them from the cache about 1 s
 (most of it importing numba). A node, or a one-shot command, that waited for either would lose its first
 requests. ``start(background=True)`` returns at once: the models answer from their numpy reference path
 (equal to the compiled one to 1e-12) while a background thread prepares the kernels (a child process
