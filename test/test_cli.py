@@ -589,3 +589,14 @@ def test_every_option_of_every_command_says_what_it_does():
     silent = [f"{name} {'/'.join(a.option_strings)}" for name, p in sub.choices.items() for a in p._actions
               if a.option_strings and not a.help and a.help != argparse.SUPPRESS]
     assert not silent, silent
+
+
+def test_plan_campaign_writes_only_with_out_as_allocate(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, "plan-campaign", "--robot", "gao2023_7dof", "--n", "12", "--candidates", "100",
+                         "--quiet")
+    assert code == 0, err
+    assert "campaign not saved (give --out FILE.yaml to save it)" in out and not list(tmp_path.iterdir())
+    code, out, err = run(capsys, "plan-campaign", "--robot", "gao2023_7dof", "--n", "12", "--candidates", "100",
+                         "--quiet", "--json")
+    assert code == 0 and json.loads(out)["campaign_file"] is None and not list(tmp_path.iterdir())

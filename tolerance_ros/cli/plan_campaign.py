@@ -31,7 +31,7 @@ def add_arguments(p):
                    help="tracker orientation noise, e.g. 10urad: the tracker measures orientation")
     p.add_argument("--compare", metavar="CAMPAIGN",
                    help="ISO 9283 cube campaign to compare with (default: built by IK)")
-    p.add_argument("--out", metavar="FILE", help="campaign file to write (default <robot>_planned.yaml)")
+    p.add_argument("--out", metavar="FILE", help="campaign file to write (without it nothing is written, as allocate)")
     p.add_argument("--plot", metavar="DIR", help="write singular_values.png into DIR")
 
 
@@ -58,15 +58,16 @@ def run(args):
     pl = plan(model, args.n, args.criterion, args.candidates, args.seed, delta,
               noise / onoise if onoise else None, iso, progress=prog)
     prog(1, 1)
-    out_path = Path(args.out or f"{model.name}_planned.yaml")
+    out_path = Path(args.out) if args.out else None
     idx = CRITERIA[args.criterion]
     desc = (f"{args.n} poses chosen by tolerance-ros plan-campaign: {idx} ({REFERENCES[idx]}) maximised by a DETMAX "
             f"exchange over {args.candidates} candidates within the joint limits (seed {args.seed})")
-    import yaml
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    out_path.write_text(f"# {desc}\n" + yaml.safe_dump(campaign_dict(model, pl.q, f"{model.name}_planned", args.cycles,
-                                                                        description=desc),
-                                                         sort_keys=False, default_flow_style=None, width=120))
+    if out_path is not None:
+        import yaml
+        out_path.parent.mkdir(parents=True, exist_ok=True)
+        out_path.write_text(f"# {desc}\n" + yaml.safe_dump(campaign_dict(model, pl.q, f"{model.name}_planned",
+                                                                            args.cycles, description=desc),
+                                                             sort_keys=False, default_flow_style=None, width=120))
     plots = []
     if args.plot:
         from ..render import plots as P
@@ -74,7 +75,7 @@ def run(args):
                                            f"{model.name}: scaled identification Jacobian")))
     if args.json:
         doc = pl.to_dict()
-        doc.update(robot=model.name, campaign_file=str(out_path), plots=plots)
+        doc.update(robot=model.name, campaign_file=str(out_path) if out_path else None, plots=plots)
         return doc
     print(f"robot {model.name}: {args.n} poses maximising {idx} ({REFERENCES[idx]}) over {args.candidates} "
           f"candidates (seed {args.seed}, {pl.exchanges} exchanges); {len(pl.columns)} unknowns "
@@ -89,6 +90,6 @@ def run(args):
                      f"{d['O2']:.4g}", f"{d['O3'] * 1e3:.4g}", f"{d['O4'] * 1e3:.4g}", f"{d['condition']:.4g}"])
     print(table(["pose set", "poses", "rank", "O1 mm", "O2", "O3 mm", "O4 mm", "condition"], rows))
     print(pl.iso_cube_note)
-    print(f"wrote {out_path}")
+    print(f"wrote {out_path}" if out_path else "campaign not saved (give --out FILE.yaml to save it)")
     for f in plots:
         print(f"plot: {f}")
