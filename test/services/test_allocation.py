@@ -8,9 +8,10 @@ import pytest
 
 from schemas_helpers import schema
 from tolerance_ros.core.synthesis import InfeasibleError
-from tolerance_ros.services.allocation import (AllocationJob, AllocatorService, Command, parse_allocate_request,
+from tolerance_ros.services.allocation import (AllocationJob, AllocatorService, parse_allocate_request,
                                                run_allocation)
 from tolerance_ros.services.contracts import ContractError, Limits, error_response
+from tolerance_ros.services.jobs import Command
 from tolerance_ros.services.robots import RobotSet
 
 

@@ -19,10 +19,9 @@ from dataclasses import dataclass
 from ..core.errors import LIMIT_CRITERIA, k_for_confidence
 from ..core.models.base import Mechanism
 from ..core.synthesis import MODELS, PHYSICAL, SOLVERS, allocate
-from .contracts import ContractError, Limits, answering, number, parse_request, valid_id
-from .jobs import Command, JobService
+from .contracts import ContractError, Limits, answering, number, parse_request
+from .jobs import JobService, command_of
 
-COMMANDS = ("allocate", "status", "cancel")
 ALLOCATE_FIELDS = {"command": ((str,), False), "robot": ((str,), False), "limit": ((int, float), False),
                    "orientation_limit": ((int, float, type(None)), False), "model": ((str,), False),
                    "solver": ((str,), False), "criterion": ((str,), False), "confidence": ((int, float, type(None)), False),
@@ -63,15 +62,9 @@ def parse_allocate_request(text, robots, limits: Limits, max_time_limit_s: float
 
 
 def _job(req, robots, limits, max_time_limit_s):
-    command = req.get("command", "allocate")
-    if command not in COMMANDS:
-        raise ContractError("invalid_request", f"command: expected one of {list(COMMANDS)}, got {command[:40]!r}")
-    if command == "cancel":
-        if "target" not in req or not valid_id(req["target"]):
-            raise ContractError("invalid_request", "target: required with command 'cancel': the id of the job")
-        return Command(req["id"], command, req["target"])
-    if command != "allocate":
-        return Command(req["id"], command)
+    command = command_of(req, "allocate")
+    if command is not None:
+        return command
     name, mechanism = robots.select(req.get("robot"))
     if "limit" not in req:
         raise ContractError("invalid_request", "limit: required (position limit in m)")

@@ -31,10 +31,9 @@ from ..core.calibration.calibrate import MODELS, PRIOR, calibrate_measurements
 from ..core.calibration.writers import SI, calibration_text, save_calibration
 from ..core.models.base import Mechanism
 from .allocation import DEFAULT_TIME_LIMIT_S, MAX_TIME_LIMIT_S, MIN_TIME_LIMIT_S
-from .contracts import ContractError, Limits, number, parse_request, valid_id
-from .jobs import Command, JobService
+from .contracts import ContractError, Limits, number, parse_request
+from .jobs import JobService, command_of
 
-COMMANDS = ("calibrate", "status", "cancel")
 FIELDS = {"command": ((str,), False), "robot": ((str,), False), "log": ((str,), False), "window": ((list,), False),
           "registration": ((str,), False), "parameters": ((str,), False), "prior": ((list, type(None)), False),
           "noise": ((int, float), False), "orientation_noise": ((int, float, type(None)), False),
@@ -67,15 +66,9 @@ def parse_calibrate_request(text, robots, limits: Limits, current_log=None, max_
     """A CalibrationJob or a Command; raises ContractError naming the field. ``current_log`` is the monitor's
     own log (what ``"log": "current"`` means)."""
     req = parse_request(text, FIELDS, limits)
-    command = req.get("command", "calibrate")
-    if command not in COMMANDS:
-        raise ContractError("invalid_request", f"command: expected one of {list(COMMANDS)}, got {command[:40]!r}")
-    if command == "cancel":
-        if "target" not in req or not valid_id(req["target"]):
-            raise ContractError("invalid_request", "target: required with command 'cancel': the id of the job")
-        return Command(req["id"], command, req["target"])
-    if command != "calibrate":
-        return Command(req["id"], command)
+    command = command_of(req, "calibrate")
+    if command is not None:
+        return command
     name, model = robots.select(req.get("robot"))
     log = req.get("log", "current")
     if log == "current":

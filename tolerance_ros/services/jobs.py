@@ -12,7 +12,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from ..core import interrupt, threads
-from .contracts import ContractError, answer_id, error_response
+from .contracts import ContractError, answer_id, error_response, valid_id
 
 MAX_FINISHED = 100  # finished jobs the status answer can list (it shows the last 10)
 
@@ -20,11 +20,25 @@ MAX_FINISHED = 100  # finished jobs the status answer can list (it shows the las
 
 @dataclass(frozen=True)
 class Command:
-    """A request that is not an allocation: ``command`` is 'status' or 'cancel' (of job ``target``)."""
+    """A request that is not a job: ``command`` is 'status' or 'cancel' (of job ``target``)."""
 
     id: object
     command: str
     target: object = None
+
+
+def command_of(req, work: str):
+    """The Command of a parsed request whose ``command`` is 'status' or 'cancel', or None when it asks for
+    the service's own ``work`` (its default); ContractError for another command or a cancel without target."""
+    commands = (work, "status", "cancel")
+    command = req.get("command", work)
+    if command not in commands:
+        raise ContractError("invalid_request", f"command: expected one of {list(commands)}, got {command[:40]!r}")
+    if command == "cancel":
+        if "target" not in req or not valid_id(req["target"]):
+            raise ContractError("invalid_request", "target: required with command 'cancel': the id of the job")
+        return Command(req["id"], command, req["target"])
+    return None if command == work else Command(req["id"], command)
 
 
 class Outbox:
