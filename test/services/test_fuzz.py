@@ -20,8 +20,8 @@ from tolerance_ros.core import interrupt
 from tolerance_ros.core.jsonio import dumps_fast, loads_strict
 from tolerance_ros.core.models import ModelError, warm_up_kernels
 from tolerance_ros.services.allocation import AllocatorService, parse_allocate_request, run_allocation
-from tolerance_ros.services.jobs import Command
 from tolerance_ros.services.contracts import CODES, ContractError, Limits, answer_id, error_code, error_response
+from tolerance_ros.services.jobs import Command
 from tolerance_ros.services.error_model import ErrorModelService
 from tolerance_ros.services.robots import RobotSet
 
