@@ -21,7 +21,7 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.budget import load_budget
-from ..core.calibration.writers import CalibrationError, calibration_from_text, load_calibration
+from ..core.calibration.writers import load_calibration
 from ..core.campaign import load_campaign
 from ..core.geometry import transform
 from ..core.jsonio import dumps_fast
@@ -30,8 +30,8 @@ from ..services.calibration import CalibrationService
 from ..services.jobs import Outbox
 from ..services.monitor import WARN, MonitorLogic, monitor_targets, tracker_frame
 from .common import (BUDGET_QOS, CALIBRATE_TOPIC, CALIBRATION_TOPIC, LATCHED_QOS, MEASUREMENT_QOS, PREFIX,
-                     SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, declare, follow_robot, guarded, robot_set,
-                     run, status_name)
+                     SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, calibration_in_force, declare,
+                     follow_robot, guarded, robot_set, run, status_name)
 
 MARKER_TYPES = {"sphere": Marker.SPHERE, "arrow": Marker.ARROW, "text": Marker.TEXT_VIEW_FACING}
 
@@ -245,11 +245,8 @@ class AccuracyMonitor(Node):
         self.calibration_text = msg.data
         if self.logic is None:
             return
-        try:
-            cal = calibration_from_text(msg.data, self.logic.model)
-            self.logic.set_calibration(cal, CALIBRATION_TOPIC)
-        except (CalibrationError, ValueError) as exc:
-            self.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused, the current reference stays: {exc}")
+        cal = calibration_in_force(self, self.logic, msg.data, "the current reference stays")
+        if cal is None:
             return
         self.publish_tracker_frame(cal.T_tracker_base)
         self.get_logger().info(f"calibration in force: {cal.model.get('label', 'identified')}; measurements are "

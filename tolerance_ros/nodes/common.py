@@ -63,6 +63,19 @@ def guarded(node, callback):
     return run
 
 
+def calibration_in_force(node, logic, text, keeps: str):
+    """The Calibration of ``text`` (from ``CALIBRATION_TOPIC``) put in force with ``logic.set_calibration``;
+    None, logged, when it does not fit ``logic.model`` (``keeps`` says what stays)."""
+    from ..core.calibration.writers import calibration_from_text
+    try:
+        cal = calibration_from_text(text, logic.model)
+        logic.set_calibration(cal, CALIBRATION_TOPIC)
+    except ValueError as exc:  # CalibrationError included
+        node.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused, {keeps}: {exc}")
+        return None
+    return cal
+
+
 def robot_set(node, specs, default) -> RobotSet:
     """The robots a node serves, with the ``tip_link`` / ``base_link`` parameters for ``robot_description``.
     The compiled kernels are prepared in the background (``core.models.warmup``): the node serves from the

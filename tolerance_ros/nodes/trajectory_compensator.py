@@ -12,9 +12,10 @@ from rclpy.node import Node
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
-from ..core.calibration.writers import calibration_from_text, load_calibration
+from ..core.calibration.writers import load_calibration
 from ..services.trajectory import ON_FLAG, TrajectoryError, TrajectoryLogic
-from .common import CALIBRATION_TOPIC, LATCHED_QOS, STATUS_QOS, declare, follow_robot, guarded, robot_set, run, status_name
+from .common import (CALIBRATION_TOPIC, LATCHED_QOS, STATUS_QOS, calibration_in_force, declare, follow_robot, guarded,
+                     robot_set, run, status_name)
 
 
 class TrajectoryCompensator(Node):
@@ -63,11 +64,8 @@ class TrajectoryCompensator(Node):
         self.calibration_text = msg.data
         if self.logic is None:
             return
-        try:
-            cal = calibration_from_text(msg.data, self.logic.model)
-            self.logic.set_calibration(cal, CALIBRATION_TOPIC)
-        except ValueError as exc:
-            self.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused, the current one stays: {exc}")
+        cal = calibration_in_force(self, self.logic, msg.data, "the current one stays")
+        if cal is None:
             return
         self.get_logger().info(f"calibration from {CALIBRATION_TOPIC}: {cal.model.get('label', 'identified')}")
 
