@@ -1,5 +1,6 @@
 """The command line: tables, --json documents, plots and error messages."""
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -111,10 +112,14 @@ def test_robots_lists_the_shipped_configs(capsys):
 
 def test_allocate_writes_a_budget_that_verify_reads(capsys, tmp_path):
     out = tmp_path / "budget.yaml"
-    code, text, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--out", str(out),
-                          "--plot", str(tmp_path), "--mc-poses", "2000")
+    code, text, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1.4mm", "--criterion", "paper",
+                          "--out", str(out), "--plot", str(tmp_path), "--mc-poses", "2000")
     assert code == 0, err
-    assert "tolerance delta_j" in text and "free (no effect)" in text and "WARNING" in text
+    assert "tolerance delta_j" in text and "free (no effect)" in text
+    # the paper's criterion meets 1.4 mm; the worst case over every error sign does not, and the run says so
+    assert re.search(r"against the limit 1\.4 mm: worst case [2-9]\.\d{4} mm \(EXCEEDS THE LIMIT\), RSS \d\.\d{4} mm, "
+                     r"Monte Carlo pass 100\.00 % of 2000 poses \('fixed' errors\)", text), text
+    assert re.search(r"^WARNING: meets the limit only because errors of opposite effect are assumed to cancel", text, re.M)
     assert f"budget saved: {out}" in text
     assert (tmp_path / "allocate_convergence.png").exists() and (tmp_path / "allocate_error_histogram.png").exists()
     code, text, _ = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", str(out), "--errors", "fixed",
@@ -377,6 +382,23 @@ def test_allocate_writes_a_budget_only_where_asked(capsys, tmp_path, monkeypatch
     code, out, _ = run(capsys, "allocate", "--robot", small_arm, "--limit", "1.4mm", "--quiet", "--mc-poses", "300")
     assert code == 0 and "budget not saved (give --out FILE.yaml to save it)" in out
     assert list(tmp_path.iterdir()) == []
+
+
+def test_allocate_holds_the_worst_case_over_every_error_sign_by_default(capsys, small_arm):
+    from tolerance_ros.core import errors
+    from tolerance_ros.core.models import load_robot
+    code, text, _ = run(capsys, "allocate", "--robot", small_arm, "--limit", "1.4mm", "--quiet", "--mc-poses", "300",
+                        "--json")
+    doc = json.loads(text)
+    assert code == 0 and doc["problem"]["criterion"] == "worst-case" and doc["limit_check"]["worst_case_within"]
+    arm = load_robot(small_arm)
+    delta = np.array([r["tolerance"] or 0.0 for r in doc["parameters"]])
+    q = arm.sample_joints(20000, seed=7)  # not the allocation's own sample
+    assert errors.worst_case_bound(arm.error_jacobian(q).position, delta).max() <= 1.4e-3 * (1 + 1e-6)
+    code, text, _ = run(capsys, "allocate", "--robot", small_arm, "--limit", "1.4mm", "--quiet", "--mc-poses", "300")
+    assert re.search(r"criterion worst-case, limit 1\.4 mm", text)
+    assert re.search(r"against the limit 1\.4 mm: worst case 1\.4000 mm \(within\), RSS 0\.\d{4} mm, Monte Carlo "
+                     r"pass 100\.00 % of 300 poses \('extreme' errors\)", text), text
 
 
 def test_an_allocation_that_misses_its_limit_exits_3_and_says_so(capsys, tmp_path):

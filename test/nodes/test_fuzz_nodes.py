@@ -406,7 +406,7 @@ def test_allocator_serves_after_the_fuzz(allocator):
         return now["running"] is None and now["queued"] == 0
 
     assert wait_for(idle, 60, 0.2)
-    accepted = send({"id": "after", "limit": 0.0014, "mc_poses": 200})
+    accepted = send({"id": "after", "limit": 0.0014, "criterion": "paper", "mc_poses": 200})
     assert [(a["id"], a["ok"], a["status"]) for a in accepted] == [("after", True, "accepted")]
     assert wait_for(lambda: status()["running"] == "after", 30, 0.05)
     answers = send({"id": "stop", "command": "cancel", "target": "after"})

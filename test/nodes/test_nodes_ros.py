@@ -90,7 +90,8 @@ def test_allocator_answers_while_solving_cancels_and_latches_the_budget(graph, n
     client = graph.client(ns)
     assert client.wait_for_server("allocate_tolerances", 20)
     # A long solve, cancelled while it runs: both ids are answered within a second.
-    started = client.request("allocate_tolerances", {"id": "long", "limit": 0.0014, "mc_poses": 50000}, 10,
+    started = client.request("allocate_tolerances", {"id": "long", "limit": 0.0014, "criterion": "paper",
+                                                       "mc_poses": 50000}, 10,
                              final=lambda d: d.get("status") == "accepted")
     assert started["status"] == "accepted"
     assert wait_for(lambda: client.request("allocate_tolerances", {"command": "status"}, 5)["running"] == "long")
@@ -107,8 +108,10 @@ def test_allocator_answers_while_solving_cancels_and_latches_the_budget(graph, n
     with pytest.raises(ServiceError) as exc:
         client.allocate_tolerances(-1.0, timeout=5)
     assert exc.value.code == "invalid_request"
-    result = client.allocate_tolerances(0.0014, mc_poses=1000, timeout=120, progress=lambda d: progress.append(d))
+    result = client.allocate_tolerances(0.0014, criterion="paper", mc_poses=1000, timeout=120,
+                                        progress=lambda d: progress.append(d))
     assert result["status"] == "done" and result["success"] and result["supremum_m"]["paper"] <= 0.0014 and progress
+    assert result["limit_check"]["worst_case_within"] is False  # the paper's criterion does not hold the worst case
     assert os.path.exists(result["budget_file"])
     late = graph.node("late_subscriber", ns)
     got = collect(graph, late, String, "tolerance_budget", LATCHED_QOS)

@@ -28,6 +28,7 @@ def test_allocate_request_parsing(robots, gao):
     job = parse('{"id": "x", "limit": 0.0014}', robots)
     assert isinstance(job, AllocationJob) and job.mechanism is gao and job.robot == "gao2023_7dof"
     assert job.cost_model == "min-cost" and job.solver == "active-set" and job.limit == 0.0014
+    assert job.criterion == "worst-case"  # the one that guarantees the limit; the paper's only by name
     assert job.time_limit_s == 300.0
     assert parse_allocate_request('{"id": "x", "limit": 0.0014}', robots, Limits(), 5.0).time_limit_s == 5.0
     jsonschema.validate({"id": "x", "limit": 0.0014}, schema("allocate_tolerances.request"))
@@ -71,6 +72,11 @@ def test_run_allocation_and_infeasible(robots):
     jsonschema.validate(json.loads(json.dumps(resp)), schema("allocate_tolerances.response"))
     assert resp["status"] == "done" and resp["success"] and resp["budget"]["limit"]["position"] == pytest.approx(0.0014)
     assert resp["supremum_m"]["rss"] <= 0.0014 and resp["shortfalls"] == []
+    chk = resp["limit_check"]  # judged by every criterion beside the limit, whatever its own
+    assert chk["criterion"] == "rss" and chk["limit_m"] == 0.0014 and chk["rss_m"] == resp["supremum_m"]["rss"]
+    assert chk["worst_case_m"] == resp["supremum_m"]["worst-case"] > 0.0014 and chk["worst_case_within"] is False
+    assert chk["monte_carlo_pass_rate"] == resp["monte_carlo"]["pass_rate"] and chk["monte_carlo_poses"] == 500
+    assert any("'worst-case' criterion" in w and "exceeds the limit 1.4 mm" in w for w in resp["warnings"])
     with pytest.raises(InfeasibleError) as exc:
         run_allocation(parse('{"id": "b", "limit": 0.0014, "criterion": "worst-case"}', robots))
     assert error_response("b", exc.value)["error"]["code"] == "infeasible"
@@ -141,7 +147,7 @@ def test_a_timeout_answers_with_the_best_verified_result_so_far(robots):
     out = Outbox()
     service = AllocatorService(robots, out)
     try:
-        service.handle('{"id": "t", "limit": 0.0014, "time_limit": 3}')
+        service.handle('{"id": "t", "limit": 0.0014, "criterion": "paper", "time_limit": 3}')
         answer = out.wait(lambda d: d["id"] == "t" and d.get("status") != "accepted", 20)
         assert answer["ok"] is False and answer["status"] == "timeout" and answer["error"]["code"] == "timeout"
         best = answer["best"]

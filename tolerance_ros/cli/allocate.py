@@ -21,8 +21,9 @@ def add_arguments(p):
                    help="min-cost (the cheapest parts, default) or optimal-precision (the largest weighted tolerances)")
     p.add_argument("--solver", choices=["active-set", "ga"], default="active-set",
                    help="active-set: exact convex method with adversarial pose search; ga: the paper's GA")
-    p.add_argument("--criterion", choices=errors.LIMIT_CRITERIA, default="paper",
-                   help="paper: |J delta|; worst-case: over every error sign; rss: statistical")
+    p.add_argument("--criterion", choices=errors.LIMIT_CRITERIA, default=errors.DEFAULT_LIMIT_CRITERION,
+                   help="worst-case (default): over every error sign, guarantees the limit; paper: |J delta| "
+                        "(Gao et al. 2023), lets errors of opposite effect cancel; rss: statistical")
     p.add_argument("--confidence", type=float, help="rss confidence (default 0.9973, i.e. 3 sigma)")
     p.add_argument("--floor-length", default="0.05mm", help="floor of length tolerances (default 0.05mm)")
     p.add_argument("--floor-angle", default="0.0003rad", help="floor of angle tolerances (default 0.0003rad)")
@@ -106,7 +107,13 @@ def print_allocation(doc):
     print(f"robot {doc['robot']}: {doc['model']} model, solver {doc['solver']}, criterion {prob['criterion']}, "
           f"limit {lim * 1e3:g} mm" + (f", orientation {prob['limit_orientation_rad']:g} rad"
                                        if prob["limit_orientation_rad"] else "") + f", seed {doc['seed']}")
-    print(f"status: {doc['status']} ({doc['message']}); solved in {doc['time_s']:.2f} s\n")
+    print(f"status: {doc['status']} ({doc['message']}); solved in {doc['time_s']:.2f} s")
+    chk = doc["limit_check"]
+    print(f"against the limit {lim * 1e3:g} mm: worst case {chk['worst_case_m'] * 1e3:.4f} mm "
+          f"({'within' if chk['worst_case_within'] else 'EXCEEDS THE LIMIT'}), RSS {chk['rss_m'] * 1e3:.4f} mm, "
+          f"Monte Carlo pass {chk['monte_carlo_pass_rate'] * 100:.2f} % of {chk['monte_carlo_poses']} poses "
+          f"('{chk['monte_carlo_distribution']}' errors)")
+    print()
     rows = []
     for r in doc["parameters"]:
         sc, u = 1e3, ("mm" if r["unit"] == "m" else "mrad")  # 0.05 mrad, not 0.0001 rad

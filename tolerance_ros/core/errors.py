@@ -167,6 +167,9 @@ CRITERIA = ("paper", "worst-case", "per-axis", "rss")
 """Every named bound, spelled the same in Python, the command line, JSON and files."""
 LIMIT_CRITERIA = ("paper", "worst-case", "rss")
 """The criteria a design limit is judged by (budgets, allocation); per-axis is only a cheap upper bound."""
+DEFAULT_LIMIT_CRITERION = "worst-case"
+"""What an allocation is held to unless told otherwise: the exact worst case over every error sign, the
+one criterion that guarantees the limit (the paper's ``|J delta|`` lets errors of opposite effect cancel)."""
 
 
 def criterion_bound(J, delta, criterion: str, k_sigma: float = 3.0) -> np.ndarray:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..core.errors import LIMIT_CRITERIA, k_for_confidence
+from ..core.errors import DEFAULT_LIMIT_CRITERION, LIMIT_CRITERIA, k_for_confidence
 from ..core.models.base import Mechanism
 from ..core.synthesis import MODELS, PHYSICAL, SOLVERS, allocate
 from .contracts import ContractError, Limits, answering, number, parse_request
@@ -43,7 +43,7 @@ class AllocationJob:
     orientation_limit: float | None = None
     cost_model: str = "min-cost"
     solver: str = "active-set"
-    criterion: str = "paper"
+    criterion: str = DEFAULT_LIMIT_CRITERION
     confidence: float | None = None
     floors: dict | None = None
     seed: int = 0
@@ -71,7 +71,7 @@ def _job(req, robots, limits, max_time_limit_s):
     job = AllocationJob(req["id"], name, mechanism,
                         number(req["limit"], "limit", 0.0, MAX_LIMIT["length"]),
                         req.get("orientation_limit"), req.get("model", "min-cost"), req.get("solver", "active-set"),
-                        req.get("criterion", "paper"), req.get("confidence"), req.get("floors"),
+                        req.get("criterion", DEFAULT_LIMIT_CRITERION), req.get("confidence"), req.get("floors"),
                         number(req.get("seed", 0), "seed", 0, 2 ** 32 - 1, integer=True),
                         number(req.get("mc_poses", 10000), "mc_poses", 1, None, integer=True),
                         number(req.get("ga_tol", 1000), "ga_tol", 1, MAX_GA_TOL, integer=True),
@@ -122,6 +122,7 @@ def run_allocation(job: AllocationJob, progress=None) -> dict:
             "robot": job.robot, "message": res.message, "time_s": res.time_s, "cost_index": res.cost,
             "index_I_m": res.index_I, "budget": budget.to_dict(), "warnings": res.warnings,
             "supremum_m": {c: v["position"]["value"] for c, v in ver["supremum"].items()},
+            "limit_check": res.limit_check(),
             "monte_carlo": {"distribution": ver["monte_carlo"]["distribution"],
                             "pass_rate": ver["monte_carlo"]["position_m"]["pass_rate"],
                             "max_m": ver["monte_carlo"]["position_m"]["max"]}}

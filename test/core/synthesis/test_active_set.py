@@ -50,7 +50,7 @@ def test_allocation_is_feasible_over_a_dense_grid(arm, criterion):
 
 
 def test_min_cost_is_optimal_against_the_grid_relaxation(arm):
-    p = build_problem(arm, 1e-3, floors={"length": 1e-5, "angle": 1e-5}, samples=2000)
+    p = build_problem(arm, 1e-3, criterion="paper", floors={"length": 1e-5, "angle": 1e-5}, samples=2000)
     res = solve_active_set(p, "min-cost", n_check=3000)
     lower = relaxed_cost(p, grid(arm, 61))
     assert lower <= p.cost(res["delta"]) * (1 + 1e-6)
@@ -76,7 +76,7 @@ def test_orientation_limit_is_respected():
 
 
 def test_infeasible_problem_names_the_floors(arm):
-    p = build_problem(arm, 1e-4, floors={"length": 5e-5, "angle": 1e-4}, samples=2000)
+    p = build_problem(arm, 1e-4, criterion="paper", floors={"length": 5e-5, "angle": 1e-4}, samples=2000)
     with pytest.raises(SynthesisError, match=r"infeasible: with every tolerance at its floor the paper position "
                                              r"error reaches \d\.\d+ mm \(limit 0\.1 mm\).*contribute most there: "
                                              r"lower the floors \(--floor-length"):

@@ -25,7 +25,7 @@ def test_engine_minimises_a_quadratic_in_batched_runs():
 
 @pytest.fixture(scope="module")
 def problem(gao):
-    return build_problem(gao, 1.4e-3, samples=5000)
+    return build_problem(gao, 1.4e-3, criterion="paper", samples=5000)
 
 
 def test_same_seed_same_answer(problem):

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import LIMIT_CRITERIA, criterion_bound, per_axis_bound, worst_case_bound
+from ..errors import DEFAULT_LIMIT_CRITERION, LIMIT_CRITERIA, criterion_bound, per_axis_bound, worst_case_bound
 from ..models.base import Mechanism
 from .search import column_maxima
 
@@ -117,7 +117,7 @@ class SynthesisProblem:
                 "free": [n for n, a in zip(names, self.active) if not a]}
 
 
-def build_problem(model: Mechanism, limit: float, orientation_limit: float | None = None, criterion="paper",
+def build_problem(model: Mechanism, limit: float, orientation_limit: float | None = None, criterion=DEFAULT_LIMIT_CRITERION,
                   floors=None, k_sigma: float = 3.0, cost_K=None, cost_alpha=1.0, samples=20000,
                   seed=0) -> SynthesisProblem:
     """Set up an allocation problem: validate inputs, compute the ceilings over the workspace.
