@@ -622,3 +622,31 @@ def test_plan_campaign_writes_only_with_out_as_allocate(capsys, tmp_path, monkey
     code, out, err = run(capsys, "plan-campaign", "--robot", "gao2023_7dof", "--n", "12", "--candidates", "100",
                          "--quiet", "--json")
     assert code == 0 and json.loads(out)["campaign_file"] is None and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["sensitivity", "--robot", "gao2023_7dof", "--plot", "{file}"], "--plot {file}: is a file, not a folder"),
+    (["verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta1", "--plot", "{file}/sub"],
+     "--plot {file}/sub: {file} is a file, so no folder can be made there"),
+    (["allocate", "--robot", "gao2023_7dof", "--limit", "2mm", "--out", "{dir}"],
+     "--out {dir}: is a folder; give the name of the file to write"),
+    (["plan-campaign", "--robot", "gao2023_7dof", "--out", "{file}/deeper/x.yaml"],
+     "--out {file}/deeper/x.yaml: {file} is a file, so no folder can be made there"),
+    (["calibrate", "--robot", "gao2023_7dof", "--measurements", "m.csv", "--out", "{file}"],
+     "--out {file}: is a file, not a folder"),
+])
+def test_an_output_that_cannot_be_written_is_refused_before_any_work(capsys, tmp_path, argv, needle):
+    (tmp_path / "a_file").write_text("x")
+    names = {"file": str(tmp_path / "a_file"), "dir": str(tmp_path)}
+    code, out, err = run(capsys, *[a.format(**names) for a in argv], "--json")
+    assert code == 2 and needle.format(**names) in err and "Errno" not in err
+    assert json.loads(out)["error"]["code"] == "invalid_request"
+
+
+def test_an_operating_system_error_is_said_in_words_with_its_file(capsys, tmp_path):
+    from tolerance_ros.cli.common import os_error_message
+    exc = FileExistsError(17, "File exists", str(tmp_path / "x"))
+    assert os_error_message(exc) == f"{tmp_path / 'x'}: file exists"
+    code, _, err = run(capsys, "import", "--input", str(tmp_path), "--out", str(tmp_path / "t.csv"), "--point",
+                       "x,y,z[mm]", "--joint", "j1[deg]")
+    assert code == 2 and f"{tmp_path}: is a folder, not a file" in err

@@ -110,6 +110,43 @@ def load_model(args):
     return model
 
 
+OUTPUT_OPTIONS = ("out", "plot")
+"""Options that name what a command writes: a folder where their metavar is DIR, else a file."""
+
+
+def output_kinds(p) -> dict:
+    """{dest: 'dir' | 'file'} of a command parser's output options (``OUTPUT_OPTIONS``)."""
+    return {a.dest: "dir" if a.metavar == "DIR" else "file" for a in p._actions if a.dest in OUTPUT_OPTIONS}
+
+
+def check_outputs(args):
+    """Refuse, before any work, an output option that cannot be written: a folder that is a file, a file
+    that is a folder, a path through a file, a folder without write permission."""
+    for dest, kind in getattr(args, "outputs", {}).items():
+        value = getattr(args, dest, None)
+        if not value or value == "-":
+            continue
+        path, option = Path(value), f"--{dest}"
+        if kind == "dir" and path.exists() and not path.is_dir():
+            raise CLIError(f"{option} {value}: is a file, not a folder; give a folder (it is created if missing)")
+        if kind == "file" and path.is_dir():
+            raise CLIError(f"{option} {value}: is a folder; give the name of the file to write")
+        existing = path if kind == "dir" else path.parent
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        if not existing.is_dir():
+            raise CLIError(f"{option} {value}: {existing} is a file, so no folder can be made there")
+        if not os.access(existing, os.W_OK | os.X_OK):
+            raise CLIError(f"{option} {value}: cannot write into {existing} (permission denied)")
+
+
+def os_error_message(exc: OSError) -> str:
+    """An operating-system error in words, naming its file: ``out/x.yaml: no space left on device``."""
+    what = (exc.strerror or str(exc)).lower()
+    names = [str(f) for f in (exc.filename, exc.filename2) if f is not None]
+    return f"{' -> '.join(names)}: {what}" if names else what
+
+
 def missed(args, what: str):
     """Record that the run's target was not met (exit code 3; ``what`` is printed last on stderr)."""
     args.missed.append(what)

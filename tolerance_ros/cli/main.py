@@ -14,7 +14,8 @@ from ..core.threads import limited
 from . import (allocate, calibrate, compensate, import_table, jacobian, paper, plan_campaign, report, robots,
                sensitivity, validate, verify)
 from .common import (CAPS, CHECKED_BY_COMMAND, EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError,
-                     Parser, UsageError, check_cap, common_arguments)
+                     Parser, UsageError, check_cap, check_outputs, common_arguments, os_error_message,
+                     output_kinds)
 
 COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, calibrate, validate, compensate, plan_campaign,
             import_table, paper)
@@ -31,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     for command in COMMANDS:
         p = common_arguments(sub.add_parser(command.NAME, help=command.HELP), robot=command.ROBOT)
         command.add_arguments(p)
-        p.set_defaults(func=command.run)
+        p.set_defaults(func=command.run, outputs=output_kinds(p))
     return parser
 
 
@@ -71,6 +72,8 @@ def error_code(exc) -> str:
 
 
 def _message(exc) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return os_error_message(exc)
     return str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
 
 
@@ -108,6 +111,7 @@ def main(argv=None) -> int:
         for name in CAPS:  # a count above its cap is refused before any work
             if name not in CHECKED_BY_COMMAND and isinstance(getattr(args, name, None), int):
                 check_cap(getattr(args, name), name)
+        check_outputs(args)
         with limited(1):
             out = args.func(args)
         if as_json and out is not None:

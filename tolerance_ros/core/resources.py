@@ -78,3 +78,8 @@ def shipped(kind: str, suffixes=(".yaml", ".yml")) -> list[str]:
     except FileNotFoundError:
         return []
     return sorted(p.stem for p in root.glob("*") if p.suffix in suffixes)
+
+
+def not_a_file(path) -> str:
+    """Why ``path`` cannot be read as a file, in words: 'is a folder, not a file' or 'file not found'."""
+    return "is a folder, not a file" if Path(path).is_dir() else "file not found"

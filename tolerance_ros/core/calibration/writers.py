@@ -54,6 +54,7 @@ from ..models.base import Mechanism, ModelError
 from ..models.dh import DHChain
 from ..models.loader import frame_from_dict, load_robot
 from ..models.urdf import URDFChain
+from ..resources import not_a_file
 from ..units import UnitError, angle_scale, length_scale, parse_number
 from ..accuracy.targets import Targets
 from ..yamlio import loads_yaml, read_yaml
@@ -223,7 +224,7 @@ def _read(path):
     section checked."""
     path = Path(path)
     if not path.is_file():
-        raise CalibrationError(f"calibration {str(path)!r}: file not found")
+        raise CalibrationError(f"calibration {str(path)!r}: {not_a_file(path)}")
     doc = read_yaml(path, CalibrationError)
     _check_document(doc, path)
     return doc

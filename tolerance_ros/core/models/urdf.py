@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import axis_angle_matrix, cross3, rpy_matrix, rpy_to_matrix
+from ..resources import not_a_file
 from ..yamlio import decode_utf8, read_bytes
 from .base import PRISMATIC, REVOLUTE, CompiledChain, ErrorJacobian, ModelError
 
@@ -300,7 +301,7 @@ def read_urdf(urdf, text_only=False) -> tuple:
             raise ModelError(f"urdf: not URDF XML text (never a path): {text.strip()[:40]!r}")
     path = Path(urdf)
     if not path.is_file():
-        raise ModelError(f"urdf: file not found: {path}")
+        raise ModelError(f"urdf: {not_a_file(path)}: {path}")
     data = read_bytes(path, ModelError, MAX_URDF_BYTES, "URDF")
     return decode_utf8(data, path, ModelError).lstrip(_LEADING), str(path)
 

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ...ingest import IngestError, JointOrder, pose_from_values, stamp_seconds
+from ...resources import not_a_file
 from .csv_format import MAX_TARGET
 from .measurements import MeasurementError, Measurements
 from .text import _check_text, _cut, _lines, _not_utf8, _show
@@ -43,7 +44,7 @@ def read_log(path, skip_bad=False) -> Measurements:
     path = Path(path)
     source = str(path)
     if not path.is_file():
-        raise MeasurementError(f"{source}: file not found")
+        raise MeasurementError(f"{source}: {not_a_file(path)}")
     meas, pairs, logged, decided, skipped, kinds = {}, {}, {}, {}, [], []
     order, session = None, 0
     with path.open(encoding="utf-8", errors="surrogateescape", newline="") as fh:

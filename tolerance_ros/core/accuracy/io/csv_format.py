@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ...geometry import quat_to_matrices, rpy_from_matrix, rpy_to_matrices
+from ...resources import not_a_file
 from ...units import ANGLE_UNITS, LENGTH_UNITS
 from .measurements import MeasurementError, Measurements, concat
 from .text import _check_text, _lines, _not_utf8, _show
@@ -175,7 +176,7 @@ def _spec_from_header(header, source):
 def _read_csv_chunks(path, skip_bad, chunk_rows):
     source = str(path)
     if not path.is_file():
-        raise MeasurementError(f"{source}: file not found")
+        raise MeasurementError(f"{source}: {not_a_file(path)}")
     with path.open(encoding="utf-8", errors="surrogateescape", newline="") as fh:
         header, spec, copies = None, None, None
         raw, skipped, last = [], [], -np.inf

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ...geometry import quat_to_matrices, rpy_to_matrices
+from ...resources import not_a_file
 from ...units import ANGLE_UNITS, LENGTH_UNITS, TIME_UNITS
 from .measurements import MeasurementError, Measurements
 
@@ -37,7 +38,7 @@ def read_table(path, delimiter=None) -> tuple[dict, int]:
     """
     path = Path(path)
     if not path.is_file():
-        raise MeasurementError(f"{path}: file not found")
+        raise MeasurementError(f"{path}: {not_a_file(path)}")
     if path.suffix.lower() == ".mat":
         return _read_mat(path)
     if path.stat().st_size > MAX_BYTES:
