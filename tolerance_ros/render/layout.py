@@ -7,11 +7,14 @@ import numpy as np
 TOLERANCE_PX = 1.0
 
 
-def layout_problems(fig, tol=TOLERANCE_PX) -> list:
-    """Every layout problem of ``fig`` (drawn here with its canvas's renderer), one sentence each: two
-    visible texts or legends whose boxes overlap by more than ``tol`` px both ways, a text or legend
-    reaching more than ``tol`` px past the figure's edge, a legend over plotted data inside its axes
-    (line segments, markers, scatter points, bars). Empty when the figure reads well."""
+def layout_problems(fig, tol=TOLERANCE_PX, dpi=None) -> list:
+    """Every layout problem of ``fig``, drawn here with its canvas's renderer (at ``dpi``, the dots per
+    inch it is saved with, when given: the figure keeps that dpi), one sentence each: two visible texts or
+    legends whose boxes overlap by more than ``tol`` px both ways, a text or legend reaching more than
+    ``tol`` px past the figure's edge, a legend over plotted data inside its axes (line segments, markers,
+    scatter points, bars). Empty when the figure reads well."""
+    if dpi is not None:
+        fig.set_dpi(dpi)
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     boxes = [(name, artist.get_window_extent(renderer)) for name, artist in _texts(fig)]
