@@ -47,8 +47,8 @@ def _texts(fig):
     out += [(_legend_name(lg, "figure"), lg) for lg in fig.legends if lg.get_visible()]
     for k, ax in enumerate(fig.axes):
         where = f"axes {k + 1}"
-        for t in (ax.title, ax._left_title, ax._right_title):
-            if _shown(t):
+        for t in (ax.title, getattr(ax, "_left_title", None), getattr(ax, "_right_title", None)):
+            if t is not None and _shown(t):
                 out.append((f"{where} title {t.get_text()!r}", t))
         for t in ax.texts:
             if _shown(t):
@@ -90,7 +90,6 @@ def _overlap(a, b):
 def _covered(ax, box, tol) -> list:
     """Labels of the data artists of ``ax`` drawn inside ``box`` (display px), within the axes."""
     from matplotlib.collections import Collection, LineCollection
-    from matplotlib.lines import Line2D
     from matplotlib.patches import Rectangle
     x0, y0 = max(box.x0, ax.bbox.x0) + tol, max(box.y0, ax.bbox.y0) + tol
     x1, y1 = min(box.x1, ax.bbox.x1) - tol, min(box.y1, ax.bbox.y1) - tol
