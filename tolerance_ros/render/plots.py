@@ -1,9 +1,14 @@
-"""PNG plots for the command line (matplotlib, headless). Lengths in mm, as the figures say."""
+"""PNG plots for the command line (matplotlib, headless). Lengths in mm, as the figures say. Every figure
+is laid out by matplotlib's constrained layout at the dpi it is saved with, and its legends stand outside
+the data (``tolerance_ros.render.layout`` checks both)."""
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
+
+DPI = 120
 
 
 def _plt():
@@ -13,17 +18,31 @@ def _plt():
     return plt
 
 
+def _subplots(plt, rows, cols, size, **kw):
+    """Figure of ``size`` (inches) at DPI with constrained layout, and its axes as a 2-D array."""
+    return plt.subplots(rows, cols, figsize=size, dpi=DPI, layout="constrained", squeeze=False, **kw)
+
+
+def _legend_beside(ax, fontsize=8):
+    """The legend of ``ax`` right of its axes, top-aligned: it never covers data."""
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=fontsize)
+
+
+def _tick_names_height(names, fontsize=7) -> float:
+    """Height (inches) that x tick labels rotated by 90 degrees need, from the longest name."""
+    return 0.62 * fontsize / 72.0 * max((len(n) for n in names), default=0)
+
+
 def salience_bars(sens, path) -> Path:
     """Bar chart of the salience D_j per parameter (like Gao et al. Fig. 2)."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(max(6.0, 0.3 * len(sens.names)), 3.6))
+    fig, ((ax,),) = _subplots(plt, 1, 1, (max(6.0, 0.3 * len(sens.names)), 2.8 + _tick_names_height(sens.names)))
     ax.bar(np.arange(len(sens.names)), sens.salience * 100.0, color="tab:blue")
     ax.set_xticks(np.arange(len(sens.names)))
     ax.set_xticklabels(sens.names, rotation=90, fontsize=7)
-    ax.set_xlabel("kinematic parameter j")
-    ax.set_ylabel(f"salience D_j [%] (lengths in {sens.length_unit})")
+    ax.set_xlabel(f"kinematic parameter j (salience with lengths in {sens.length_unit})")
+    ax.set_ylabel("salience D_j [%]")
     ax.set_title(f"Salience of parameter errors ({sens.rows}, {sens.samples} poses)")
-    fig.tight_layout()
     return _save(fig, plt, path)
 
 
@@ -32,15 +51,14 @@ def error_histogram(values_m, path, limit_m=None, title="End-effector position e
     plt = _plt()
     scale = 1e3 if unit == "mm" else 1.0
     v = np.asarray(values_m) * scale
-    fig, ax = plt.subplots(figsize=(6.0, 3.6))
+    fig, ((ax,),) = _subplots(plt, 1, 1, (7.0, 3.6))
     ax.hist(v, bins=60, color="tab:blue", alpha=0.85)
     if limit_m is not None:
         ax.axvline(limit_m * scale, color="tab:red", linestyle="--", label=f"limit {limit_m * scale:g} {unit}")
-        ax.legend()
+        _legend_beside(ax)
     ax.set_xlabel(f"|dP| [{unit}]")
     ax.set_ylabel("poses")
-    ax.set_title(title)
-    fig.tight_layout()
+    ax.set_title(textwrap.fill(title, 70))
     return _save(fig, plt, path)
 
 
@@ -55,35 +73,36 @@ def line_plot(x, series: dict, path, xlabel: str, ylabel: str, title: str, logy=
 
 
 def panels_plot(x, panels: list, path, xlabel: str, title: str, logy=False) -> Path:
-    """Stacked panels sharing x: ``panels`` is [(y label with its unit, {series label: y})]."""
+    """Stacked panels sharing x: ``panels`` is [(y label with its unit, {series label: y})]; a panel of one
+    series has no legend (its y label names it), long y labels are wrapped and aligned."""
     plt = _plt()
-    fig, axes = plt.subplots(len(panels), 1, figsize=(6.0, 2.2 + 2.0 * len(panels)), sharex=True, squeeze=False)
+    fig, axes = _subplots(plt, len(panels), 1, (7.0, 1.2 + 2.0 * len(panels)), sharex=True)
     for ax, (ylabel, series) in zip(axes[:, 0], panels):
         for k, (label, y) in enumerate(series.items()):
             ax.plot(x, y, label=label, **STYLES[k % len(STYLES)])
         if logy:
             ax.set_yscale("log")
-        ax.set_ylabel(ylabel)
-        ax.legend(fontsize=8)
+        ax.set_ylabel(textwrap.fill(ylabel, 28))
+        if len(series) > 1:
+            _legend_beside(ax)
     axes[-1, 0].set_xlabel(xlabel)
     axes[0, 0].set_title(title)
-    fig.tight_layout()
+    fig.align_ylabels(axes[:, 0])
     return _save(fig, plt, path)
 
 
 def iso_per_pose(per: dict, path) -> Path:
     """Bars of ISO 9283 AP_p and RP_l (mm) per test pose."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 3.6))
+    fig, ((ax,),) = _subplots(plt, 1, 1, (7.5, 3.6))
     x = np.arange(len(per))
     ax.bar(x - 0.2, [v["AP_p"] * 1e3 for v in per.values()], 0.4, label="AP_p (accuracy)")
     ax.bar(x + 0.2, [v["RP_l"] * 1e3 for v in per.values()], 0.4, label="RP_l (repeatability)")
     ax.set_xticks(x)
     ax.set_xticklabels(list(per))
-    ax.set_ylabel("mm")
+    ax.set_ylabel("error [mm]")
     ax.set_title("ISO 9283 per test pose")
-    ax.legend()
-    fig.tight_layout()
+    _legend_beside(ax)
     return _save(fig, plt, path)
 
 
@@ -94,7 +113,7 @@ def error_vs_bound(bound_m, error_m, path, bound_rad=None, error_rad=None) -> Pa
     panels = [("position", np.asarray(bound_m) * 1e3, np.asarray(error_m) * 1e3, "mm")]
     if bound_rad is not None and error_rad is not None and np.isfinite(bound_rad).any():
         panels.append(("orientation", np.asarray(bound_rad) * 1e3, np.asarray(error_rad) * 1e3, "mrad"))
-    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4.5), squeeze=False)
+    fig, axes = _subplots(plt, 1, len(panels), (6.0 * len(panels), 4.5))
     for ax, (what, b, e, unit) in zip(axes[0], panels):
         over = e > b
         ax.scatter(b[~over], e[~over], s=6, color="tab:blue", label=f"within ({int((~over).sum())})")
@@ -104,15 +123,14 @@ def error_vs_bound(bound_m, error_m, path, bound_rad=None, error_rad=None) -> Pa
         ax.set_xlabel(f"predicted {what} bound [{unit}]")
         ax.set_ylabel(f"measured {what} error [{unit}]")
         ax.set_title(f"{what.capitalize()} error vs the budget's bound")
-        ax.legend()
-    fig.tight_layout()
+        _legend_beside(ax)
     return _save(fig, plt, path)
 
 
 def identified_vs_tolerance(names, ratio, unidentifiable, path) -> Path:
     """Bars of |identified error| / tolerance per parameter; grey where not identifiable."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(max(6, 0.3 * len(names)), 3.6))
+    fig, ((ax,),) = _subplots(plt, 1, 1, (max(6.0, 0.3 * len(names)), 2.8 + _tick_names_height(names)))
     colors = ["lightgray" if u else ("tab:red" if r > 1 else "tab:blue") for r, u in zip(ratio, unidentifiable)]
     ax.bar(np.arange(len(names)), ratio, color=colors)
     ax.axhline(1.0, color="tab:red", linestyle="--")
@@ -120,7 +138,6 @@ def identified_vs_tolerance(names, ratio, unidentifiable, path) -> Path:
     ax.set_xticklabels(names, rotation=90, fontsize=7)
     ax.set_ylabel("|identified error| / tolerance")
     ax.set_title("Identified errors against tolerances (grey: not identifiable)")
-    fig.tight_layout()
     return _save(fig, plt, path)
 
 
@@ -128,7 +145,8 @@ def validation_before_after(validation: dict, path, title="Hold-out validation")
     """Two panels from ``calibration.validate``: held-out position errors sorted (mm, log scale) and
     ISO 9283 AP_p per held-out test pose (mm, log scale), each before and after calibration."""
     plt = _plt()
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11.0, 4.0))
+    per = validation["per_pose"]
+    fig, ((ax1, ax2),) = _subplots(plt, 1, 2, (13.0, 3.4 + _tick_names_height(per)))
     errs = validation["position_error_m"]
     for label, color in (("before", "tab:red"), ("after", "tab:blue")):
         e = np.sort(np.asarray(errs[label])) * 1e3
@@ -139,8 +157,7 @@ def validation_before_after(validation: dict, path, title="Hold-out validation")
     ax1.set_xlabel("held-out position error |dP| [mm]")
     ax1.set_ylabel("fraction of held-out measurements")
     ax1.set_title("Held-out position errors")
-    ax1.legend(fontsize=8)
-    per = validation["per_pose"]
+    _legend_beside(ax1)
     x = np.arange(len(per))
     ax2.bar(x - 0.2, [v["AP_p_before_m"] * 1e3 for v in per.values()], 0.4, color="tab:red", label="before")
     ax2.bar(x + 0.2, [v["AP_p_after_m"] * 1e3 for v in per.values()], 0.4, color="tab:blue", label="after")
@@ -150,9 +167,8 @@ def validation_before_after(validation: dict, path, title="Hold-out validation")
     ax2.set_xlabel("held-out test pose")
     ax2.set_ylabel("ISO 9283 AP_p [mm]")
     ax2.set_title("Pose accuracy per held-out test pose")
-    ax2.legend(fontsize=8)
+    _legend_beside(ax2)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
     return _save(fig, plt, path)
 
 
@@ -160,8 +176,8 @@ def identified_with_uncertainty(names, kinds, error, std, held, path) -> Path:
     """Identified parameter errors with +-3 standard uncertainties: lengths in mm, angles in mrad;
     held parameters (not identifiable, left at nominal) shown grey at 0."""
     plt = _plt()
-    fig, axes = plt.subplots(1, 2, figsize=(max(8.0, 0.25 * len(names)), 3.8))
-    for ax, kind, unit in ((axes[0], "length", "mm"), (axes[1], "angle", "mrad")):
+    fig, axes = _subplots(plt, 1, 2, (max(8.0, 0.25 * len(names)), 3.2 + _tick_names_height(names, 6)))
+    for ax, kind, unit in ((axes[0, 0], "length", "mm"), (axes[0, 1], "angle", "mrad")):
         sel = [j for j, k in enumerate(kinds) if k == kind]
         x = np.arange(len(sel))
         e = np.array([error[j] for j in sel]) * 1e3
@@ -175,8 +191,8 @@ def identified_with_uncertainty(names, kinds, error, std, held, path) -> Path:
         ax.set_xticklabels([names[j] for j in sel], rotation=90, fontsize=6)
         ax.set_ylabel(f"identified error [{unit}]")
         ax.set_title(f"{kind} parameters")
-        ax.legend(fontsize=7)
-    fig.tight_layout()
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncols=2, fontsize=8)
     return _save(fig, plt, path)
 
 
@@ -184,21 +200,25 @@ def singular_values(series: dict, path, title="Scaled identification Jacobian") 
     """Singular values (mm of tool displacement per expected parameter error, log scale) of named pose
     sets, largest first."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.0, 3.6))
+    from matplotlib.ticker import MaxNLocator
+    fig, ((ax,),) = _subplots(plt, 1, 1, (7.5, 3.6))
+    n = 0
     for label, s in series.items():
         s = np.sort(np.asarray(s, float))[::-1] * 1e3
+        n = max(n, len(s))
         ax.semilogy(np.arange(1, len(s) + 1), np.maximum(s, 1e-12), marker="o", ms=3, label=label)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlim(0.5, n + 0.5)
     ax.set_xlabel("singular value index")
     ax.set_ylabel("singular value [mm per expected error]")
     ax.set_title(title)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
+    _legend_beside(ax)
     return _save(fig, plt, path)
 
 
 def _save(fig, plt, path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path
