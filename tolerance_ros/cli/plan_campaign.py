@@ -43,7 +43,7 @@ def add_arguments(p):
                    help="the tool position stays in this box of the base frame, with units "
                         "(0.2m:1.2m,-0.6m:0.6m,0m:1m)")
     p.add_argument("--clearance", metavar="LENGTH",
-                   help="least distance of the links from the planes and from each other (default 0m)")
+                   help="least distance of the moving links from the planes (default 0m)")
     p.add_argument("--no-collision", action="store_true",
                    help="do not check self-collision and the links against the planes (URDF collision geometry)")
     p.add_argument("--srdf", metavar="FILE",

@@ -7,7 +7,7 @@ Restrictions are written as on the command line, each length or angle with its u
 - plane ``NX,NY,NZ@OFFSET`` (``0,0,1@0.05m``): the points p of the base frame with ``n . p >= OFFSET``
   (n normalised) are allowed; the tool point and every moving link's collision geometry must stay there;
 - box ``XMIN:XMAX,YMIN:YMAX,ZMIN:ZMAX`` (``0.2m:1.2m,-0.6m:0.6m,0m:1m``): the tool point stays inside it;
-- clearance (``0.01m``): the least distance of link geometry from the planes and between links.
+- clearance (``0.01m``): the least distance of the moving links' geometry from the planes.
 
 Self-collision is checked between every pair of links' collision geometry except adjacent links (one joint
 apart, or on the same joint), and either the pairs an SRDF disables or, without one, the pairs already in
@@ -209,7 +209,7 @@ class CollisionModel:
     """Collision geometry of a URDF chain (pinocchio + coal): self-collision pairs and the support points of
     the links the chain moves (see the module docstring)."""
 
-    def __init__(self, model, geom, srdf=None, clearance=0.0):
+    def __init__(self, model, geom, srdf=None):
         import pinocchio as pin
         self.pin, self.model, self.geom = pin, model, geom
         pm = model.pin_model
@@ -236,8 +236,6 @@ class CollisionModel:
                                                 f"({', '.join(self._pair_name(cp) for cp in touching)})"
                                                 if touching else "")
         self.gdata = geom.createData()
-        for req in self.gdata.collisionRequests:
-            req.security_margin = float(clearance)
         self.pairs = [self._pair_name(cp) for cp in geom.collisionPairs]
         chain = set(model.chain_ids)
 
@@ -294,7 +292,7 @@ def _link(geom_name: str) -> str:
     return head if tail.isdigit() and head else geom_name
 
 
-def collision_model(model, srdf=None, clearance=0.0) -> tuple:
+def collision_model(model, srdf=None) -> tuple:
     """(CollisionModel or None, note): the URDF chain's collision geometry; None (and why) for a robot
     without any. WorkspaceError when its meshes cannot be found."""
     if not hasattr(model, "pin_model") or not hasattr(model, "chain_ids"):
@@ -311,7 +309,7 @@ def collision_model(model, srdf=None, clearance=0.0) -> tuple:
                              f"or plan with --no-collision)") from None
     if not len(geom.geometryObjects):
         return None, "no collision geometry in the URDF: collisions not checked"
-    cm = CollisionModel(model, geom, srdf, clearance)
+    cm = CollisionModel(model, geom, srdf)
     return cm, (f"collision geometry of {len(geom.geometryObjects)} objects: {len(cm.pairs)} link pairs checked for "
                 f"self-collision (not {cm.excluded})")
 
@@ -334,7 +332,7 @@ class Workspace:
 
     def __init__(self, model, rest: Restrictions):
         self.model, self.rest = model, rest
-        self.collider, self.collision_note = (collision_model(model, rest.srdf, rest.clearance) if rest.collision
+        self.collider, self.collision_note = (collision_model(model, rest.srdf) if rest.collision
                                               else (None, "collisions not checked (--no-collision)"))
 
     def describe(self) -> str:
@@ -370,8 +368,7 @@ class Workspace:
         fail(out.any(axis=1), "joint range", names[np.argmax(out, axis=1)])
         if self.rest.any_tool:
             P = self.model.fk(q)[:, :3, 3]
-            for normal, offset, text in zip(*zip(*self.rest.planes), self.rest.texts["above_plane"]) \
-                    if self.rest.planes else ():
+            for (normal, offset), text in zip(self.rest.planes, self.rest.texts["above_plane"]):
                 fail(P @ normal < offset, "tool below a plane", text)
             if self.rest.box is not None:
                 fail(((P < self.rest.box[:, 0]) | (P > self.rest.box[:, 1])).any(axis=1), "tool outside the box",
@@ -399,8 +396,8 @@ class Workspace:
 
     def sample(self, m: int, rng, max_draws: int, tick=None) -> tuple:
         """((k, dof) the first k <= m poses drawn uniformly within the joint ranges that pass ``check``, report):
-        draws in batches until m pass or ``max_draws`` are drawn. The report: drawn, kept, rejected (first
-        reason: count), most frequent detail per reason."""
+        draws in batches until m pass or ``max_draws`` are drawn. The report: drawn (up to the m-th pose
+        kept), kept, rejected (first reason: count; they add up to drawn), most frequent detail per reason."""
         lo, hi = self.rest.limits[:, 0], self.rest.limits[:, 1]
         kept, drawn, reasons, details = [], 0, {}, {}
         have = 0
@@ -410,7 +407,11 @@ class Workspace:
             q = lo + (hi - lo) * rng.random((size, self.model.dof))
             done = drawn
             v = self.check(q, None if tick is None else (lambda f: tick((done + f * size) / max_draws)))
-            drawn += size
+            passed = np.flatnonzero(v.ok)
+            if have + len(passed) > m:  # the poses after the m-th passing one are not counted
+                end = passed[m - have - 1] + 1
+                q, v = q[:end], Verdict(v.ok[:end], v.reason[:end], v.detail[:end])
+            drawn += len(q)
             kept.append(q[v.ok])
             have += int(v.ok.sum())
             for r, c in v.counts().items():
@@ -420,7 +421,7 @@ class Workspace:
                     details[r][d] += 1
             if tick is not None:
                 tick(drawn / max_draws if have < m else 1.0)
-        q = np.concatenate(kept)[:m] if kept else np.empty((0, self.model.dof))
+        q = np.concatenate(kept) if kept else np.empty((0, self.model.dof))
         top = {r: max(d.items(), key=lambda kv: kv[1])[0] for r, d in details.items()}
         return q, {"drawn": int(drawn), "kept": int(len(q)), "rejected": reasons, "most_often": top}
 
