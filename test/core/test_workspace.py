@@ -102,3 +102,13 @@ def test_collision_meshes_that_cannot_be_found_say_what_to_do(tmp_path):
     with pytest.raises(WorkspaceError, match=r"could not be found.*ROS_PACKAGE_PATH, or plan with --no-collision"):
         Workspace(model, restrictions(model))
     assert Workspace(model, restrictions(model, collision=False)).collider is None
+
+
+def test_an_srdf_disables_its_pairs_instead_of_the_zero_configuration_rule(ur10):
+    default = Workspace(ur10, restrictions(ur10)).collider
+    srdf = example_urdf("ur5.srdf")  # the UR5's link names are the UR10's
+    given = Workspace(ur10, restrictions(ur10, srdf=str(srdf))).collider
+    assert "forearm_link-wrist_3_link" in default.pairs and "forearm_link-wrist_3_link" not in given.pairs
+    assert set(given.pairs) < set(default.pairs) and "ur5.srdf disables" in given.excluded
+    with pytest.raises(WorkspaceError, match="--srdf: file not found: missing.srdf"):
+        restrictions(ur10, srdf="missing.srdf")
