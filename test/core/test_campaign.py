@@ -114,6 +114,10 @@ def test_a_campaign_is_checked_against_the_restrictions_it_was_planned_under(gao
     data["poses"].pop()
     p.write_text(yaml.safe_dump(data))
     assert load_campaign(p, gao).names == ["C1"]
+    data["restrictions"]["above_plane"] = ["0,0,1@0.3"]
+    p.write_text(yaml.safe_dump(data))
+    with pytest.raises(CampaignError, match=r"restrictions.above_plane offset: '0.3' has no unit"):
+        load_campaign(p, gao)
     data["restrictions"]["floor"] = "0m"
     p.write_text(yaml.safe_dump(data))
     with pytest.raises(CampaignError, match=r"restrictions: unknown key\(s\) \['floor'\]"):

@@ -168,8 +168,14 @@ def restrictions_from_dict(model, data, field="restrictions") -> Restrictions:
             raise WorkspaceError(f"{field}.{key}: expected a string with units")
     if not isinstance(data.get("collision", True), bool):
         raise WorkspaceError(f"{field}.collision: expected true or false")
-    return restrictions(model, lists["joint_range"], lists["above_plane"], None, data.get("inside_box"),
-                        data.get("clearance"), data.get("collision", True), data.get("srdf"))
+    try:
+        return restrictions(model, lists["joint_range"], lists["above_plane"], None, data.get("inside_box"),
+                            data.get("clearance"), data.get("collision", True), data.get("srdf"))
+    except WorkspaceError as exc:  # the file's keys, not the command line's options
+        msg = str(exc)
+        for key in RESTRICTION_KEYS:
+            msg = msg.replace("--" + key.replace("_", "-"), f"{field}.{key}")
+        raise WorkspaceError(msg) from None
 
 
 def _package_dirs(source: str) -> list:

@@ -18,10 +18,10 @@ Sun & Hollerbach (2008, ICRA) compare them; O1 and O4 are the usual choices.
 
 ``plan`` draws seeded candidate poses within the joint limits (with a ``core.workspace.Workspace``:
 within its joint ranges, keeping those that pass its check: tool workspace and collisions) and chooses
-``n`` of them by a DETMAX exchange (Mitchell 1974): from a seeded random design, add the candidate that raises the criterion
-most, then drop the design pose whose loss lowers it least, until the pose dropped is the one added.
-O1 uses the determinant lemma (one small determinant per candidate); the others the eigenvalues of
-``J^T J`` per candidate, in batches.
+``n`` of them by a DETMAX exchange (Mitchell 1974): from a seeded random design, add the candidate that
+raises the criterion most, then drop the design pose whose loss lowers it least, until the pose dropped
+is the one added. O1 uses the determinant lemma (one small determinant per candidate); the others the
+eigenvalues of ``J^T J`` per candidate, in batches.
 """
 from __future__ import annotations
 
@@ -141,12 +141,13 @@ class Plan:
     iso_cube: dict | None
     iso_cube_note: str
     spectra: dict
-    restrictions: dict | None = None
+    restrictions: dict | None = None  # the workspace's restrictions and its candidates' report (``plan``)
 
     def to_dict(self) -> dict:
-        return {"restrictions": self.restrictions,"criterion": self.criterion, "index": self.index, "reference": REFERENCES[self.index],
+        return {"criterion": self.criterion, "index": self.index, "reference": REFERENCES[self.index],
                 "poses": len(self.q), "joints": self.q, "candidates": self.candidates, "seed": self.seed,
                 "exchanges": self.exchanges, "unknowns": list(self.columns), "held": list(self.held),
+                "restrictions": self.restrictions,
                 "observability": {"planned": self.chosen, "random": self.random, "iso_cube": self.iso_cube},
                 "iso_cube_note": self.iso_cube_note, "singular_values": self.spectra}
 
@@ -207,7 +208,8 @@ def iso_cube_joints(model: Mechanism, q_candidates, rng=0, centres=10, allowed=N
                 return q, (f"ISO 9283 cube P1-P5, edge {side * 1e3:.0f} mm, centred at "
                            f"[{', '.join(f'{v * 1e3:.0f}' for v in P[c])}] mm")
             side /= 2.0
-    return None, "ISO 9283 cube: no reachable cube found in front of the robot"
+    return None, ("ISO 9283 cube: no reachable cube found in front of the robot" +
+                  (" within the restrictions" if allowed is not None else ""))
 
 
 PROGRESS_STEPS = 1000  # the total of ``plan``'s progress
