@@ -112,3 +112,11 @@ def test_an_srdf_disables_its_pairs_instead_of_the_zero_configuration_rule(ur10)
     assert set(given.pairs) < set(default.pairs) and "ur5.srdf disables" in given.excluded
     with pytest.raises(WorkspaceError, match="--srdf: file not found: missing.srdf"):
         restrictions(ur10, srdf="missing.srdf")
+
+
+def test_a_tool_outside_the_box_names_the_side_it_left(ur10):
+    ws = Workspace(ur10, restrictions(ur10, inside_box="-2m:2m,-2m:2m,0m:1m", collision=False))
+    z = ur10.fk(np.array([UPRIGHT, HORIZONTAL]))[:, 2, 3]
+    assert z[0] > 1 > z[1] > 0
+    v = ws.check(np.array([UPRIGHT, HORIZONTAL]))
+    assert list(v.reason) == ["tool outside the box", ""] and v.detail[0] == "z > 1m"

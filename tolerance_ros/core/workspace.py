@@ -377,8 +377,11 @@ class Workspace:
             for (normal, offset), text in zip(self.rest.planes, self.rest.texts["above_plane"]):
                 fail(P @ normal < offset, "tool below a plane", text)
             if self.rest.box is not None:
-                fail(((P < self.rest.box[:, 0]) | (P > self.rest.box[:, 1])).any(axis=1), "tool outside the box",
-                     self.rest.texts["inside_box"])
+                below, above = P < self.rest.box[:, 0], P > self.rest.box[:, 1]
+                ends = [p.split(":") for p in self.rest.texts["inside_box"].split(",")]
+                sides = np.array([f"{a} < {ends[i][0].strip()}" for i, a in enumerate("xyz")] +
+                                 [f"{a} > {ends[i][1].strip()}" for i, a in enumerate("xyz")], dtype=object)
+                fail((below | above).any(axis=1), "tool outside the box", sides[np.argmax(np.c_[below, above], 1)])
         if self.collider is not None:
             left = np.flatnonzero(reason == "")
             if len(left):
@@ -403,7 +406,8 @@ class Workspace:
     def sample(self, m: int, rng, max_draws: int, tick=None) -> tuple:
         """((k, dof) the first k <= m poses drawn uniformly within the joint ranges that pass ``check``, report):
         draws in batches until m pass or ``max_draws`` are drawn. The report: drawn (up to the m-th pose
-        kept), kept, rejected (first reason: count; they add up to drawn), most frequent detail per reason."""
+        kept), kept, rejected (first reason: count; they add up to drawn), details (per reason, the plane,
+        the box side, the link or the link pair: count, most frequent first)."""
         lo, hi = self.rest.limits[:, 0], self.rest.limits[:, 1]
         kept, drawn, reasons, details = [], 0, {}, {}
         have = 0
@@ -422,14 +426,14 @@ class Workspace:
             have += int(v.ok.sum())
             for r, c in v.counts().items():
                 reasons[r] = reasons.get(r, 0) + c
-                for d in v.detail[v.reason == r]:
-                    details.setdefault(r, {}).setdefault(d, 0)
-                    details[r][d] += 1
+                what, count = np.unique(v.detail[v.reason == r].astype(str), return_counts=True)
+                for d, c in zip(what, count):
+                    details.setdefault(r, {})[d] = details.get(r, {}).get(d, 0) + int(c)
             if tick is not None:
                 tick(drawn / max_draws if have < m else 1.0)
         q = np.concatenate(kept) if kept else np.empty((0, self.model.dof))
-        top = {r: max(d.items(), key=lambda kv: kv[1])[0] for r, d in details.items()}
-        return q, {"drawn": int(drawn), "kept": int(len(q)), "rejected": reasons, "most_often": top}
+        return q, {"drawn": int(drawn), "kept": int(len(q)), "rejected": reasons,
+                   "details": {r: dict(sorted(d.items(), key=lambda kv: -kv[1])) for r, d in details.items()}}
 
     def violations(self, q, names) -> list:
         """['NAME: reason (detail)'] for the poses q (n, dof) that fail ``check``."""
@@ -439,8 +443,12 @@ class Workspace:
 
 
 def rejection_summary(report: dict) -> str:
-    """'kept 1,412 of 2,000 candidates drawn: 430 tool below a plane (0,0,1@0m), 158 self-collision (...)'."""
-    parts = [f"{c:,} {r}" + (f" (most often {report['most_often'][r]})" if report["most_often"].get(r) else "")
-             for r, c in report["rejected"].items()]
+    """'kept 1,412 of 2,000 candidates drawn: 430 tool below a plane (0,0,1@0m), 158 self-collision (most
+    often shoulder_link-forearm_link)': each reason with its detail, or its most frequent one."""
+    parts = []
+    for r, c in report["rejected"].items():
+        d = report["details"].get(r) or {"": 0}
+        top = next(iter(d))
+        parts.append(f"{c:,} {r}" + ("" if not top else f" ({top})" if len(d) == 1 else f" (most often {top})"))
     return f"kept {report['kept']:,} of {report['drawn']:,} candidates drawn" + (": " + ", ".join(parts) if parts
                                                                                   else "")
