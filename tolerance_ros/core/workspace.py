@@ -340,6 +340,8 @@ class Workspace:
         self.model, self.rest = model, rest
         self.collider, self.collision_note = (collision_model(model, rest.srdf) if rest.collision
                                               else (None, "collisions not checked (--no-collision)"))
+        narrowed = not np.array_equal(rest.limits, model.joint_limits)
+        self._sampler = model.with_joint_limits(rest.limits) if narrowed else model
 
     def describe(self) -> str:
         """One line of the restrictions, as written (for messages and campaign descriptions)."""
@@ -404,17 +406,17 @@ class Workspace:
         return Verdict(reason == "", reason, detail)
 
     def sample(self, m: int, rng, max_draws: int, tick=None) -> tuple:
-        """((k, dof) the first k <= m poses drawn uniformly within the joint ranges that pass ``check``, report):
+        """((k, dof) the first k <= m poses drawn by the model's ``sample_joints`` (serial chains: uniformly)
+        within the joint ranges that pass ``check``, report):
         draws in batches until m pass or ``max_draws`` are drawn. The report: drawn (up to the m-th pose
         kept), kept, rejected (first reason: count; they add up to drawn), details (per reason, the plane,
         the box side, the link or the link pair: count, most frequent first)."""
-        lo, hi = self.rest.limits[:, 0], self.rest.limits[:, 1]
         kept, drawn, reasons, details = [], 0, {}, {}
         have = 0
         while have < m and drawn < max_draws:
             rate = have / drawn if drawn else 1.0
             size = int(min(max_draws - drawn, m if not drawn else max(64, 1.2 * (m - have) / max(rate, 0.01))))
-            q = lo + (hi - lo) * rng.random((size, self.model.dof))
+            q = self._sampler.sample_joints(size, rng)
             done = drawn
             v = self.check(q, None if tick is None else (lambda f: tick((done + f * size) / max_draws)))
             passed = np.flatnonzero(v.ok)
