@@ -678,3 +678,13 @@ def test_plan_campaign_restrictions_that_cannot_be_read_or_met_are_one_line(caps
     code, _, err = run(capsys, "plan-campaign", "--robot", ur10_urdf, "--tip-link", "tool0", "--n", "10",
                        "--candidates", "120", "--quiet", *extra)
     assert code == 2 and message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_plan_campaign_says_when_fewer_candidates_pass_than_asked_for(capsys, ur10_urdf):
+    code, text, err = run(capsys, "plan-campaign", "--robot", ur10_urdf, "--tip-link", "tool0", "--n", "10",
+                          "--candidates", "100", "--inside-box", "-2m:2m,-2m:2m,1.2m:2m", "--quiet")
+    assert code == 0, err
+    kept = int(text.splitlines()[1].split()[1])
+    assert 10 <= kept < 100 and text.splitlines()[1].startswith(f"kept {kept} of 1,000 candidates drawn: ")
+    assert f"only {kept} of the 100 candidates asked for passed in 1,000 draws" in text
+    assert f"over {kept} candidates" in text

@@ -110,7 +110,8 @@ def run(args):
     print(rejection_summary(pl.restrictions) + (f"; {ws.collision_note}" if ws.collider is not None else ""))
     if pl.candidates < args.candidates:
         print(f"only {pl.candidates:,} of the {args.candidates:,} candidates asked for passed in "
-              f"{pl.restrictions['drawn']:,} draws")
+              f"{pl.restrictions['drawn']:,} draws (at most 10 x --candidates are drawn); the poses are chosen "
+              f"from those")
     print(f"robot {model.name}: {args.n} poses maximising {idx} ({REFERENCES[idx]}) over {pl.candidates} "
           f"candidates (seed {args.seed}, {pl.exchanges} exchanges); {len(pl.columns)} unknowns "
           f"({len(pl.columns) - 6} parameters + base), held: {', '.join(pl.held) or 'none'}")

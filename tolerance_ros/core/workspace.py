@@ -111,6 +111,7 @@ class Restrictions:
 
     @property
     def any_tool(self) -> bool:
+        """Whether the tool position is restricted (a plane or the box)."""
         return bool(self.planes) or self.box is not None
 
 
@@ -330,6 +331,7 @@ class Verdict:
     detail: np.ndarray
 
     def counts(self) -> dict:
+        """{reason: number of poses failing first for it}, in the order of ``FIRST_REASONS``."""
         return {r: int(np.sum(self.reason == r)) for r in FIRST_REASONS if np.any(self.reason == r)}
 
 
@@ -356,6 +358,7 @@ class Workspace:
         return "; ".join(parts)
 
     def to_dict(self) -> dict:
+        """The restrictions as written, the joint ranges (dof, 2) SI and what the collision check covers."""
         return {**self.rest.texts, "limits": self.rest.limits, "collision_checked": self.collider is not None,
                 "collision_note": self.collision_note,
                 "self_collision_pairs": self.collider.pairs if self.collider is not None else []}
