@@ -102,6 +102,13 @@ def test_collision_meshes_that_cannot_be_found_say_what_to_do(tmp_path):
     with pytest.raises(WorkspaceError, match=r"could not be found.*ROS_PACKAGE_PATH, or plan with --no-collision"):
         Workspace(model, restrictions(model))
     assert Workspace(model, restrictions(model, collision=False)).collider is None
+    from tolerance_ros.core.campaign import CampaignError, campaign_from_dict
+    data = {"restrictions": {"collision": True}, "poses": [{"name": "P1", "joints": [0, -90, 0, 0, 0, 0]}],
+            "units": {"angle": "deg"}}
+    with pytest.raises(CampaignError, match=r"could not be found.*, or set restrictions.collision to false\)$"):
+        campaign_from_dict(data, model=model)
+    data["restrictions"]["collision"] = False
+    assert campaign_from_dict(data, model=model).names == ["P1"]
 
 
 def test_an_srdf_disables_its_pairs_instead_of_the_zero_configuration_rule(ur10):

@@ -299,9 +299,10 @@ def _link(geom_name: str) -> str:
     return head if tail.isdigit() and head else geom_name
 
 
-def collision_model(model, srdf=None) -> tuple:
+def collision_model(model, srdf=None, off="plan with --no-collision") -> tuple:
     """(CollisionModel or None, note): the URDF chain's collision geometry; None (and why) for a robot
-    without any. WorkspaceError when its meshes cannot be found."""
+    without any. WorkspaceError when its meshes cannot be found (saying: put them on ROS_PACKAGE_PATH, or
+    ``off``, how to not check collisions)."""
     if not hasattr(model, "pin_model") or not hasattr(model, "chain_ids"):
         return None, f"no collision geometry (robot {model.name!r} is a {type(model).__name__}): collisions not checked"
     import pinocchio as pin
@@ -313,7 +314,7 @@ def collision_model(model, srdf=None) -> tuple:
                                            package_dirs=_package_dirs(source))
     except ValueError as exc:
         raise WorkspaceError(f"collision geometry of {source}: {exc} (put its package's folder on ROS_PACKAGE_PATH, "
-                             f"or plan with --no-collision)") from None
+                             f"or {off})") from None
     if not len(geom.geometryObjects):
         return None, "no collision geometry in the URDF: collisions not checked"
     cm = CollisionModel(model, geom, srdf)
@@ -338,9 +339,10 @@ class Verdict:
 class Workspace:
     """The restrictions applied to a model: ``check`` poses, ``sample`` candidates that pass."""
 
-    def __init__(self, model, rest: Restrictions):
+    def __init__(self, model, rest: Restrictions, off="plan with --no-collision"):
+        """``off``: how to not check collisions, for the message when the meshes cannot be found."""
         self.model, self.rest = model, rest
-        self.collider, self.collision_note = (collision_model(model, rest.srdf) if rest.collision
+        self.collider, self.collision_note = (collision_model(model, rest.srdf, off) if rest.collision
                                               else (None, "collisions not checked (--no-collision)"))
         narrowed = not np.array_equal(rest.limits, model.joint_limits)
         self._sampler = model.with_joint_limits(rest.limits) if narrowed else model
