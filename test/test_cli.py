@@ -650,3 +650,92 @@ def test_an_operating_system_error_is_said_in_words_with_its_file(capsys, tmp_pa
     code, _, err = run(capsys, "import", "--input", str(tmp_path), "--out", str(tmp_path / "t.csv"), "--point",
                        "x,y,z[mm]", "--joint", "j1[deg]")
     assert code == 2 and f"{tmp_path}: is a folder, not a file" in err
+
+
+@pytest.fixture(scope="module")
+def ur10_urdf():
+    from helpers import example_urdf
+    return str(example_urdf("ur10_robot.urdf"))
+
+
+def test_plan_campaign_ur10_keeps_the_joint_range_and_floor_in_every_pose_and_in_its_file(capsys, tmp_path,
+                                                                                          ur10_urdf):
+    import yaml
+    from tolerance_ros.core.campaign import CampaignError, load_campaign
+    from tolerance_ros.core.models import load_robot
+    out = tmp_path / "planned.yaml"
+    code, text, err = run(capsys, "plan-campaign", "--robot", ur10_urdf, "--tip-link", "tool0", "--n", "10",
+                          "--candidates", "150", "--joint-range", "shoulder_lift_joint=-180deg:0deg",
+                          "--floor-plane", "0m",
+                          "--out", str(out), "--json", "--quiet")
+    assert code == 0, err
+    doc = json.loads(text)
+    q = np.array(doc["joints"])
+    ur10 = load_robot(ur10_urdf, "tool0")
+    assert q.shape == (10, 6) and np.all((q[:, 1] >= -np.pi) & (q[:, 1] <= 0)) and ur10.fk(q)[:, 2, 3].min() >= 0
+    r = doc["restrictions"]
+    assert r["joint_range"] == ["shoulder_lift_joint=-180deg:0deg"] and r["above_plane"] == ["0,0,1@0m"]
+    assert r["collision_checked"] and r["kept"] == 150 and r["drawn"] == 150 + sum(r["rejected"].values())
+    assert np.allclose(r["limits"][1], [-np.pi, 0]) and doc["compare_violations"] == []
+    data = yaml.safe_load(out.read_text())
+    assert data["restrictions"] == {"joint_range": ["shoulder_lift_joint=-180deg:0deg"], "above_plane": ["0,0,1@0m"],
+                                    "collision": True}
+    assert "restrictions: joint range shoulder_lift_joint=-180deg:0deg; above plane 0,0,1@0m" in data["description"]
+    assert len(load_campaign(out, ur10).poses) == 10
+    data["poses"][3]["joints"] = [0, 90, 0, 0, 0, 0]  # shoulder_lift +90 deg: within the URDF's limits, below the floor
+    out.write_text(yaml.safe_dump(data))
+    with pytest.raises(CampaignError, match=r"1 of 10 poses break the restrictions the campaign was planned under "
+                                            r"\(.*\): C4: joint range \(shoulder_lift_joint\)$"):
+        load_campaign(out, ur10)
+    data["restrictions"].pop("joint_range")
+    out.write_text(yaml.safe_dump(data))
+    with pytest.raises(CampaignError, match=r": C4: tool below a plane \(0,0,1@0m\)$"):
+        load_campaign(out, ur10)
+
+
+def test_plan_campaign_flags_compared_poses_in_collision_or_through_the_floor(capsys, tmp_path, ur10_urdf):
+    import yaml
+    camp = tmp_path / "cube.yaml"
+    camp.write_text(yaml.safe_dump({"robot": "ur10", "units": {"angle": "deg"}, "poses": [
+        {"name": "P1", "joints": [0, -90, 0, 0, 0, 0]}, {"name": "P2", "joints": [0, -90, 180, 0, 0, 0]},
+        {"name": "P3", "joints": [0, 90, 0, 0, 0, 0]}, {"name": "P4", "joints": [0, -90, 45, 0, 0, 0]},
+        {"name": "P5", "joints": [0, -45, 45, 0, 0, 0]}]}))
+    args = ["plan-campaign", "--robot", ur10_urdf, "--tip-link", "tool0", "--n", "10", "--candidates", "120",
+            "--floor-plane", "0m", "--compare", str(camp), "--quiet"]
+    code, text, err = run(capsys, *args)
+    assert code == 0, err
+    lines = text.splitlines()
+    assert lines[0] == "restrictions: above plane 0,0,1@0m; no self-collision or link through a plane"
+    assert lines[1].startswith("kept 120 of ") and "self-collision (most often " in lines[1]
+    assert (f"warning: 2 of 5 poses of {camp} break the restrictions: P2: self-collision "
+            f"(shoulder_link-forearm_link); P3: tool below a plane (0,0,1@0m)") in lines
+    code, text, err = run(capsys, *args, "--json")
+    assert json.loads(text)["compare_violations"] == ["P2: self-collision (shoulder_link-forearm_link)",
+                                                      "P3: tool below a plane (0,0,1@0m)"]
+    code, text, err = run(capsys, *args, "--no-collision", "--json")
+    doc = json.loads(text)
+    assert doc["compare_violations"] == ["P3: tool below a plane (0,0,1@0m)"]
+    assert doc["restrictions"]["collision_note"] == "collisions not checked (--no-collision)"
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--floor-plane", "0"], "--floor-plane: '0' has no unit; write it with its unit"),
+    (["--joint-range", "shoulder_lift=-180deg:0deg"], "no joint 'shoulder_lift' (closest: 'shoulder_lift_joint'"),
+    (["--joint-range", "elbow_joint=-190deg:0deg"], "elbow_joint: -190deg:0deg is outside the joint's limits"),
+    (["--inside-box", "1.2m:1.21m,0m:0.01m,0m:0.01m"], "too few candidates for 10 poses: kept 0 of 1,200 candidates "
+                                                        "drawn: 1,200 tool outside the box"),
+])
+def test_plan_campaign_restrictions_that_cannot_be_read_or_met_are_one_line(capsys, ur10_urdf, extra, message):
+    code, _, err = run(capsys, "plan-campaign", "--robot", ur10_urdf, "--tip-link", "tool0", "--n", "10",
+                       "--candidates", "120", "--quiet", *extra)
+    assert code == 2 and message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_plan_campaign_says_when_fewer_candidates_pass_than_asked_for(capsys, ur10_urdf):
+    code, text, err = run(capsys, "plan-campaign", "--robot", ur10_urdf, "--tip-link", "tool0", "--n", "10",
+                          "--candidates", "100", "--inside-box", "-2m:2m,-2m:2m,1.2m:2m", "--quiet")
+    assert code == 0, err
+    kept = int(text.splitlines()[1].split()[1])
+    assert 10 <= kept < 100 and text.splitlines()[1].startswith(f"kept {kept} of 1,000 candidates drawn: ")
+    assert f"only {kept} of the 100 candidates asked for passed in 1,000 draws" in text
+    assert f"over {kept} candidates" in text

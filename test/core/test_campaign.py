@@ -93,3 +93,32 @@ def test_a_campaign_for_another_robot_says_so_before_its_poses(gao, tmp_path):
     p.write_text("robot: ur10\nunits: {angle: deg}\nposes:\n  - {name: P1, joints: [0, -90, 90, 0, 90, 0]}\n")
     with pytest.raises(CampaignError, match=r"this campaign is for robot 'ur10', not 'gao2023_7dof'$"):
         load_campaign(p, gao)
+
+
+def test_a_campaign_is_checked_against_the_restrictions_it_was_planned_under(gao, tmp_path):
+    q = gao.sample_joints(200, 3)
+    z = gao.fk(q)[:, 2, 3]
+    above, below = q[np.argmax(z)], q[np.argmin(z)]
+    floor = f"{(z.max() + z.min()) / 2}m"
+    data = {"robot": "gao2023_7dof", "units": {"angle": "deg"},
+            "restrictions": {"above_plane": [f"0,0,1@{floor}"], "joint_range": []},
+            "poses": [{"name": "C1", "joints": np.degrees(above).tolist()},
+                      {"name": "C2", "joints": np.degrees(below).tolist()}]}
+    p = tmp_path / "c.yaml"
+    p.write_text(yaml.safe_dump(data))
+    with pytest.raises(CampaignError, match=rf"1 of 2 poses break the restrictions the campaign was planned under "
+                                            rf"\(above plane 0,0,1@{floor}; no collision geometry .*\): C2: tool below "
+                                            rf"a plane \(0,0,1@{floor}\)$"):
+        load_campaign(p, gao)
+    assert load_campaign(p).meta["restrictions"]["above_plane"] == [f"0,0,1@{floor}"]  # without a robot: kept
+    data["poses"].pop()
+    p.write_text(yaml.safe_dump(data))
+    assert load_campaign(p, gao).names == ["C1"]
+    data["restrictions"]["above_plane"] = ["0,0,1@0.3"]
+    p.write_text(yaml.safe_dump(data))
+    with pytest.raises(CampaignError, match=r"restrictions.above_plane offset: '0.3' has no unit"):
+        load_campaign(p, gao)
+    data["restrictions"]["floor"] = "0m"
+    p.write_text(yaml.safe_dump(data))
+    with pytest.raises(CampaignError, match=r"restrictions: unknown key\(s\) \['floor'\]"):
+        load_campaign(p, gao)

@@ -31,6 +31,24 @@ def add_arguments(p):
                    help="tracker orientation noise, e.g. 10urad: the tracker measures orientation")
     p.add_argument("--compare", metavar="CAMPAIGN",
                    help="ISO 9283 cube campaign to compare with (default: built by IK)")
+    p.add_argument("--joint-range", action="append", metavar="NAME=LO:HI",
+                   help="sample joint NAME only within LO:HI, with units (shoulder_lift_joint=-180deg:0deg); "
+                        "repeatable; within the joint's limits")
+    p.add_argument("--floor-plane", metavar="Z",
+                   help="the plane z = Z of the base frame (e.g. 0m): the tool and the moving links stay above it")
+    p.add_argument("--above-plane", action="append", metavar="NX,NY,NZ@OFFSET",
+                   help="a plane (normal, then offset with its unit: 0,0,1@0.05m is z >= 0.05 m; -1,0,0@-0.8m "
+                        "is x <= 0.8 m): the tool and the moving links stay on its side; repeatable")
+    p.add_argument("--inside-box", metavar="XMIN:XMAX,YMIN:YMAX,ZMIN:ZMAX",
+                   help="the tool position stays in this box of the base frame, with units "
+                        "(0.2m:1.2m,-0.6m:0.6m,0m:1m)")
+    p.add_argument("--clearance", metavar="LENGTH",
+                   help="least distance of the moving links from the planes (default 0m)")
+    p.add_argument("--no-collision", action="store_true",
+                   help="do not check self-collision and the links against the planes (URDF collision geometry)")
+    p.add_argument("--srdf", metavar="FILE",
+                   help="link pairs not checked for self-collision (its disable_collisions; default: adjacent "
+                        "links and those in contact at the zero configuration)")
     p.add_argument("--out", metavar="FILE", help="campaign file to write (without it nothing is written, as allocate)")
     p.add_argument("--plot", metavar="DIR", help="write singular_values.png into DIR")
 
@@ -38,6 +56,7 @@ def add_arguments(p):
 def run(args):
     from ..core.calibration.planning import CRITERIA, REFERENCES, campaign_dict, plan
     from ..core.campaign import load_campaign
+    from ..core.workspace import Workspace, rejection_summary, restrictions
     model = load_model(args)
     for name in ("candidates", "cycles"):
         if getattr(args, name) < 1:
@@ -52,21 +71,30 @@ def run(args):
     noise = quantity(args.noise, "length", "--noise")
     onoise = quantity(args.orientation_noise, "angle", "--orientation-noise")
     delta = load_budget(args.budget, model).vector_for(model) if args.budget else None
-    iso = load_campaign(args.compare, model).joints_for(model) if args.compare else None
+    ws = Workspace(model, restrictions(model, args.joint_range, args.above_plane, args.floor_plane, args.inside_box,
+                                       args.clearance, not args.no_collision, args.srdf))
+    compare_bad = []
+    iso = None
+    if args.compare:
+        camp = load_campaign(args.compare, model)
+        iso = camp.joints_for(model)
+        compare_bad = ws.violations(iso, camp.names)
     prog = Progress("plan-campaign", not args.quiet)
     prog(0, 1)
     pl = plan(model, args.n, args.criterion, args.candidates, args.seed, delta,
-              noise / onoise if onoise else None, iso, progress=prog)
+              noise / onoise if onoise else None, iso, progress=prog, workspace=ws)
     prog(1, 1)
     out_path = Path(args.out) if args.out else None
     idx = CRITERIA[args.criterion]
     desc = (f"{args.n} poses chosen by tolerance-ros plan-campaign: {idx} ({REFERENCES[idx]}) maximised by a DETMAX "
-            f"exchange over {args.candidates} candidates within the joint limits (seed {args.seed})")
+            f"exchange over {pl.candidates} candidates (seed {args.seed}); restrictions: "
+            f"{ws.describe()}")
     if out_path is not None:
         import yaml
         out_path.parent.mkdir(parents=True, exist_ok=True)
         out_path.write_text(f"# {desc}\n" + yaml.safe_dump(campaign_dict(model, pl.q, f"{model.name}_planned",
-                                                                            args.cycles, description=desc),
+                                                                            args.cycles, description=desc,
+                                                                            restrictions=ws.rest.texts),
                                                              sort_keys=False, default_flow_style=None, width=120))
     plots = []
     if args.plot:
@@ -75,9 +103,16 @@ def run(args):
                                            f"{model.name}: scaled identification Jacobian")))
     if args.json:
         doc = pl.to_dict()
-        doc.update(robot=model.name, campaign_file=str(out_path) if out_path else None, plots=plots)
+        doc.update(robot=model.name, campaign_file=str(out_path) if out_path else None, plots=plots,
+                   compare_violations=compare_bad)
         return doc
-    print(f"robot {model.name}: {args.n} poses maximising {idx} ({REFERENCES[idx]}) over {args.candidates} "
+    print(f"restrictions: {ws.describe()}")
+    print(rejection_summary(pl.restrictions) + (f"; {ws.collision_note}" if ws.collider is not None else ""))
+    if pl.candidates < args.candidates:
+        print(f"only {pl.candidates:,} of the {args.candidates:,} candidates asked for passed in "
+              f"{pl.restrictions['drawn']:,} draws (at most 10 x --candidates are drawn); the poses are chosen "
+              f"from those")
+    print(f"robot {model.name}: {args.n} poses maximising {idx} ({REFERENCES[idx]}) over {pl.candidates} "
           f"candidates (seed {args.seed}, {pl.exchanges} exchanges); {len(pl.columns)} unknowns "
           f"({len(pl.columns) - 6} parameters + base), held: {', '.join(pl.held) or 'none'}")
     rows = []
@@ -90,6 +125,9 @@ def run(args):
                      f"{d['O2']:.4g}", f"{d['O3'] * 1e3:.4g}", f"{d['O4'] * 1e3:.4g}", f"{d['condition']:.4g}"])
     print(table(["pose set", "poses", "rank", "O1 mm", "O2", "O3 mm", "O4 mm", "condition"], rows))
     print(pl.iso_cube_note)
+    if compare_bad:
+        print(f"warning: {len(compare_bad)} of {len(iso)} poses of {args.compare} break the restrictions: "
+              f"{'; '.join(compare_bad[:5])}{'; ...' if len(compare_bad) > 5 else ''}")
     print(f"wrote {out_path}" if out_path else "campaign not saved (give --out FILE.yaml to save it)")
     for f in plots:
         print(f"plot: {f}")

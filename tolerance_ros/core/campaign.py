@@ -8,6 +8,11 @@ File format (YAML; ``units`` applies to every value)::
     cycles: 30                      # visits per test pose
     dwell: 2.0                      # s at each pose (joint-state publisher)
     order: cycle                    # cycle: P1..Pk, P1..Pk, ...; pose: P1 x cycles, P2 x cycles, ...
+    restrictions:                   # optional (``core/workspace.py``): checked when loaded for a robot
+      joint_range: [shoulder_lift_joint=-180deg:0deg]
+      above_plane: [0,0,1@0m]       # the tool and the moving links stay above z = 0 m
+      inside_box: 0.2m:1.2m,-0.6m:0.6m,0m:1m
+      collision: true               # no self-collision or link through a plane (URDF collision geometry)
     poses:
       - {name: P1, joints: [0, 30, -45, 0, 60, 0, 0]}          # joint configuration, or
       - {name: PE1, pose: {xyz: [0, 0, 1300], rpy: [0, 0, 0]}}  # an end-effector pose (needs IK)
@@ -27,7 +32,8 @@ from .resources import resolve
 from .units import UnitError, angle_scale, length_scale, parse_number
 from .yamlio import read_yaml
 
-_KEYS = {"name", "robot", "units", "cycles", "dwell", "order", "poses", "description", "source", "notes"}
+_KEYS = {"name", "robot", "units", "cycles", "dwell", "order", "poses", "description", "source", "notes",
+         "restrictions"}
 
 
 class CampaignError(ValueError):
@@ -164,8 +170,10 @@ def campaign_from_dict(data, dof=None, model=None) -> Campaign:
         poses.append(tp)
     if model is not None:
         _within_limits(model, raw, poses, units)
+        if data.get("restrictions") is not None:
+            _within_restrictions(model, data["restrictions"], poses)
     return Campaign(str(data.get("name", "campaign")), poses, cycles, float(dwell), order, data.get("robot"),
-                    {k: data[k] for k in ("description", "source", "notes") if k in data})
+                    {k: data[k] for k in ("description", "source", "notes", "restrictions") if k in data})
 
 
 def _numbers(values, field) -> np.ndarray:
@@ -199,6 +207,21 @@ def _within_limits(model, raw, poses, units):
         raise CampaignError(f"poses[{i}].joints[{k}] ({model.joint_names[k]}) = {q[r, k] / scale:.6g} {unit} is "
                             f"outside the joint's limits [{lo[k] / scale:.6g}, {hi[k] / scale:.6g}] {unit} on robot "
                             f"{model.name!r}")
+
+
+def _within_restrictions(model, data, poses):
+    """CampaignError listing the poses (given as joints) that break the file's ``restrictions`` (joint
+    ranges, tool workspace, collisions: ``core.workspace``)."""
+    from .workspace import Workspace, WorkspaceError, restrictions_from_dict
+    given = [tp for tp in poses if tp.joints is not None]
+    try:
+        ws = Workspace(model, restrictions_from_dict(model, data), off="set restrictions.collision to false")
+        bad = ws.violations(np.array([tp.joints for tp in given]), [tp.name for tp in given]) if given else []
+    except WorkspaceError as exc:
+        raise CampaignError(str(exc)) from None
+    if bad:
+        raise CampaignError(f"{len(bad)} of {len(given)} poses break the restrictions the campaign was planned "
+                            f"under ({ws.describe()}): {'; '.join(bad[:5])}{'; ...' if len(bad) > 5 else ''}")
 
 
 def load_campaign(spec, model=None) -> Campaign:

@@ -73,3 +73,23 @@ def test_the_campaign_file_reads_back_the_planned_joints(gao, tmp_path):
         camp = load_campaign(path, model)
         assert camp.names == [f"C{i + 1}" for i in range(7)] and camp.cycles == 2
         np.testing.assert_allclose(camp.joints_for(model), q, atol=1e-13)
+
+
+def test_planned_ur10_poses_keep_the_joint_range_the_floor_and_no_collision():
+    from helpers import example_urdf
+    from tolerance_ros.core.models import URDFChain
+    from tolerance_ros.core.workspace import Workspace, restrictions
+    ur10 = URDFChain(example_urdf("ur10_robot.urdf"), tip_link="tool0")
+    ws = Workspace(ur10, restrictions(ur10, ["shoulder_lift_joint=-180deg:0deg"], floor="0m"))
+    pl = plan(ur10, 10, candidates=150, seed=2, workspace=ws)
+    assert np.all((pl.q[:, 1] >= -np.pi) & (pl.q[:, 1] <= 0)) and ur10.fk(pl.q)[:, 2, 3].min() >= 0
+    assert ws.check(pl.q).ok.all() and pl.candidates == 150
+    r = pl.restrictions
+    assert r["kept"] == 150 and r["drawn"] == 150 + sum(r["rejected"].values()) and r["rejected"]["self-collision"]
+    assert r["above_plane"] == ["0,0,1@0m"] and r["collision_checked"] and pl.to_dict()["restrictions"] is r
+    unrestricted = plan(ur10, 10, candidates=150, seed=2)
+    assert unrestricted.q[:, 1].max() > 0 and not Workspace(ur10, ws.rest).check(unrestricted.q).ok.all()
+    box = Workspace(ur10, restrictions(ur10, inside_box="1.2m:1.21m,0m:0.01m,0m:0.01m"))
+    with pytest.raises(ValueError, match=r"too few candidates for 10 poses: kept 0 of 1,500 candidates drawn: "
+                                         r"1,500 tool outside the box .*enlarge --inside-box"):
+        plan(ur10, 10, candidates=150, workspace=box)

@@ -16,11 +16,12 @@ calibration). With ``s_1 >= ... >= s_L`` its singular values over ``m`` measured
 - ``O4 = s_L^2 / s_1``, the noise amplification index: Nahvi & Hollerbach (1996), ICRA.
 Sun & Hollerbach (2008, ICRA) compare them; O1 and O4 are the usual choices.
 
-``plan`` draws seeded candidate poses within the joint limits and chooses ``n`` of them by a DETMAX
-exchange (Mitchell 1974): from a seeded random design, add the candidate that raises the criterion
-most, then drop the design pose whose loss lowers it least, until the pose dropped is the one added.
-O1 uses the determinant lemma (one small determinant per candidate); the others the eigenvalues of
-``J^T J`` per candidate, in batches.
+``plan`` draws seeded candidate poses within the joint limits (with a ``core.workspace.Workspace``:
+within its joint ranges, keeping those that pass its check: tool workspace and collisions) and chooses
+``n`` of them by a DETMAX exchange (Mitchell 1974): from a seeded random design, add the candidate that
+raises the criterion most, then drop the design pose whose loss lowers it least, until the pose dropped
+is the one added. O1 uses the determinant lemma (one small determinant per candidate); the others the
+eigenvalues of ``J^T J`` per candidate, in batches.
 """
 from __future__ import annotations
 
@@ -140,11 +141,13 @@ class Plan:
     iso_cube: dict | None
     iso_cube_note: str
     spectra: dict
+    restrictions: dict | None = None  # the workspace's restrictions and its candidates' report (``plan``)
 
     def to_dict(self) -> dict:
         return {"criterion": self.criterion, "index": self.index, "reference": REFERENCES[self.index],
                 "poses": len(self.q), "joints": self.q, "candidates": self.candidates, "seed": self.seed,
                 "exchanges": self.exchanges, "unknowns": list(self.columns), "held": list(self.held),
+                "restrictions": self.restrictions,
                 "observability": {"planned": self.chosen, "random": self.random, "iso_cube": self.iso_cube},
                 "iso_cube_note": self.iso_cube_note, "singular_values": self.spectra}
 
@@ -178,13 +181,14 @@ def select(G, n: int, index="O1", seed=0, max_exchanges=None, tick=None):
     return np.array(design), exchanges
 
 
-def iso_cube_joints(model: Mechanism, q_candidates, rng=0, centres=10):
+def iso_cube_joints(model: Mechanism, q_candidates, rng=0, centres=10, allowed=None):
     """(joints (5, dof) of the ISO 9283 cube's test poses P1-P5, note), or (None, note).
 
     The cube is centred on a candidate tool pose in front of the robot (the ``centres`` nearest the
     median tool position of the candidates with x > 0 in the base frame, in turn) at that pose's
     orientation, with the largest edge (halving from half the median distance of those candidates from
-    their median) whose five poses the nominal model reaches.
+    their median) whose five poses the nominal model reaches (and, with ``allowed``, a function of joints
+    (k, dof) -> (k,) bool, that it allows).
     """
     from .compensate import nominal_solution
     T = model.fk(q_candidates)
@@ -199,25 +203,31 @@ def iso_cube_joints(model: Mechanism, q_candidates, rng=0, centres=10):
             targets = np.tile(T[c], (5, 1, 1))
             targets[:, :3, 3] = iso_cube_points(P[c], side)
             q = nominal_solution(model, targets, seed=qf[c], tol_position=1e-7, tol_orientation=1e-7)
-            if np.allclose(model.fk(q), targets, atol=1e-6) and not model.out_of_limits(q).any():
+            if np.allclose(model.fk(q), targets, atol=1e-6) and not model.out_of_limits(q).any() and \
+                    (allowed is None or allowed(q).all()):
                 return q, (f"ISO 9283 cube P1-P5, edge {side * 1e3:.0f} mm, centred at "
                            f"[{', '.join(f'{v * 1e3:.0f}' for v in P[c])}] mm")
             side /= 2.0
-    return None, "ISO 9283 cube: no reachable cube found in front of the robot"
+    return None, ("ISO 9283 cube: no reachable cube found in front of the robot" +
+                  (" within the restrictions" if allowed is not None else ""))
 
 
 PROGRESS_STEPS = 1000  # the total of ``plan``'s progress
 
 
 def plan(model: Mechanism, n: int, criterion="observability", candidates=2000, seed=0, delta=None,
-         sigma_ratio=None, iso_joints=None, random_draws=20, progress=None) -> Plan:
+         sigma_ratio=None, iso_joints=None, random_draws=20, progress=None, workspace=None,
+         max_draws=None) -> Plan:
     """Choose ``n`` poses within the joint limits that maximise the criterion (see the module docstring).
 
     iso_joints : (k, dof) joints of an ISO 9283 cube campaign to compare with (default: built by
     ``iso_cube_joints``). The random set's indices are the medians over ``random_draws`` seeded draws
-    of ``n`` candidates. ``progress(done, PROGRESS_STEPS)`` is called as the work goes: the candidates'
-    Jacobians (the first 10 %), each chunk of candidates scored by each exchange (up to 90 %; the exchange
-    stops early when no swap helps), then the comparisons.
+    of ``n`` candidates. workspace : a ``core.workspace.Workspace``: the candidates are drawn within its
+    joint ranges until ``candidates`` pass its check or ``max_draws`` (default 10 x candidates) are drawn;
+    ValueError with the counts when fewer than ``n`` pass. ``progress(done, PROGRESS_STEPS)`` is called as
+    the work goes: the candidates drawn and checked (the first 10 %), their Jacobians (to 20 %), each chunk
+    of candidates scored by each exchange (up to 90 %; the exchange stops early when no swap helps), then
+    the comparisons.
     """
     if criterion not in CRITERIA:
         raise ValueError(f"criterion: expected one of {sorted(CRITERIA)}, got {criterion!r}")
@@ -231,12 +241,22 @@ def plan(model: Mechanism, n: int, criterion="observability", candidates=2000, s
         return lambda f: progress(int(PROGRESS_STEPS * (lo + (hi - lo) * min(max(f, 0.0), 1.0))), PROGRESS_STEPS)
 
     rng = np.random.default_rng(seed)
-    qc = model.sample_joints(int(candidates), rng)
-    G, columns, held = pose_blocks(model, qc, delta, sigma_ratio, tick=stage(0.0, 0.1))
+    report = None
+    if workspace is None:
+        qc = model.sample_joints(int(candidates), rng)
+    else:
+        from ..workspace import rejection_summary
+        qc, report = workspace.sample(int(candidates), rng, int(max_draws or 10 * candidates), stage(0.0, 0.1))
+        if len(qc) < n:
+            raise ValueError(f"too few candidates for {n} poses: {rejection_summary(report)} (at most "
+                             f"{report['drawn']:,} draws); widen the --joint-range, lower or drop the planes, enlarge "
+                             f"--inside-box, lower --clearance, or lower --n")
+        report = {**workspace.to_dict(), **report, "asked": int(candidates)}
+    G, columns, held = pose_blocks(model, qc, delta, sigma_ratio, tick=stage(0.1, 0.2))
     if n * G.shape[1] < G.shape[2]:
         raise ValueError(f"n: {n} poses give {n * G.shape[1]} equations for {G.shape[2]} unknowns; "
                          f"plan at least {-(-G.shape[2] // G.shape[1])} poses")
-    design, exchanges = select(G, n, index, seed, tick=stage(0.1, 0.9))
+    design, exchanges = select(G, n, index, seed, tick=stage(0.2, 0.9))
     if progress is not None:
         progress(int(0.9 * PROGRESS_STEPS), PROGRESS_STEPS)
     chosen = design_indices(G, design)
@@ -247,7 +267,8 @@ def plan(model: Mechanism, n: int, criterion="observability", candidates=2000, s
     rand["draws"] = random_draws
     spectra["random (median O1 draw)"] = draws[int(np.argsort([d["O1"] for d in draws])[len(draws) // 2])]["s"]
     if iso_joints is None:
-        iso_joints, note = iso_cube_joints(model, qc, seed)
+        iso_joints, note = iso_cube_joints(model, qc, seed,
+                                           allowed=None if workspace is None else lambda q: workspace.check(q).ok)
     else:
         note = "ISO 9283 cube: the given campaign's test poses"
     iso = None
@@ -256,13 +277,14 @@ def plan(model: Mechanism, n: int, criterion="observability", candidates=2000, s
         iso = design_indices(Gi, np.arange(len(Gi)))
         iso["poses"] = int(len(Gi))
         spectra["ISO 9283 cube"] = iso.pop("s")
-    return Plan(qc[design], criterion, index, int(candidates), int(seed), int(exchanges), columns,
-                [model.param_names[j] for j in np.flatnonzero(held)], chosen, rand, iso, note, spectra)
+    return Plan(qc[design], criterion, index, int(len(qc)), int(seed), int(exchanges), columns,
+                [model.param_names[j] for j in np.flatnonzero(held)], chosen, rand, iso, note, spectra, report)
 
 
-def campaign_dict(model: Mechanism, q, name, cycles=3, dwell=2.0, description="") -> dict:
+def campaign_dict(model: Mechanism, q, name, cycles=3, dwell=2.0, description="", restrictions=None) -> dict:
     """A campaign file (``core/campaign.py`` format) with the poses q (n, dof): angles in degrees,
-    prismatic joints in m; test poses C1..Cn."""
+    prismatic joints in m; test poses C1..Cn; ``restrictions`` (``Restrictions.texts``), the ones its
+    poses were planned under, checked again when it is loaded."""
     prismatic = [t == "prismatic" for t in model.joint_types]
     poses = []
     for i, row in enumerate(np.asarray(q, float)):
@@ -271,5 +293,9 @@ def campaign_dict(model: Mechanism, q, name, cycles=3, dwell=2.0, description=""
         if any(prismatic):
             entry["joint_units"] = ["length" if pr else "angle" for pr in prismatic]
         poses.append(entry)
-    return {"name": name, "robot": model.name, "units": {"length": "m", "angle": "deg"}, "cycles": int(cycles),
-            "dwell": float(dwell), "order": "cycle", "description": description, "poses": poses}
+    out = {"name": name, "robot": model.name, "units": {"length": "m", "angle": "deg"}, "cycles": int(cycles),
+           "dwell": float(dwell), "order": "cycle", "description": description}
+    if restrictions is not None:
+        out["restrictions"] = {k: v for k, v in restrictions.items() if v not in (None, [])}
+    out["poses"] = poses
+    return out

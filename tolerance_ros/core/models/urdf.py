@@ -67,6 +67,7 @@ class URDFChain(CompiledChain):
         self.name = str(name or root.get("name") or "urdf_robot")
         self.pin_model = model
         self.source = source
+        self.urdf_text = text
         joints_xml = {j.get("name"): j for j in root.findall("joint")}
         self.tip_chosen = tip_link is None
         where = f"robot {self.name!r}" if source == "<string>" else f"{source} (robot {self.name!r})"
@@ -146,6 +147,7 @@ class URDFChain(CompiledChain):
         self._axes = np.array(axes)
         self._fixed = np.array(fixed)
         self._fixed[0] = base_T @ self._fixed[0]
+        self.base_from_root = base_T  # (4, 4): the chain's base frame from pinocchio's world (the URDF root)
         self._tool = model.frames[tip_fid].placement.homogeneous.copy()
         self.param_names = tuple(f"{j}.{f}" for j in names for f in ORIGIN_FIELDS + ("offset",))
         self.param_kinds = tuple(k for t in types for k in ("length",) * 3 + ("angle",) * 3 +
