@@ -1,6 +1,10 @@
-"""The README's commands: the two main commands, CI's test command, and every documented command line."""
+"""The README's commands: the two main commands, CI's test command, every documented command line, and the
+walkthrough of its blocks that need no ROS, run as written."""
+import os
 import re
 import shlex
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -45,3 +49,65 @@ def test_the_documented_commands_cover_every_subcommand():
     documented = {shlex.split(a)[0] for a in _documented_command_lines()}
     sub = next(a for a in build_parser()._actions if a.dest == "command")
     assert documented == set(sub.choices)
+
+
+WALK_SKIP = ("ros2 ", "colcon ", "rosdep ", "source ", "python3 -m venv", "git clone")
+"""A shell block with one of these needs ROS, a workspace or the network: not part of the walkthrough."""
+
+
+def walkthrough_steps():
+    """The README's runnable steps in its order: (kind, text, expected exit code). A bash block that needs
+    no ROS, in which no line is a synopsis (``[--option]``), gives one step per command; a trailing
+    ``# exits N`` says the command is documented to exit N. A Python block that needs no graph (does not
+    import ``tolerance_ros.nodes``) is one step."""
+    steps = []
+    for m in re.finditer(r"```(bash|python)\n(.*?)\n```", README, re.S):
+        kind, text = m.groups()
+        if kind == "python":
+            if "tolerance_ros.nodes" not in text:
+                steps.append(("python", text, 0))
+            continue
+        commands = [c for c in text.replace("\\\n", " ").splitlines() if c.strip()]
+        if any(c.lstrip().startswith(WALK_SKIP) or " [--" in c for c in commands):
+            continue
+        for c in commands:
+            exits = re.search(r"#\s*exits (\d+)", c)
+            steps.append(("bash", c, int(exits.group(1)) if exits else 0))
+    return steps
+
+
+def test_the_walkthrough_covers_the_first_hour():
+    steps = walkthrough_steps()
+    shell = [t for k, t, _ in steps if k == "bash"]
+    assert shell[0] == ". .venv/bin/activate"  # before any bare tolerance-ros or python
+    for word in ("robots", "jacobian", "sensitivity", "verify", "allocate", "plan-campaign", "calibrate",
+                 "compensate", "import", "validate"):
+        assert any(t.startswith(f"tolerance-ros {word} ") or t == f"tolerance-ros {word}" for t in shell), word
+    assert any(t.startswith("python bench/") for t in shell)
+    assert [k for k, _, _ in steps].count("python") == 2
+
+
+@pytest.mark.skipif(not (Path(sys.prefix) / "bin" / "activate").is_file(), reason="not run from a venv")
+def test_the_readme_walkthrough_runs_as_written_from_a_fresh_folder(tmp_path):
+    """Every step of ``walkthrough_steps`` in one shell, in a folder with only the repository's bench/ and
+    test/ and the venv: each exits as documented, and what it says it writes is there."""
+    for name in ("bench", "test"):
+        (tmp_path / name).symlink_to(ROOT / name)
+    (tmp_path / ".venv").symlink_to(Path(sys.prefix))
+    script = ["set -u"]
+    for i, (kind, text, _) in enumerate(walkthrough_steps()):
+        if kind == "python":
+            (tmp_path / f"step{i}.py").write_text(text + "\n")
+            text = f"python step{i}.py"
+        script += [f"echo '>>> step {i}' >&2", text, f"echo {i} $? >> rc.txt"]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT)] + os.environ.get("PYTHONPATH", "").split(
+        os.pathsep)).rstrip(os.pathsep), MPLBACKEND="Agg")
+    proc = subprocess.run(["bash", "-c", "\n".join(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=1500)
+    codes = dict(line.split() for line in (tmp_path / "rc.txt").read_text().splitlines())
+    for i, (kind, text, expected) in enumerate(walkthrough_steps()):
+        assert int(codes[str(i)]) == expected, f"step {i} ({text[:90]!r}) exited {codes[str(i)]}:\n{proc.stderr[-3000:]}"
+    for f in ("out/budget.yaml", "out/salience.png", "out/planned.yaml", "out/measurements.csv",
+              "out/cal/calibration.yaml", "out/iso_compensated.yaml", "out/tiago/cal/calibration.yaml",
+              "out/cal_py/calibration.yaml"):
+        assert (tmp_path / f).is_file(), f
