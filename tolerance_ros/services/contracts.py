@@ -198,7 +198,7 @@ def parse_request(text, fields: dict, limits: Limits) -> dict:
     fields : name -> (types tuple, required bool).
     """
     if (type(text) is str and len(text) <= limits.max_bytes and text.isascii()
-            and text.count("[") + text.count("{") <= MAX_DEPTH):  # the checks of ``loads``, for a small request
+            and nesting_depth(text) <= MAX_DEPTH):  # the checks of ``loads``, for ASCII text within the cap
         try:
             req = loads_strict(text)
         except (ValueError, TypeError, RecursionError):

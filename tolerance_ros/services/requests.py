@@ -25,8 +25,8 @@ def _parse_joints(value, model, limits: Limits, allow_out_of_limits: bool, bound
     """``parse_joints`` and the (n, dof) mask of joints outside their limits (None when there are none).
     ``bounds``: the model's (lower - 1e-12, upper + 1e-12), when the caller keeps them (optionally followed
     by the same two as lists of floats). The checks run over whole rows and arrays in C (``map``, numpy; a
-    few poses against lists of floats, cheaper than numpy's calls); the loops that name the offending entry
-    run only on a failure."""
+    few poses against lists of floats, cheaper than numpy's calls; many in one numpy conversion, see
+    ``_numbers_array``); the loops that name the offending entry run only on a failure."""
     if not isinstance(value, list) or not value:
         raise ContractError("invalid_request", "joints: expected a non-empty list (one configuration) or a list of lists")
     rows = value if isinstance(value[0], list) else [value]
@@ -34,6 +34,12 @@ def _parse_joints(value, model, limits: Limits, allow_out_of_limits: bool, bound
     if n > limits.max_poses:
         raise ContractError("too_large", f"joints: {n} configurations exceed the cap of {limits.max_poses}")
     dof = model.dof
+    if bounds is None:
+        bounds = (model.joint_limits[:, 0] - 1e-12, model.joint_limits[:, 1] + 1e-12)
+    if n > _FEW:
+        q = _numbers_array(rows, n, dof)
+        if q is not None:
+            return _within(q, model, allow_out_of_limits, bounds)
     if n == 1:
         shaped = type(rows[0]) is list and len(rows[0]) == dof
         kinds = set(map(type, rows[0])) if shaped else None
@@ -54,12 +60,40 @@ def _parse_joints(value, model, limits: Limits, allow_out_of_limits: bool, bound
              np.fromiter(chain.from_iterable(rows), dtype=float, count=n * dof).reshape(n, dof))
     except OverflowError:
         raise ContractError("invalid_request", "joints: a value is too large for a float") from None
-    if bounds is None:
-        bounds = (model.joint_limits[:, 0] - 1e-12, model.joint_limits[:, 1] + 1e-12)
     if n <= _FEW and len(bounds) == 4:  # the numbers as given (an int compares exactly; limits are far below 2**53)
         lo, hi = bounds[2], bounds[3]
         if all([all(map(le, lo, r)) and all(map(le, r, hi)) for r in rows]):
             return q, None
+    return _within(q, model, allow_out_of_limits, bounds)
+
+
+_SUSPECTS = 64  # values of 0 or 1 whose type is looked at one by one; more: every value's type at once
+
+
+def _numbers_array(rows, n, dof):
+    """(n, dof) float array of n rows of dof numbers (int or float), or None when some value is not one or
+    the rows are not of that shape (the caller's exact checks then say which). numpy's conversion without
+    a dtype does the checks in one pass: a str, None, a list or an object gives a dtype that is not a
+    number's, ragged rows an error; only a bool among numbers passes, as 0 or 1, so the values equal to
+    0 or 1 have their types checked."""
+    try:
+        q = np.array(rows)
+    except (ValueError, OverflowError):  # ragged rows, an int beyond 64 bits
+        return None
+    if q.dtype.kind not in "fi" or q.shape != (n, dof):
+        return None
+    suspects = np.flatnonzero((q == 0) | (q == 1))
+    if suspects.size > _SUSPECTS:
+        if not set(map(type, chain.from_iterable(rows))) <= _NUMBERS:
+            return None
+    elif suspects.size and not all(type(rows[k // dof][k % dof]) in _NUMBERS for k in suspects.tolist()):
+        return None
+    return q.astype(float, copy=False)
+
+
+def _within(q, model, allow_out_of_limits, bounds):
+    """(q, mask of joints outside their limits or None), or the error naming the first that is not finite
+    or (without ``allow_out_of_limits``) outside its limits."""
     lo, hi = bounds[0], bounds[1]
     within = (q >= lo) & (q <= hi)  # False for NaN too: all True means finite and within the limits
     if np.count_nonzero(within) == within.size:
