@@ -350,7 +350,7 @@ def request_id_of(text):
                 if m:
                     rid = json.loads(f'"{m.group(1)}"') if m.group(1) is not None else int(m.group(2))
                     return rid if valid_id(rid) else None
-    except (ValueError, TypeError):
+    except (ValueError, TypeError, KeyError):  # KeyError: a dict (slices are hashable from Python 3.12)
         return None
     return None
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.budget import BudgetError, budget_from_dict
+from ..core.compat import vecdot
 from ..core.errors import CRITERIA, criterion_bound
 from ..core.ingest import IngestError, JointOrder, stamp_seconds
 from ..core.jsonio import compact_array, dumps_fast, encode_arrays
@@ -232,7 +233,7 @@ class ErrorModelService:
         J = EJ.J if rows == 6 else EJ.J[:, :rows]
         P = J[:, :3]
         # the same sums of squares: vecdot costs less per call, einsum less per pose
-        sens = np.sqrt(np.vecdot(P, P, axis=1) if len(q) <= 8 else np.einsum("nip,nip->np", P, P))
+        sens = np.sqrt(vecdot(P, P, axis=1) if len(q) <= 8 else np.einsum("nip,nip->np", P, P))
         # a serial chain gives finite poses for joints within finite limits; anything else is checked
         if not (out is None and static["finite_chain"]) and (_COUNT(_FINITE(T)) != T.size or
                                                                _COUNT(_FINITE(J)) != J.size):

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..compat import frame_joint
 from ..geometry import axis_angle_matrix, cross3, rpy_matrix, rpy_to_matrix
 from ..resources import not_a_file
 from ..yamlio import decode_utf8, read_bytes
@@ -73,7 +74,7 @@ class URDFChain(CompiledChain):
         where = f"robot {self.name!r}" if source == "<string>" else f"{source} (robot {self.name!r})"
         tip_fid, tip_link = self._tip_frame(model, root, tip_link, where)
         chain = []
-        jid = model.frames[tip_fid].parentJoint
+        jid = frame_joint(model.frames[tip_fid])
         while jid > 0:
             chain.append(jid)
             jid = model.parents[jid]
@@ -85,9 +86,9 @@ class URDFChain(CompiledChain):
             if not model.existFrame(base_link):
                 raise ModelError(f"base_link: no link named {base_link!r} in the URDF")
             bf = model.frames[model.getFrameId(base_link)]
-            if bf.parentJoint != 0:
+            if frame_joint(bf) != 0:
                 raise ModelError(f"base_link: {base_link!r} moves with joint "
-                                 f"{model.names[bf.parentJoint]!r}; it must be fixed to the root")
+                                 f"{model.names[frame_joint(bf)]!r}; it must be fixed to the root")
             base_T = np.linalg.inv(bf.placement.homogeneous)
         names, types, limits, axes, origins, fixed = [], [], [], [], [], []
         for jid in chain:
@@ -259,7 +260,8 @@ def moving_leaves(model, root) -> list:
     """Names of the URDF's leaf links (the parent of no joint) that some joint moves, in file order."""
     parents = {j.find("parent").get("link") for j in root.findall("joint") if j.find("parent") is not None}
     return [name for name in (link.get("name") for link in root.findall("link"))
-            if name not in parents and model.existFrame(name) and model.frames[model.getFrameId(name)].parentJoint > 0]
+            if name not in parents and model.existFrame(name)
+            and frame_joint(model.frames[model.getFrameId(name)]) > 0]
 
 
 def _parse(text, source):

@@ -2,6 +2,7 @@
 written with the ``rosbags`` package (the real ROS 2 Jazzy message definitions; no ROS needed)."""
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +43,7 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
                 try:
                     try:
                         msg = reader.deserialize(raw, conn.msgtype)
-                    except AnyReaderError as exc:
+                    except (AnyReaderError, struct.error, ValueError) as exc:  # rosbags 0.10 does not wrap the last two
                         raise IngestError(f"cannot be decoded as {conn.msgtype} ({_cut(str(exc), 80)})") from None
                     st = stamp_seconds(msg.header.stamp)
                     if conn.topic == pose_topic:
