@@ -226,3 +226,14 @@ def test_texts_that_touch_by_a_pixel_are_not_an_overlap():
     plt.close(fig)
     assert touching == []
     assert len(over) == 2 and over[0].startswith("figure text 'left' overlaps figure text 'over'"), over
+
+
+def test_a_tick_beyond_a_log_axis_view_is_not_taken_for_a_drawn_label():
+    # matplotlib 3.7's log locator keeps ticks decades beyond the view; they are not drawn, and a span taken
+    # in values instead of decades took them for labels below the figure
+    plt, fig, ax = _figure()
+    ax.semilogy([1, 2], [1e-12, 1e2])
+    ax.set_yticks([1e-18, 1e-9, 1e-3, 1e1])
+    ax.set_ylim(1e-13, 1e3)
+    assert not [p for p in layout_problems(fig) if "10^{-18}" in p]
+    plt.close(fig)

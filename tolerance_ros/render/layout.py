@@ -60,10 +60,14 @@ def _texts(fig):
                 out.append((f"{where} {which} label {axis.label.get_text()!r}", axis.label))
             if _shown(axis.offsetText):
                 out.append((f"{where} {which} offset text {axis.offsetText.get_text()!r}", axis.offsetText))
-            lo, hi = sorted(axis.get_view_interval())
+            scale = axis.get_transform()  # the comparison in the axis' own scale (log: decades, not values)
+            with np.errstate(all="ignore"):
+                lo, hi = sorted(scale.transform(np.asarray(axis.get_view_interval(), float)))
             span = (hi - lo) * 1e-9
             for tick in axis.get_major_ticks() + axis.get_minor_ticks():
-                if not lo - span <= tick.get_loc() <= hi + span:
+                with np.errstate(all="ignore"):
+                    at = float(scale.transform(np.array([tick.get_loc()], float))[0])
+                if not lo - span <= at <= hi + span:  # NaN (a log axis' 0) is not drawn either
                     continue
                 for t in (tick.label1, tick.label2):
                     if _shown(t):
