@@ -133,14 +133,19 @@ def status_name(node, what: str) -> str:
 
 
 _interrupted = threading.Event()
+_spinning = threading.Event()
 
 
 def _interrupt_once(signum, frame):
     """The first Ctrl-C stops the node; later ones (``ros2 launch`` forwards one more) are ignored, so that
-    clean-up is not interrupted."""
+    clean-up is not interrupted. While the node spins, rclpy's own handler (which calls this one) has shut
+    the context down and ``spin`` ends with ``ExternalShutdownException``: a KeyboardInterrupt raised there
+    could land inside rclpy (a half-made executor Task, whose ``__del__`` then prints a traceback), so it is
+    raised only before the spin (loading robots, warming up)."""
     _interrupted.set()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    raise KeyboardInterrupt
+    if not _spinning.is_set():
+        raise KeyboardInterrupt
 
 
 def run(node_factory, args=None):
@@ -155,6 +160,7 @@ def run(node_factory, args=None):
     node = None
     try:
         node = node_factory()
+        _spinning.set()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
