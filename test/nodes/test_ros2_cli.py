@@ -126,14 +126,19 @@ def test_two_arms_in_one_graph(workspace):
                                      f"/{arm}/tolerance/compute_error_jacobian/response std_msgs/msg/String"],
                                     env=workspace, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                     start_new_session=True)
-            time.sleep(3)
             req = (f'{{data: \'{{"id": "{arm}", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6], '
                    f'"include_jacobian": false}}\'}}')
-            pub = subprocess.run(["bash", "-c", f'source $WS/install/setup.bash && exec ros2 topic pub --once -w 1 '
-                                  f'/{arm}/tolerance/compute_error_jacobian/request std_msgs/msg/String "$0"', req],
-                                 env=workspace, capture_output=True, text=True, timeout=60)
-            assert pub.returncode == 0, pub.stderr
-            out, _ = echo.communicate(timeout=30)
+            # once a second until the echo has one answer: a volatile answer sent before the echo subscribed
+            # (its start takes seconds on a loaded machine) is not for it
+            pub = subprocess.Popen(["bash", "-c", f'source $WS/install/setup.bash && exec ros2 topic pub -r 1 '
+                                    f'--times 40 -w 1 /{arm}/tolerance/compute_error_jacobian/request '
+                                    f'std_msgs/msg/String "$0"', req], env=workspace, stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.PIPE, text=True, start_new_session=True)
+            try:
+                out, _ = echo.communicate(timeout=45)
+            finally:
+                os.killpg(pub.pid, signal.SIGINT)
+                pub.communicate(timeout=20)
             assert f'"id":"{arm}","ok":true' in out
 
 

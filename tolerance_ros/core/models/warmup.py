@@ -201,8 +201,18 @@ def wait(timeout: float | None = None) -> str:
     return status["state"] if base._KERNELS is base.PENDING else ("ready" if base._KERNELS else status["state"])
 
 
+BACKGROUND_NICENESS = 10
+"""How much lower the compiling child's CPU priority is than its parent's: the processes that serve from
+the numpy path meanwhile (the nodes of a launch, a robot's own stack) keep the CPU."""
+
+
 def fill_cache() -> int:
-    """The child process: compile every kernel into the cache (and choose the writers); 0 on success."""
+    """The child process: compile every kernel into the cache (and choose the writers) at a lower priority
+    (``BACKGROUND_NICENESS``); 0 on success."""
+    try:
+        os.nice(BACKGROUND_NICENESS)
+    except (AttributeError, OSError):  # no nice on this platform: compile at the parent's priority
+        pass
     from . import kernels
     kernels.warm_up()
     return 0
