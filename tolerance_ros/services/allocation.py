@@ -121,7 +121,7 @@ def run_allocation(job: AllocationJob, progress=None) -> dict:
     return {"id": job.id, "ok": True, "status": "done", "success": res.success, "shortfalls": res.shortfalls(),
             "robot": job.robot, "message": res.message, "time_s": res.time_s, "cost_index": res.cost,
             "index_I_m": res.index_I, "budget": budget.to_dict(), "warnings": res.warnings,
-            "supremum_m": {c: v["position"]["value"] for c, v in ver["supremum"].items()},
+            "supremum_m": res.position_suprema(),
             "limit_check": res.limit_check(),
             "monte_carlo": {"distribution": ver["monte_carlo"]["distribution"],
                             "pass_rate": ver["monte_carlo"]["position_m"]["pass_rate"],

@@ -27,8 +27,8 @@ SOLVERS = ("active-set", "ga")
 PHYSICAL = {"length": (1e-9, 1.0), "angle": (1e-9, np.pi)}  # tolerances that make physical sense, m and rad
 MC_DISTRIBUTION = {"paper": "fixed", "worst-case": "extreme", "rss": "normal"}
 
-__all__ = ["DEFAULT_LIMIT_CRITERION", "Allocation", "InfeasibleError", "MODELS", "SOLVERS", "SynthesisError", "SynthesisProblem", "TABLE2",
-           "allocate", "build_problem", "select_poses", "supremum", "verify_allocation"]
+__all__ = ["DEFAULT_LIMIT_CRITERION", "Allocation", "InfeasibleError", "MODELS", "SOLVERS", "SynthesisError",
+           "SynthesisProblem", "TABLE2", "allocate", "build_problem", "select_poses", "supremum", "verify_allocation"]
 
 
 @dataclass
@@ -55,6 +55,10 @@ class Allocation:
     def names(self):
         return self.problem.model.param_names
 
+    def position_suprema(self) -> dict:
+        """{criterion: searched supremum of the position error, m} of the verification ({} without one)."""
+        return {c: v["position"]["value"] for c, v in self.verification.get("supremum", {}).items()}
+
     def budget(self, source=None) -> Budget:
         """The allocation as a tolerance budget (free parameters listed as such)."""
         p = self.problem
@@ -63,8 +67,7 @@ class Allocation:
                                   source=source or f"tolerance-ros allocate ({self.model_type}, {self.solver})",
                                   meta={"success": self.success, "status": self.status, "message": self.message,
                                         "cost_index": self.cost, "index_I_m": self.index_I, "seed": self.seed,
-                                        "searched_supremum_m": {k: v["position"]["value"] for k, v in
-                                                                self.verification["supremum"].items()},
+                                        "searched_supremum_m": self.position_suprema(),
                                         "warnings": list(self.warnings)})
 
     def table(self) -> list:
@@ -110,7 +113,7 @@ class Allocation:
         ver = self.verification
         if not ver:
             return {}
-        sup = {c: v["position"]["value"] for c, v in ver["supremum"].items()}
+        sup = self.position_suprema()
         mc = ver["monte_carlo"]
         return {"limit_m": self.problem.limit, "criterion": self.problem.criterion,
                 "worst_case_m": sup["worst-case"], "rss_m": sup["rss"], "paper_m": sup["paper"],
@@ -119,9 +122,10 @@ class Allocation:
                 "monte_carlo_poses": mc["poses"]}
 
     def to_dict(self) -> dict:
-        return {"ok": self.success, "shortfalls": self.shortfalls(), "limit_check": self.limit_check(), "status": self.status, "message": self.message, "model": self.model_type,
-                "solver": self.solver, "seed": self.seed, "time_s": self.time_s, "problem": self.problem.to_dict(),
-                "cost_index": self.cost, "index_I_m": self.index_I, "parameters": self.table(),
+        return {"ok": self.success, "shortfalls": self.shortfalls(), "limit_check": self.limit_check(),
+                "status": self.status, "message": self.message, "model": self.model_type, "solver": self.solver,
+                "seed": self.seed, "time_s": self.time_s, "problem": self.problem.to_dict(), "cost_index": self.cost,
+                "index_I_m": self.index_I, "parameters": self.table(),
                 "verification": self.verification, "warnings": self.warnings, "history": self.history}
 
 
@@ -219,9 +223,8 @@ def _warnings(problem, delta, ver) -> list:
 
 
 def allocate(model, limit, model_type="min-cost", solver="active-set", criterion=DEFAULT_LIMIT_CRITERION,
-             orientation_limit=None,
-             floors=None, k_sigma=3.0, seed=0, n_mc=10000, problem=None, progress=None, solver_options=None,
-             verify=True) -> Allocation:
+             orientation_limit=None, floors=None, k_sigma=3.0, seed=0, n_mc=10000, problem=None, progress=None,
+             solver_options=None, verify=True) -> Allocation:
     """Allocate tolerances (see the module docstring). ``limit`` in m, ``orientation_limit`` in rad; the
     default criterion, the worst case over every error sign, guarantees the limit (the paper's does not);
     ``solver_options`` go to the solver (``solve_active_set``: n_check, n_starts, ...; ``solve_ga``). The

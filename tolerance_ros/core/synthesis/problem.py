@@ -117,9 +117,9 @@ class SynthesisProblem:
                 "free": [n for n, a in zip(names, self.active) if not a]}
 
 
-def build_problem(model: Mechanism, limit: float, orientation_limit: float | None = None, criterion=DEFAULT_LIMIT_CRITERION,
-                  floors=None, k_sigma: float = 3.0, cost_K=None, cost_alpha=1.0, samples=20000,
-                  seed=0) -> SynthesisProblem:
+def build_problem(model: Mechanism, limit: float, orientation_limit: float | None = None,
+                  criterion=DEFAULT_LIMIT_CRITERION, floors=None, k_sigma: float = 3.0, cost_K=None, cost_alpha=1.0,
+                  samples=20000, seed=0) -> SynthesisProblem:
     """Set up an allocation problem: validate inputs, compute the ceilings over the workspace.
 
     floors : None (paper defaults 0.05 mm, 0.0003 rad), a dict by kind {'length': m, 'angle': rad}, by
