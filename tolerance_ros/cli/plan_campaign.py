@@ -56,7 +56,7 @@ def add_arguments(p):
 def run(args):
     from ..core.calibration.planning import CRITERIA, REFERENCES, campaign_dict, plan
     from ..core.campaign import load_campaign
-    from ..core.workspace import Workspace, rejection_summary, restrictions
+    from ..core.workspace import Workspace, listed, rejection_summary, restrictions
     model = load_model(args)
     for name in ("candidates", "cycles"):
         if getattr(args, name) < 1:
@@ -127,7 +127,7 @@ def run(args):
     print(pl.iso_cube_note)
     if compare_bad:
         print(f"warning: {len(compare_bad)} of {len(iso)} poses of {args.compare} break the restrictions: "
-              f"{'; '.join(compare_bad[:5])}{'; ...' if len(compare_bad) > 5 else ''}")
+              f"{listed(compare_bad)}")
     print(f"wrote {out_path}" if out_path else "campaign not saved (give --out FILE.yaml to save it)")
     for f in plots:
         print(f"plot: {f}")

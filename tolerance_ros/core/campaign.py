@@ -212,7 +212,7 @@ def _within_limits(model, raw, poses, units):
 def _within_restrictions(model, data, poses):
     """CampaignError listing the poses (given as joints) that break the file's ``restrictions`` (joint
     ranges, tool workspace, collisions: ``core.workspace``)."""
-    from .workspace import Workspace, WorkspaceError, restrictions_from_dict
+    from .workspace import Workspace, WorkspaceError, listed, restrictions_from_dict
     given = [tp for tp in poses if tp.joints is not None]
     try:
         ws = Workspace(model, restrictions_from_dict(model, data), off="set restrictions.collision to false")
@@ -221,7 +221,7 @@ def _within_restrictions(model, data, poses):
         raise CampaignError(str(exc)) from None
     if bad:
         raise CampaignError(f"{len(bad)} of {len(given)} poses break the restrictions the campaign was planned "
-                            f"under ({ws.describe()}): {'; '.join(bad[:5])}{'; ...' if len(bad) > 5 else ''}")
+                            f"under ({ws.describe()}): {listed(bad)}")
 
 
 def load_campaign(spec, model=None) -> Campaign:

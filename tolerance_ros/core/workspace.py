@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .resources import not_a_file
 from .units import UnitError, parse_quantity
 
 FIRST_REASONS = ("joint range", "tool below a plane", "tool outside the box", "link through a plane",
@@ -140,7 +141,7 @@ def restrictions(model, joint_range=(), above_plane=(), floor=None, inside_box=N
         if clear < 0:
             raise WorkspaceError(f"--clearance: must be >= 0, got {clearance!r}")
     if srdf is not None and not Path(srdf).is_file():
-        raise WorkspaceError(f"--srdf: file not found: {srdf}")
+        raise WorkspaceError(f"--srdf: {not_a_file(srdf)}: {srdf}")
     texts = {"joint_range": [seen[k].strip() for k in sorted(seen)], "above_plane": plane_texts,
              "inside_box": inside_box.strip() if inside_box is not None else None,
              "clearance": clearance.strip() if clearance is not None else None, "collision": bool(collision),
@@ -447,6 +448,11 @@ class Workspace:
         v = self.check(q)
         return [f"{nm}: {r}" + (f" ({d})" if d else "") for nm, r, d, ok in zip(names, v.reason, v.detail, v.ok)
                 if not ok]
+
+
+def listed(violations: list, most: int = 5) -> str:
+    """The first ``most`` of ``Workspace.violations``, '; '-separated, with '; ...' when there are more."""
+    return "; ".join(violations[:most]) + ("; ..." if len(violations) > most else "")
 
 
 def rejection_summary(report: dict) -> str:
