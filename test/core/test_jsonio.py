@@ -51,3 +51,12 @@ def test_b64decode_reads_malformed_text_as_base64_does():
                 jsonio.b64decode(text)
         else:
             assert jsonio.b64decode(text).tobytes() == expected
+
+
+def test_an_int_beyond_64_bits_is_written_not_refused():
+    """orjson refuses such an int; the answer is still the strict JSON of the value (a fuzzed calibration carried
+    one into the monitor's report)."""
+    import json as std_json
+    from tolerance_ros.core.jsonio import dumps_fast
+    doc = {"n": 10 ** 30, "x": np.array([1.5, np.nan]), "m": -2 ** 70}
+    assert std_json.loads(dumps_fast(doc)) == {"n": 10 ** 30, "x": [1.5, None], "m": -2 ** 70}

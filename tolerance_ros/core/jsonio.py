@@ -47,10 +47,15 @@ def dumps(obj, indent=None) -> str:
 
 
 def dumps_fast(obj) -> str:
-    """Compact strict JSON, fast for large numpy arrays (orjson when installed); NaN/inf become null."""
+    """Compact strict JSON, fast for large numpy arrays (orjson when installed); NaN/inf become null. An
+    int beyond 64 bits, which orjson refuses, is written by the standard library's path instead."""
     if orjson is not None:
-        return orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
-                            default=_default).decode()
+        try:
+            return orjson.dumps(obj, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS,
+                                default=_default).decode()
+        except orjson.JSONEncodeError as exc:
+            if "64-bit" not in str(exc):
+                raise
     return json.dumps(to_jsonable(obj), allow_nan=False, separators=(",", ":"))
 
 
