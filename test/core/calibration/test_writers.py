@@ -58,7 +58,7 @@ def test_dh_yaml_of_a_model_without_file_with_prismatic_joints(tmp_path):
 
 def test_calibrated_urdf_matches_pinocchio_and_changes_only_the_corrected_origins(ur5, ur5_delta, tmp_path):
     dx = as_built_errors(ur5_delta * 5, 7)
-    dx[ur5.param_index(["elbow_joint." + f for f in ("x", "y", "z", "roll", "pitch", "yaw", "offset")])] = 0.0
+    dx[ur5.param_index(["elbow_joint." + f for f in ("x", "y", "z", "rx", "ry", "rz", "offset")])] = 0.0
     text = open(ur5.source).read()
     new = calibrated_urdf_text(ur5, text, dx, BASE)
     q = ur5.sample_joints(20, 3)

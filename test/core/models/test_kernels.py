@@ -77,7 +77,8 @@ def _dh_pinocchio(model, q, dx=None):
 
 
 def _urdf_pinocchio(chain, q):
-    """(T, J) of a URDF chain from pinocchio's joint frames and the URDF origins (rpy) of its joints."""
+    """(T, J) of a URDF chain from pinocchio's joint frames and the URDF origins (rpy) of its joints: the
+    shifts along the frame before the origin's rotation, the turns about the axes of the origin's own frame."""
     pm, data = chain.pin_model, chain.pin_model.createData()
     fid = pm.getFrameId(chain.tip_link)
     T, J = np.empty((len(q), 4, 4)), np.zeros((len(q), 6, chain.n_params))
@@ -87,10 +88,9 @@ def _urdf_pinocchio(chain, q):
         P = T[k, :3, 3]
         for j, jid in enumerate(chain.chain_ids):
             placed = data.oMi[pm.parents[jid]] * pm.jointPlacements[jid]  # the joint frame before its motion
-            roll, pitch, yaw = chain.nominal[7 * j + 3:7 * j + 6]
-            W = placed.rotation @ rpy_to_matrix((roll, pitch, yaw)).T
-            lines = [W[:, 0], W[:, 1], W[:, 2], placed.rotation[:, 0],
-                     W @ [-np.sin(yaw), np.cos(yaw), 0.0], W[:, 2], placed.rotation @ chain._axes[j]]
+            W = placed.rotation @ rpy_to_matrix(chain.origin_rpy[j]).T
+            G = placed.rotation
+            lines = [W[:, 0], W[:, 1], W[:, 2], G[:, 0], G[:, 1], G[:, 2], G @ chain._axes[j]]
             for c, u in enumerate(lines):
                 turn = c >= 3 and (c < 6 or chain.joint_types[j] == "revolute")
                 J[k, :, 7 * j + c] = np.r_[np.cross(u, P - placed.translation), u] if turn else np.r_[u, 0, 0, 0]
@@ -171,7 +171,7 @@ def test_urdf_cases_cover_prismatic_fixed_and_tilted_joints(urdf_chains):
     assert not np.allclose(odd._fixed[1], np.eye(4))             # the fixed joint before j2
     assert np.count_nonzero(odd._axes[0]) == 3
     # origin rotations of every kind the kernel tells apart: none, about x, y or z alone, any
-    kinds = {tuple(np.flatnonzero(c.nominal.reshape(-1, 7)[j, 3:6])) for c in urdf_chains for j in range(c.dof)}
+    kinds = {tuple(np.flatnonzero(c.origin_rpy[j])) for c in urdf_chains for j in range(c.dof)}
     assert {(), (0,), (1,), (2,), (0, 1, 2)} <= kinds
 
 

@@ -2,6 +2,7 @@
 import time
 import warnings
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -14,16 +15,32 @@ CASES = [("ur5_robot.urdf", "tool0"), ("panda.urdf", "panda_hand")]
 
 
 def _perturbed_xml(text, joint, field, h):
+    """The URDF text with ``<origin xyz>`` of ``joint`` moved by h along the parent frame's axis ``field``."""
     root = ET.fromstring(text)
     j = next(e for e in root.findall("joint") if e.get("name") == joint)
     org = j.find("origin")
     if org is None:
         org = ET.SubElement(j, "origin")
-    key, idx = ("xyz", "xyz".index(field)) if field in "xyz" else ("rpy", ("roll", "pitch", "yaw").index(field))
-    vals = [float(v) for v in (org.get(key) or "0 0 0").split()]
-    vals[idx] += h
-    org.set(key, " ".join(repr(v) for v in vals))
+    vals = [float(v) for v in (org.get("xyz") or "0 0 0").split()]
+    vals["xyz".index(field)] += h
+    org.set("xyz", " ".join(repr(v) for v in vals))
     return ET.tostring(root, encoding="unicode")
+
+
+def _turned_fk(text, tip, chain, q, joint, axis, h):
+    """(n, 4, 4) pinocchio's pose of ``tip`` with the origin of ``joint`` turned by h about its own ``axis``
+    (0, 1, 2: x, y, z): the joint placement times the turn, exact in pinocchio's SE3 (an rpy in the text would
+    lose digits near pitch +-pi/2, where the UR5's shoulder origin sits)."""
+    model = pin.buildModelFromXML(text)
+    data = model.createData()
+    jid = model.getJointId(joint)
+    model.jointPlacements[jid] = model.jointPlacements[jid] * pin.SE3(pin.exp3(np.eye(3)[axis] * h), np.zeros(3))
+    fid = model.getFrameId(tip)
+    out = []
+    for qk in q:
+        pin.framesForwardKinematics(model, data, chain.pinocchio_configuration(qk))
+        out.append(data.oMf[fid].homogeneous.copy())
+    return np.array(out)
 
 
 @pytest.mark.parametrize("name, tip", CASES)
@@ -37,7 +54,8 @@ def test_fk_matches_pinocchio(name, tip):
 
 @pytest.mark.parametrize("name, tip", CASES)
 def test_jacobian_matches_differences_of_pinocchio_fk_on_edited_urdf(name, tip):
-    """Each origin component is perturbed in the URDF text itself and the file re-parsed by pinocchio."""
+    """Each origin shift is perturbed in the URDF text itself and the file re-parsed by pinocchio; each origin
+    turn in pinocchio's joint placement."""
     path = example_urdf(name)
     text = path.read_text()
     chain = URDFChain(path, tip_link=tip)
@@ -52,6 +70,10 @@ def test_jacobian_matches_differences_of_pinocchio_fk_on_edited_urdf(name, tip):
             e[k] = h
             Tp = pin_fk(text, chain.tip_link, chain, q + e)
             Tm = pin_fk(text, chain.tip_link, chain, q - e)
+        elif field in ("rx", "ry", "rz"):
+            axis = ("rx", "ry", "rz").index(field)
+            Tp = _turned_fk(text, chain.tip_link, chain, q, joint, axis, h)
+            Tm = _turned_fk(text, chain.tip_link, chain, q, joint, axis, -h)
         else:
             Tp = pin_fk(_perturbed_xml(text, joint, field, h), chain.tip_link, chain, q)
             Tm = pin_fk(_perturbed_xml(text, joint, field, -h), chain.tip_link, chain, q)
@@ -80,7 +102,7 @@ def test_names_units_and_limits():
     chain = URDFChain(example_urdf("ur5_robot.urdf"), tip_link="tool0")
     assert (chain.base_link, chain.tip_link) == ("world", "tool0")   # the URDF's root link: where FK is expressed
     assert chain.param_names[:7] == tuple(f"shoulder_pan_joint.{f}" for f in
-                                          ("x", "y", "z", "roll", "pitch", "yaw", "offset"))
+                                          ("x", "y", "z", "rx", "ry", "rz", "offset"))
     assert chain.param_units[:7] == ("m", "m", "m", "rad", "rad", "rad", "rad")
     assert chain.joint_limits.shape == (6, 2)
     assert np.all(chain.joint_limits[:, 0] < chain.joint_limits[:, 1])
@@ -216,3 +238,59 @@ def test_a_urdf_file_is_bounded_and_utf8(tmp_path):
     latin.write_bytes(b"<robot name='r'>\n<link name='caf\xe9'/></robot>")
     with pytest.raises(ModelError, match=rf"{latin}, line 2, column 16: not UTF-8 text"):
         URDFChain(latin)
+
+
+FANUC = Path(__file__).resolve().parents[2] / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf"
+
+
+def test_origins_at_pitch_plus_minus_half_pi_keep_three_independent_rotation_errors():
+    """The FANUC's joint_2 and joint_3 origins have pitch -pi/2 and +pi/2, where roll and yaw turn about the same
+    axis: their turns rx, ry, rz about the origin's own axes are three independent columns (the joint's own
+    axis, z here, is the offset's), and each is a unit turn about the origin frame's axis."""
+    chain = URDFChain(FANUC)
+    assert chain.origin_rpy[1, 1] == pytest.approx(-np.pi / 2) and chain.origin_rpy[2, 1] == pytest.approx(np.pi / 2)
+    q = chain.sample_joints(40, 3)
+    J = chain.error_jacobian(q).J
+    for joint in ("joint_2", "joint_3"):
+        cols = chain.param_index([f"{joint}.{f}" for f in ("rx", "ry", "rz")])
+        s = np.linalg.svd(J[:, :, cols].reshape(-1, 3), compute_uv=False)
+        assert s.min() > 0.3 * s.max(), (joint, s)
+        rot = J[:, 3:, cols]                        # orientation rows: unit turn axes, mutually perpendicular
+        np.testing.assert_allclose(np.einsum("nik,nil->nkl", rot, rot), np.broadcast_to(np.eye(3), (40, 3, 3)),
+                                   atol=1e-12)
+
+
+def _random_origins_urdf(rng, pitches):
+    joints = []
+    for k, pitch in enumerate(pitches):
+        rpy = (float(rng.uniform(-np.pi, np.pi)), float(pitch), float(rng.uniform(-np.pi, np.pi)))
+        axis = rng.normal(size=3)
+        xyz = " ".join(map(repr, rng.uniform(-0.3, 0.3, 3).tolist()))
+        joints.append(f'<joint name="j{k}" type="revolute"><parent link="l{k}"/><child link="l{k + 1}"/>'
+                      f'<origin xyz="{xyz}" rpy="{" ".join(map(repr, rpy))}"/>'
+                      f'<axis xyz="{" ".join(map(repr, (axis / np.linalg.norm(axis)).tolist()))}"/>'
+                      f'<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>')
+    links = "".join(f'<link name="l{k}"/>' for k in range(len(pitches) + 1))
+    return f'<robot name="random">{links}{"".join(joints)}</robot>'
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_corrected_origins_round_trip_through_the_urdf_exactly(seed, tmp_path):
+    """The calibrated URDF (each changed origin written as the rpy of its exact rotation) re-parsed by pinocchio
+    gives the calibrated chain's poses, at pitch +-pi/2 and at random origins."""
+    from tolerance_ros.core.calibration.calibrate import calibrated_mechanism
+    from tolerance_ros.core.calibration.writers import calibrated_urdf_text
+    rng = np.random.default_rng(seed)
+    pitches = [np.pi / 2, -np.pi / 2, rng.uniform(-1.5, 1.5), np.pi / 2 - 1e-9, rng.uniform(-1.5, 1.5)]
+    text = _random_origins_urdf(rng, pitches)
+    path = tmp_path / "r.urdf"
+    path.write_text(text)
+    chain = URDFChain(path)
+    dx = rng.normal(0, 3e-3, chain.n_params)
+    base = rng.normal(0, 1e-3, 6)
+    q = chain.sample_joints(25, seed)
+    want = calibrated_mechanism(chain, dx, base).fk(q)
+    from tolerance_ros.core.accuracy.identification import base_matrix
+    np.testing.assert_allclose(want, base_matrix(base) @ chain.fk(q, dx), atol=1e-13, rtol=0)
+    np.testing.assert_allclose(pin_fk(calibrated_urdf_text(chain, text, dx, base), chain.tip_link, chain, q), want,
+                               atol=1e-13, rtol=0)

@@ -300,18 +300,37 @@ def _rpy(R, j, roll, pitch, yaw):
 
 
 @njit
-def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, writer):
+def _origin_turn(rot, axes_in, j, rnom, ca, sa, cb, sb, cc, sc):
+    """rot[j] = rnom[j] Rx(a) Ry(b) Rz(c) (the origin's nominal rotation, then its errors about its own x, y, z
+    axes) from the cosines and sines of a, b, c; axes_in[j, 0], axes_in[j, 1] = the x and y error axes
+    rnom[j] e_x, rnom[j] Rx(a) e_y in the frame before the origin rotation (the z one is the turned frame's z)."""
+    e00, e01, e02 = cb * cc, -cb * sc, sb
+    e10, e11, e12 = ca * sc + sa * sb * cc, ca * cc - sa * sb * sc, -sa * cb
+    e20, e21, e22 = sa * sc - ca * sb * cc, sa * cc + ca * sb * sc, ca * cb
+    for r in range(3):
+        n0, n1, n2 = rnom[j, r, 0], rnom[j, r, 1], rnom[j, r, 2]
+        rot[j, r, 0] = n0 * e00 + n1 * e10 + n2 * e20
+        rot[j, r, 1] = n0 * e01 + n1 * e11 + n2 * e21
+        rot[j, r, 2] = n0 * e02 + n1 * e12 + n2 * e22
+        axes_in[j, 0, r] = n0
+        axes_in[j, 1, r] = n1 * ca + n2 * sa
+
+
+@njit
+def urdf_chain(q, nominal, dx, revolute, fixed, origin_rpy, axes, tool, T, J, jacobian, writer):
     """URDF chain (see urdf.py): per joint j the fixed transform ``fixed[j]`` (4x4, m), the origin
-    parameters x y z (m), roll pitch yaw (rad) and the offset (rad or m), about or along ``axes[j]``;
-    J written by ``writer`` (a code of WRITERS)."""
+    parameters x y z (m), the origin's nominal rotation ``origin_rpy[j]`` (roll, pitch, yaw, rad) turned by
+    the parameters rx ry rz (rad, about its own axes in that order) and the offset (rad or m), about or
+    along ``axes[j]``; J written by ``writer`` (a code of WRITERS)."""
     bad = _first_nonfinite(q)
     if bad >= 0:
         return bad
     n, dof = q.shape
     per_pose = dx.shape[0] > 1
-    rpy = np.empty((dof, 3, 3))      # origin rotation of each joint
-    pitch_axis = np.empty((dof, 2))  # -sin(yaw), cos(yaw): the pitch axis Rz(yaw) y before the rotation
-    lines = np.empty((dof, 21))  # x, y, z axes before the origin rotation, roll, pitch, joint axes; origin
+    rnom = np.empty((dof, 3, 3))     # nominal origin rotation of each joint
+    rot = np.empty((dof, 3, 3))      # origin rotation of each joint, errors included
+    axes_in = np.empty((dof, 2, 3))  # the rx and ry error axes before the origin rotation
+    lines = np.empty((dof, 24))  # x, y, z axes before the origin rotation, rx, ry, joint axes; origin; rz axis
     plain = np.empty(dof, np.bool_)  # fixed[j] is exactly the identity
     along = np.empty(dof, np.int64)  # the joint axis is exactly +-x, +-y or +-z (0, 1, 2), else -1
     for j in range(dof):
@@ -324,12 +343,13 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, writ
         for e in range(3):
             if abs(axes[j, e]) == 1.0 and axes[j, (e + 1) % 3] == 0.0 and axes[j, (e + 2) % 3] == 0.0:
                 along[j] = e
-    width = 4 * dof if per_pose else dof   # angles per pose: joint angle (+ roll, pitch, yaw when per pose)
+        _rpy(rnom, j, origin_rpy[j, 0], origin_rpy[j, 1], origin_rpy[j, 2])
+    width = 4 * dof if per_pose else dof   # angles per pose: joint angle (+ rx, ry, rz when per pose)
     ang = np.empty(BLOCK * width)
     sn = np.empty(BLOCK * width)
     cs = np.empty(BLOCK * width)
-    # origin rotation of each joint: -2 none (roll = pitch = yaw = 0), 0, 1, 2 about x, y or z alone (cosine
-    # and sine in turn_cs), -1 any (rpy, and always when the parameters vary per pose)
+    # origin rotation of each joint: -2 none (roll = pitch = yaw = 0, no error), 0, 1, 2 about x, y or z alone
+    # (cosine and sine in turn_cs), -1 any (``rot``, and always when the parameters vary per pose)
     turn = np.full(dof, -1, np.int64)
     turn_cs = np.empty((dof, 2))
     flat = J.reshape(-1)
@@ -337,9 +357,13 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, writ
     stream = writer == 2
     if not per_pose:
         for j in range(dof):
-            roll, pitch, yaw = (_param(nominal, dx, 0, 7 * j + 3), _param(nominal, dx, 0, 7 * j + 4),
-                                _param(nominal, dx, 0, 7 * j + 5))
-            _rpy(rpy, j, roll, pitch, yaw)
+            a, b, c = (_param(nominal, dx, 0, 7 * j + 3), _param(nominal, dx, 0, 7 * j + 4),
+                       _param(nominal, dx, 0, 7 * j + 5))
+            _origin_turn(rot, axes_in, j, rnom, math.cos(a), math.sin(a), math.cos(b), math.sin(b), math.cos(c),
+                         math.sin(c))
+            if a != 0.0 or b != 0.0 or c != 0.0:
+                continue
+            roll, pitch, yaw = origin_rpy[j, 0], origin_rpy[j, 1], origin_rpy[j, 2]
             if pitch == 0.0 and yaw == 0.0:
                 turn[j] = -2 if roll == 0.0 else 0
                 turn_cs[j, 0], turn_cs[j, 1] = math.cos(roll), math.sin(roll)
@@ -349,8 +373,6 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, writ
             elif roll == 0.0 and pitch == 0.0:
                 turn[j] = 2
                 turn_cs[j, 0], turn_cs[j, 1] = math.cos(yaw), math.sin(yaw)
-            pitch_axis[j, 0] = -math.sin(yaw)
-            pitch_axis[j, 1] = math.cos(yaw)
     for k0 in range(0, n, BLOCK):
         m = min(BLOCK, n - k0)
         for b in range(m):
@@ -368,11 +390,9 @@ def urdf_chain(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian, writ
             if per_pose:
                 for j in range(dof):
                     e = b * width + dof + 3 * j
-                    _rpy_of(rpy, j, cs[e], sn[e], cs[e + 1], sn[e + 1], cs[e + 2], sn[e + 2])
-                    pitch_axis[j, 0] = -sn[e + 2]
-                    pitch_axis[j, 1] = cs[e + 2]
+                    _origin_turn(rot, axes_in, j, rnom, cs[e], sn[e], cs[e + 1], sn[e + 1], cs[e + 2], sn[e + 2])
             _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian and not by_rows, k, row,
-                       b * width, sn, cs, rpy, pitch_axis, plain, turn, turn_cs, along, lines)
+                       b * width, sn, cs, rot, axes_in, plain, turn, turn_cs, along, lines)
             if by_rows:
                 _urdf_rows(flat, k, dof, lines, revolute, stream)
     if by_rows and stream:
@@ -413,14 +433,14 @@ def _turn(a, c, s, g00, g01, g02, g10, g11, g12, g20, g21, g22):
 
 @njit
 def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, columns, k, row, at, sn, cs,
-               rpy, pitch_axis, plain, turn, turn_cs, along, lines):
+               rot, axes_in, plain, turn, turn_cs, along, lines):
     """Pose k of urdf_chain: walks the chain, stores T[k], its lines (with the tool point minus the origins)
     and, when ``columns``, J[k]; joint angles' sin/cos at sn, cs[at:]."""
     dof = q.shape[1]
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
     o0, o1, o2 = 0.0, 0.0, 0.0
     for j in range(dof):
-        # frame W = R F before the origin rotation, then the joint frame G = W rpy at o + W xyz
+        # frame W = R F before the origin rotation, then the joint frame G = W rot at o + W xyz
         if plain[j]:
             w00, w01, w02, w10, w11, w12, w20, w21, w22 = r00, r01, r02, r10, r11, r12, r20, r21, r22
         else:
@@ -431,7 +451,7 @@ def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, columns, k, ro
                                                                 fixed, j)
         t = turn[j]
         if t == -1:
-            g00, g01, g02, g10, g11, g12, g20, g21, g22 = _mul3(w00, w01, w02, w10, w11, w12, w20, w21, w22, rpy, j)
+            g00, g01, g02, g10, g11, g12, g20, g21, g22 = _mul3(w00, w01, w02, w10, w11, w12, w20, w21, w22, rot, j)
         elif t == -2:
             g00, g01, g02, g10, g11, g12, g20, g21, g22 = w00, w01, w02, w10, w11, w12, w20, w21, w22
         else:
@@ -454,14 +474,20 @@ def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, columns, k, ro
             v0 = g00 * u0 + g01 * u1 + g02 * u2
             v1 = g10 * u0 + g11 * u1 + g12 * u2
             v2 = g20 * u0 + g21 * u1 + g22 * u2
-        px, py = pitch_axis[j, 0], pitch_axis[j, 1]
+        x0, x1, x2 = axes_in[j, 0, 0], axes_in[j, 0, 1], axes_in[j, 0, 2]
+        y0, y1, y2 = axes_in[j, 1, 0], axes_in[j, 1, 1], axes_in[j, 1, 2]
         lines[j, 0], lines[j, 1], lines[j, 2] = w00, w10, w20
         lines[j, 3], lines[j, 4], lines[j, 5] = w01, w11, w21
         lines[j, 6], lines[j, 7], lines[j, 8] = w02, w12, w22
-        lines[j, 9], lines[j, 10], lines[j, 11] = g00, g10, g20
-        lines[j, 12], lines[j, 13], lines[j, 14] = w00 * px + w01 * py, w10 * px + w11 * py, w20 * px + w21 * py
+        lines[j, 9] = w00 * x0 + w01 * x1 + w02 * x2
+        lines[j, 10] = w10 * x0 + w11 * x1 + w12 * x2
+        lines[j, 11] = w20 * x0 + w21 * x1 + w22 * x2
+        lines[j, 12] = w00 * y0 + w01 * y1 + w02 * y2
+        lines[j, 13] = w10 * y0 + w11 * y1 + w12 * y2
+        lines[j, 14] = w20 * y0 + w21 * y1 + w22 * y2
         lines[j, 15], lines[j, 16], lines[j, 17] = v0, v1, v2
         lines[j, 18], lines[j, 19], lines[j, 20] = o0, o1, o2
+        lines[j, 21], lines[j, 22], lines[j, 23] = g02, g12, g22
         if not revolute[j]:
             s = q[k, j] + _param(nominal, dx, row, 7 * j + 6)
             r00, r01, r02, r10, r11, r12, r20, r21, r22 = g00, g01, g02, g10, g11, g12, g20, g21, g22
@@ -498,7 +524,7 @@ def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, columns, k, ro
         _length_column(J, k, c + 2, lines[j, 6], lines[j, 7], lines[j, 8])
         _angle_column(J, k, c + 3, lines[j, 9], lines[j, 10], lines[j, 11], a0, a1, a2)
         _angle_column(J, k, c + 4, lines[j, 12], lines[j, 13], lines[j, 14], a0, a1, a2)
-        _angle_column(J, k, c + 5, lines[j, 6], lines[j, 7], lines[j, 8], a0, a1, a2)
+        _angle_column(J, k, c + 5, lines[j, 21], lines[j, 22], lines[j, 23], a0, a1, a2)
         if revolute[j]:
             _angle_column(J, k, c + 6, lines[j, 15], lines[j, 16], lines[j, 17], a0, a1, a2)
         else:
@@ -529,7 +555,7 @@ def _urdf_rows(flat, k, dof, lines, revolute, stream):
             _put(flat, i + 2, lines[j, 6 + r], stream)
             _put(flat, i + 3, lines[j, 9 + r1] * a2 - lines[j, 9 + r2] * a1, stream)
             _put(flat, i + 4, lines[j, 12 + r1] * a2 - lines[j, 12 + r2] * a1, stream)
-            _put(flat, i + 5, lines[j, 6 + r1] * a2 - lines[j, 6 + r2] * a1, stream)
+            _put(flat, i + 5, lines[j, 21 + r1] * a2 - lines[j, 21 + r2] * a1, stream)
             if revolute[j]:
                 _put(flat, i + 6, lines[j, 15 + r1] * a2 - lines[j, 15 + r2] * a1, stream)
             else:
@@ -542,7 +568,7 @@ def _urdf_rows(flat, k, dof, lines, revolute, stream):
             _put(flat, i + 2, 0.0, stream)
             _put(flat, i + 3, lines[j, 9 + r], stream)
             _put(flat, i + 4, lines[j, 12 + r], stream)
-            _put(flat, i + 5, lines[j, 6 + r], stream)
+            _put(flat, i + 5, lines[j, 21 + r], stream)
             _put(flat, i + 6, lines[j, 15 + r] if revolute[j] else 0.0, stream)
             i += 7
 
@@ -645,8 +671,8 @@ def warm_up(which=ALL) -> float:
     if "dh" in which:
         dh_chain(q, np.zeros(4), NO_DX, revolute, True, eye, eye, T, np.empty((1, 6, 4)), True)
     if "urdf" in which:
-        urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.array([[0.0, 0.0, 1.0]]), eye,
-                   T, np.empty((1, 6, 7)), True, 0)
+        urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.zeros((1, 3)),
+                   np.array([[0.0, 0.0, 1.0]]), eye, T, np.empty((1, 6, 7)), True, 0)
         choose_writers()
     if "pups" in which:
         from .pups_kernels import warm_up as warm_up_pups
@@ -754,7 +780,7 @@ def time_writers(rounds: int = 3) -> dict:
         fixed[j, :3, 3] = rng.uniform(-0.2, 0.2, 3)
     axes = np.tile([0.0, 0.0, 1.0], (dof, 1))
     revolute = np.ones(dof, np.bool_)
-    nominal, tool = np.zeros(7 * dof), np.eye(4)
+    nominal, tool, origin_rpy = np.zeros(7 * dof), np.eye(4), np.zeros((dof, 3))
     out = {}
     for size_class, nbytes in SIZES.items():
         q = rng.uniform(-np.pi, np.pi, (max(1, nbytes // (6 * 7 * dof * 8)), dof))
@@ -763,7 +789,7 @@ def time_writers(rounds: int = 3) -> dict:
             for code, name in enumerate(WRITERS):
                 T, J = np.empty((len(q), 4, 4)), np.empty((len(q), 6, 7 * dof))
                 t0 = time.perf_counter()
-                urdf_chain(q, nominal, NO_DX, revolute, fixed, axes, tool, T, J, True, code)
+                urdf_chain(q, nominal, NO_DX, revolute, fixed, origin_rpy, axes, tool, T, J, True, code)
                 if r:
                     best[name] = min(best[name], time.perf_counter() - t0)
         out[size_class] = best

@@ -1,10 +1,14 @@
 """Serial chains from URDF, parsed by pinocchio, with a batched analytic error model.
 
 Error parameters of each movable joint ``j`` (revolute, continuous or prismatic), in this order:
-``j.x j.y j.z`` (m) and ``j.roll j.pitch j.yaw`` (rad), the six components of the joint's fixed
-``<origin xyz rpy>`` in its parent link frame, then ``j.offset``, the joint's zero offset (rad, or m for
-a prismatic joint). Fixed joints carry no parameters of their own: to first order an error of a fixed
-origin is an error of the next movable origin, which already has all six components.
+``j.x j.y j.z`` (m), a shift of the joint's fixed ``<origin xyz>`` along the axes of its parent link frame;
+``j.rx j.ry j.rz`` (rad), small turns of the origin's frame about its own x, y and z axes, applied in that
+order after its nominal ``rpy`` (``R = R(rpy) Rx(rx) Ry(ry) Rz(rz)``: to first order the three components
+of a rotation vector in the origin's frame, so that every origin keeps three independent rotation errors,
+even one with pitch +-pi/2, where roll and yaw turn about the same axis); then ``j.offset``, the joint's
+zero offset (rad, or m for a prismatic joint). Fixed joints carry no parameters of their own: to first
+order an error of a fixed origin is an error of the next movable origin, which already has all six
+components.
 
 pinocchio parses the file and validates the tree; the batched forward kinematics and the Jacobian are
 our own code (a compiled kernel, and numpy as the reference), checked against pinocchio's FK in the tests.
@@ -21,12 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from ..compat import frame_joint
-from ..geometry import axis_angle_matrix, cross3, rpy_matrix, rpy_to_matrix
+from ..geometry import axis_angle_matrix, cross3, rpy_to_matrix
 from ..resources import not_a_file
 from ..yamlio import decode_utf8, read_bytes
 from .base import PRISMATIC, REVOLUTE, CompiledChain, ErrorJacobian, ModelError
 
-ORIGIN_FIELDS = ("x", "y", "z", "roll", "pitch", "yaw")
+ORIGIN_FIELDS = ("x", "y", "z", "rx", "ry", "rz")
 MAX_URDF_BYTES = 8 * 1024 * 1024  # of a URDF file or robot_description text
 MAX_URDF_DEPTH = 64               # elements inside elements
 MAX_URDF_JOINTS = 1000
@@ -153,7 +157,8 @@ class URDFChain(CompiledChain):
         self.param_names = tuple(f"{j}.{f}" for j in names for f in ORIGIN_FIELDS + ("offset",))
         self.param_kinds = tuple(k for t in types for k in ("length",) * 3 + ("angle",) * 3 +
                                  (("angle",) if t == REVOLUTE else ("length",)))
-        self.nominal = np.concatenate([np.append(o, 0.0) for o in origins])
+        self.origin_rpy = np.array([o[3:] for o in origins]).reshape(-1, 3)  # (dof, 3) nominal origin rpy, rad
+        self.nominal = np.concatenate([np.r_[o[:3], 0.0, 0.0, 0.0, 0.0] for o in origins])
 
     @staticmethod
     def _tip_frame(model, root, tip_link, where):
@@ -183,7 +188,8 @@ class URDFChain(CompiledChain):
         return 7 * np.arange(self.dof) + 6
 
     def _run_kernel(self, kernels, q, dx, T, J, jacobian):
-        return kernels.urdf_chain(q, self.nominal, dx, self._revolute, self._fixed, self._axes, self._tool, T, J,
+        return kernels.urdf_chain(q, self.nominal, dx, self._revolute, self._fixed, self.origin_rpy, self._axes,
+                                  self._tool, T, J,
                                   jacobian, kernels.writer_for(J.nbytes) if jacobian else 0)
 
     def _fk_and_jacobian_numpy(self, q, dx=None, jacobian=True):
@@ -197,13 +203,15 @@ class URDFChain(CompiledChain):
         o = np.zeros((3, n))
         lines = []
         for k in range(dof):
-            x, y, z, roll, pitch, yaw, off = P[7 * k:7 * k + 7]
+            x, y, z, rx, ry, rz, off = P[7 * k:7 * k + 7]
             F = self._fixed[k]
             RW = _mul(R, F[:3, :3])
             oW = o + _apply(R, F[:3, 3])
-            RJ = _mul(RW, rpy_matrix(roll, pitch, yaw))
+            RN = _mul(RW, rpy_to_matrix(self.origin_rpy[k]))
+            RX = _mul(RN, axis_angle_matrix(np.array([1.0, 0.0, 0.0]), rx))
+            RJ = _mul(_mul(RX, axis_angle_matrix(np.array([0.0, 1.0, 0.0]), ry)),
+                      axis_angle_matrix(np.array([0.0, 0.0, 1.0]), rz))
             oJ = oW + _apply(RW, np.stack([x, y, z]))
-            w_pitch = _apply(RW, np.stack([-np.sin(yaw), np.cos(yaw), np.zeros_like(yaw)]))
             w_joint = _apply(RJ, self._axes[k])
             if self.joint_types[k] == REVOLUTE:
                 R = _mul(RJ, axis_angle_matrix(self._axes[k], q[:, k] + off))
@@ -211,7 +219,7 @@ class URDFChain(CompiledChain):
             else:
                 R = RJ
                 o = oJ + w_joint * (q[:, k] + off)
-            lines.append(((RW[:, 0], RW[:, 1], RW[:, 2]), (RJ[:, 0], w_pitch, RW[:, 2]), w_joint, oJ))
+            lines.append(((RW[:, 0], RW[:, 1], RW[:, 2]), (RN[:, 0], RX[:, 1], RJ[:, 2]), w_joint, oJ))
         Rend = _mul(R, self._tool[:3, :3])
         Pend = o + _apply(R, self._tool[:3, 3])
         T = np.zeros((n, 4, 4))
