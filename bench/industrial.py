@@ -14,6 +14,7 @@ of ``calibrate``'s optimum).
 """
 from __future__ import annotations
 
+import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +22,10 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # run from a checkout without installing
+from tolerance_ros.core.accuracy.simulate import PinocchioArm, edited_urdf  # noqa: E402
+from tolerance_ros.core.geometry import exp_so3, rpy_to_matrix  # noqa: E402
+
 URDF = ROOT / "test" / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf"
 JOINTS = ("joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6")
 REFLECTORS = {"R1": (0.03, 0.09, 0.0), "R2": (0.03, -0.045, 0.078), "R3": (0.03, -0.045, -0.078)}  # flange frame, m
@@ -28,79 +33,8 @@ TRACKER = ((3.2, -1.1, 0.4), (0.01, -0.02, 2.4))  # base in the tracker frame: x
 GRAVITY = 9.81
 
 
-def _rpy_matrix(r, p, y):
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
-
-
-def _rpy_of(R):
-    pitch = np.arcsin(-np.clip(R[2, 0], -1, 1))
-    if abs(np.cos(pitch)) < 1e-9:  # not met by the edits below (they tilt every locked origin)
-        raise ValueError("gimbal lock in the as-built rpy")
-    return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
-
-
 def _rotvec(w):
-    w = np.asarray(w, float)
-    a = np.linalg.norm(w)
-    if a == 0:
-        return np.eye(3)
-    k = w / a
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K
-
-
-def edited_urdf(text: str, edits: dict) -> str:
-    """URDF text with joint origins edited: ``edits[joint] = (dxyz (3,) m added in the parent frame, rotation
-    vector (3,) rad applied in the parent frame on the left of the origin's rotation, zero offset rad (a turn
-    about the joint axis at the origin))``."""
-    root = ET.fromstring(text)
-    for j in root.findall("joint"):
-        if j.get("name") not in edits:
-            continue
-        dxyz, w, off = edits[j.get("name")]
-        org = j.find("origin")
-        xyz = np.array([float(v) for v in org.get("xyz", "0 0 0").split()])
-        rpy = np.array([float(v) for v in org.get("rpy", "0 0 0").split()])
-        axis = np.array([float(v) for v in j.find("axis").get("xyz").split()])
-        R = _rotvec(w) @ _rpy_matrix(*rpy) @ _rotvec(axis / np.linalg.norm(axis) * off)
-        org.set("xyz", " ".join(repr(float(v)) for v in xyz + np.asarray(dxyz, float)))
-        org.set("rpy", " ".join(repr(float(v)) for v in _rpy_of(R)))
-    return ET.tostring(root, encoding="unicode")
-
-
-class PinArm:
-    """Tool-point positions of a URDF chain by pinocchio (the independent forward kinematics)."""
-
-    def __init__(self, text, tip="flange"):
-        import pinocchio as pin
-        self.pin = pin
-        self.model = pin.buildModelFromXML(text)
-        self.data = self.model.createData()
-        self.fid = self.model.getFrameId(tip)
-
-    def points(self, q, offsets):
-        """(n, K, 3) points at ``offsets`` (K, 3) in the tip frame, base frame, m."""
-        pin = self.pin
-        out = np.empty((len(q), len(offsets), 3))
-        for i, qi in enumerate(np.asarray(q, float)):
-            pin.framesForwardKinematics(self.model, self.data, qi)
-            M = self.data.oMf[self.fid]
-            out[i] = np.asarray(offsets) @ M.rotation.T + M.translation
-        return out
-
-    def gravity_torque(self, q, mass, h=1e-6):
-        """(n, dof) torque of a point mass (kg) at the tip frame's origin, N m (finite differences)."""
-        q = np.asarray(q, float)
-        out = np.empty_like(q)
-        z0 = np.zeros(3)[None]
-        for j in range(q.shape[1]):
-            dq = np.zeros(q.shape[1])
-            dq[j] = h
-            out[:, j] = (self.points(q + dq, z0)[:, 0, 2] - self.points(q - dq, z0)[:, 0, 2]) / (2 * h)
-        return out * mass * GRAVITY
+    return exp_so3(np.asarray(w, float))[0]
 
 
 def configurations(seed=0, n_fixed=21, moved_j1=(0.45, -0.5, 0.9)):
@@ -161,18 +95,18 @@ def campaign(repeats=10, noise=40e-6, mass=120.0, seed=0, edits=None, compliance
         edits = e if edits is None else edits
         compliance = c if compliance is None else compliance
     text = edited_urdf(nominal, edits)
-    arm = PinArm(text)
+    arm = PinocchioArm(text, "flange")
     q = configurations() if q is None else np.asarray(q, float)
     names = list(REFLECTORS)
     offs = np.array([REFLECTORS[k] for k in names])
     rng = np.random.default_rng(seed + 100)
     rows = []
     A = np.eye(4)
-    A[:3, :3] = _rpy_matrix(*TRACKER[1])
+    A[:3, :3] = rpy_to_matrix(TRACKER[1])
     A[:3, 3] = TRACKER[0]
     for c in range(repeats):
         q_read = q + rng.normal(0, 2e-6, q.shape)  # encoder readings of each visit
-        q_true = q_read + arm.gravity_torque(q_read, mass) * compliance
+        q_true = q_read + arm.point_mass_torques(q_read, mass) * compliance
         pts = arm.points(q_true, offs)
         for i in range(len(q)):
             for k, name in enumerate(names):
@@ -218,6 +152,7 @@ class IndependentModel:
         self.A0 = np.asarray(A0, float)
         self.compliant = [JOINTS.index(j) for j in compliant]
         self.n = 7 * 6 + 6 + 9 + len(self.compliant)
+        self._torques = {}
 
     def _apply(self, x):
         pin = self.pin
@@ -229,16 +164,19 @@ class IndependentModel:
 
     def predict(self, x, q, target_index):
         """(n, 3) tracker points of rows at joints q (n, 6) and reflector index (n,)."""
+        q = np.asarray(q, float)
+        if self.compliant:
+            c = np.zeros(6)
+            c[self.compliant] = x[57:]
+            key = q.tobytes()
+            if key not in self._torques:  # on the nominal model, as calibrate's load (its change with dx neglected)
+                self._torques[key] = self._torque(q)
+            q = q + self._torques[key] * c
         self._apply(x)
         A = np.eye(4)
         A[:3, :3] = _rotvec(x[45:48]) @ self.A0[:3, :3]
         A[:3, 3] = self.A0[:3, 3] + x[42:45]
         offs = x[48:57].reshape(3, 3)
-        q = np.asarray(q, float)
-        if self.compliant:
-            c = np.zeros(6)
-            c[self.compliant] = x[57:]
-            q = q + self._torque(q) * c
         pin = self.pin
         out = np.empty((len(q), 3))
         for i, qi in enumerate(q):
@@ -249,6 +187,7 @@ class IndependentModel:
 
     def _torque(self, q, h=1e-6):
         pin = self.pin
+        self._apply(np.zeros(self.n))
         out = np.empty_like(q)
         for i, qi in enumerate(q):
             for j in range(6):

@@ -485,7 +485,8 @@ def test_plan_calibrate_compensate_closes_the_loop(capsys, tmp_path, gao):
     assert load_robot(tmp_path / "cal" / "gao2023_7dof_calibrated.yaml").name == "gao2023_7dof"
     code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", str(csv_path),
                          "--campaign", str(planned), "--out", str(tmp_path / "cal_text"))
-    assert code == 0 and "position error RMS reduced by" in out and "held at nominal" in out and "alpha6" in out
+    assert code == 0 and "position error RMS (3-D, every measurement) reduced by" in out and "held at nominal" in out
+    assert "alpha6" in out and "converged in" in out and "in-sample position RMS (3-D)" in out
     compensated = tmp_path / "iso_compensated.yaml"
     code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration",
                          str(tmp_path / "cal" / "calibration.yaml"), "--targets", "gao2023_iso_cube",

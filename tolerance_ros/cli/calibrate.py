@@ -22,10 +22,17 @@ def add_arguments(p):
     p.add_argument("--parameters", choices=PARAMETERS, default="auto",
                    help="what to identify: auto (default: the candidate that predicts held-out poses best), the "
                         "registration alone, the joint offsets, every parameter, or every parameter and a joint "
-                        "compliance times its gravity load (URDF robots with inertials)")
+                        "compliance times its gravity load (URDF robots: their inertials, --payload, or a lumped "
+                        "point mass at the tool frame)")
     p.add_argument("--prior", default="10mm,10mrad",
                    help="prior std of the origin errors of the regularised fits, LENGTH,ANGLE (default 10mm,10mrad), "
                         "or none")
+    p.add_argument("--registration-prior", default="none",
+                   help="prior std of the base correction, LENGTH,ANGLE (default none: the registration is free)")
+    p.add_argument("--payload", metavar="MASS@X,Y,Z",
+                   help="a point mass on the tool loading the joints of the elastostatic term, e.g. 165kg@0.1m,0m,0.2m "
+                        "(tool frame); added to the URDF's inertials, or instead of the lumped 1 kg at the tool frame "
+                        "that stands for the load of a URDF without inertials")
     p.add_argument("--no-robust", action="store_true",
                    help="keep every measurement (by default outliers beyond 4.6 robust sigmas are left out and listed)")
     p.add_argument("--noise", default="10um", help="tracker position noise, weights the rows (default 10um); the "
@@ -39,33 +46,46 @@ def add_arguments(p):
                         "(a calibration that is refused goes to calibration.refused.yaml, and no robot file)")
 
 
-def prior_option(text):
+def prior_option(text, option="--prior"):
     """(length m, angle rad) of ``--prior LENGTH,ANGLE``, or None for ``none``."""
     if text.strip().lower() == "none":
         return None
     parts = text.split(",")
     if len(parts) != 2:
-        raise CLIError(f"--prior: expected LENGTH,ANGLE (e.g. 10mm,10mrad) or none, got {text!r}")
-    return quantity(parts[0], "length", "--prior"), quantity(parts[1], "angle", "--prior")
+        raise CLIError(f"{option}: expected LENGTH,ANGLE (e.g. 10mm,10mrad) or none, got {text!r}")
+    return quantity(parts[0], "length", option), quantity(parts[1], "angle", option)
+
+
+def payload_option(text):
+    """(kg, (3,) m) of ``--payload MASS@X,Y,Z``, or None."""
+    if text is None:
+        return None
+    mass, at, point = text.partition("@")
+    coords = point.split(",")
+    if not at or len(coords) != 3:
+        raise CLIError(f"--payload: expected MASS@X,Y,Z, each with its unit (e.g. 165kg@0.1m,0m,0.2m), got {text!r}")
+    return quantity(mass, "mass", "--payload"), tuple(quantity(c, "length", "--payload", positive=False)
+                                                       for c in coords)
 
 
 def run(args):
     from ..core.accuracy.io import read_measurements
-    from ..core.calibration.calibrate import calibrate_measurements
+    from ..core.calibration.calibrate import FitOptions, calibrate_measurements
     from ..core.calibration.writers import save_calibration, write_calibrated_robot
     from ..core.campaign import load_campaign
     from ..render.calibration_report import write_calibration_report
     model = load_model(args)
-    noise = quantity(args.noise, "length", "--noise")
-    onoise = quantity(args.orientation_noise, "angle", "--orientation-noise")
-    prior = prior_option(args.prior)
     if args.folds < 2:
         raise CLIError("--folds: must be >= 2")
+    opts = FitOptions(registration=args.registration, sigma_position=quantity(args.noise, "length", "--noise"),
+                      sigma_orientation=quantity(args.orientation_noise, "angle", "--orientation-noise"),
+                      robust=not args.no_robust, prior=prior_option(args.prior),
+                      registration_prior=prior_option(args.registration_prior, "--registration-prior"),
+                      folds=args.folds, seed=args.seed, payload=payload_option(args.payload))
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     prog = Progress("calibrate (cross-validating the candidates)", not args.quiet)
-    cal = calibrate_measurements(model, meas, campaign, args.registration, noise, onoise, args.folds, args.seed,
-                                 args.parameters, not args.no_robust, prior, prog)
+    cal = calibrate_measurements(model, meas, campaign, opts, parameters=args.parameters, progress=prog)
     out = Path(args.out)
     source = getattr(model, "config_path", None) or getattr(model, "source", None)
     cal.sources.update({"robot": relative(source, out) if source else model.name,
@@ -83,6 +103,8 @@ def run(args):
         files["refused"] = str(save_calibration(cal, out / "calibration.refused.yaml"))
         for problem in cal.plausibility["problems"]:
             missed(args, f"calibration refused: {problem}")
+    if not cal.convergence.get("converged", True):
+        missed(args, f"calibration: the fit {cal.convergence['words']}")
     written = write_calibration_report(cal, out, files)
     files.update(report=written["report"], json=written["json"], plots=written["plots"])
     if args.json:
@@ -98,21 +120,22 @@ def run(args):
 
 
 def print_calibration(cal, source):
-    """The calibration's figures as a person reads them (mm, mrad)."""
-    from ..render.calibration_report import candidate_rows, parameter_rows, summary_rows, target_rows
+    """The calibration's figures as a person reads them (mm, mrad; every RMS of the 3-D error)."""
+    from ..render.calibration_report import (candidate_rows, fit_summary, parameter_rows, row_lines, summary_rows,
+                                             target_rows)
     v = cal.validation
     print(f"robot {cal.robot}: {cal.measurements} measurements at {cal.poses} test poses from {source}; "
           f"registration '{cal.registration}'; " + ("frames (their orientation fitted with --orientation-noise)"
                                                     if cal.has_orientation else "points (no orientation)"))
-    print(f"\nwhat to identify ({cal.model.get('how', '')}; {v['method']}):")
-    print(table(["candidate", "unknowns", "held-out RMS mm", "held-out max mm", ""], candidate_rows(cal)))
-    print(f"identified: {cal.model.get('label', cal.model.get('parameters'))}; {cal.unknowns} unknowns from {cal.rows} "
-          f"equations; residual noise {cal.sigma * 1e6:.2f} um")
+    print(f"\nwhat to identify ({cal.model.get('how', '')}, compared on {cal.model.get('compared_on', '')}; "
+          f"{v['method']}):")
+    print(table(["candidate", "unknowns", "held-out RMS (3-D) mm", "held-out max mm", ""], candidate_rows(cal)))
+    print(f"identified: {cal.model.get('label', cal.model.get('parameters'))}; " + fit_summary(cal))
     if cal.held:
         print("held at nominal (not identifiable from these poses): " + ", ".join(cal.held))
     rows = parameter_rows(cal)
     if rows:
-        print(table(["param", "unit", "error", "std", "|error|/std", "absorbs (first order)"], rows))
+        print(table(["param", "unit", "error", "std", "|error|/std", "absorbs (first order)", "note"], rows))
     if cal.registration == "base+tool":
         print("targets in the tool frame [mm]:")
         print(table(["target", "x", "y", "z", "std"], target_rows(cal)))
@@ -121,18 +144,22 @@ def print_calibration(cal, source):
             f"{n} {c:+.4g} +- {s:.2g}" for n, c, s in zip(cal.sources.get("joint_names", []), cal.compliance,
                                                           cal.compliance_std) if c != 0)
               + " (rad/(N m); m/N for prismatic joints)")
-    for r in cal.rejected:
-        print(f"rejected: row {r['row']}" + (f" (pose {r['pose']})" if r.get("pose") else "")
-              + (f", target {r['target']}" if r.get("target") else "") + f": {r['reason']}")
+        if cal.load:
+            print(f"  loaded by {cal.load.get('description', cal.load.get('model'))}")
+    for line in row_lines(cal.rejected, "rejected") + row_lines(cal.suspect, "suspect"):
+        print(line)
     print(f"\nvalidation: {v['method']}")
     print(table(["held-out poses", "before", "after"], summary_rows(v)))
-    print(f"position error RMS reduced by {v['improvement'] * 100:.1f} %")
+    print(f"position error RMS (3-D, every measurement) reduced by {v['improvement'] * 100:.1f} %")
     rep = cal.repeatability or {}
     if rep.get("scatter_m") is not None:
-        print(f"what is left: residual RMS {rep['residual_rms_m'] * 1e3:.4f} mm beside the repeat scatter of repeated "
-              f"poses {rep['scatter_m'] * 1e3:.4f} mm; not explained by noise {rep['unexplained_m'] * 1e3:.4f} mm")
+        print(f"what is left: residual RMS (3-D) {rep['residual_rms_m'] * 1e3:.4f} mm beside the repeat scatter of "
+              f"repeated poses {rep['scatter_m'] * 1e3:.4f} mm; not explained by noise "
+              f"{rep['unexplained_m'] * 1e3:.4f} mm")
     elif rep:
-        print(f"what is left: residual RMS {rep['residual_rms_m'] * 1e3:.4f} mm; no pose was repeated, so the noise "
-              f"floor is not measured (repeat poses to tell noise from model error)")
+        print(f"what is left: residual RMS (3-D) {rep['residual_rms_m'] * 1e3:.4f} mm; no pose was repeated, so the "
+              f"noise floor is not measured (repeat poses to tell noise from model error)")
+    for w in cal.warnings:
+        print(f"WARNING: {w}")
     for problem in cal.plausibility["problems"]:
         print(f"REFUSED: {problem}")

@@ -66,8 +66,8 @@ def run(args):
         print(f"  ... and {len(meas.skipped) - SKIPPED_SHOWN} more (all of them in skipped_rows of --json)")
     reg = res["registration"]
     oe = s.get("orientation_error_rad")
-    print(f"registration {reg['method']}: residual RMS {reg['residual_rms_m'] * 1e3:.4f} mm; position error at the "
-          f"{'targets' if len(res['targets']) > 1 else 'measured point'} mean {pe['mean'] * 1e3:.4f}, max "
+    print(f"registration {reg['method']}: residual RMS (3-D) {reg['residual_rms_m'] * 1e3:.4f} mm; position error at "
+          f"the {'targets' if len(res['targets']) > 1 else 'measured point'} mean {pe['mean'] * 1e3:.4f}, max "
           f"{pe['max'] * 1e3:.4f} mm" + (f"; orientation error mean {oe['mean'] * 1e3:.4f}, max {oe['max'] * 1e3:.4f} mrad"
                                           if oe else " (points: no orientation measured)"))
     if reg.get("targets_estimated"):

@@ -45,19 +45,19 @@ def run(args):
     b, a = res["before"]["position_rms_m"], res["after"]["position_rms_m"]
     if a >= b:
         missed(args, f"the calibration does not predict {meas.source} better than the nominal robot "
-                     f"(position RMS {b * 1e3:.4f} mm before, {a * 1e3:.4f} mm after)")
+                     f"(3-D position RMS {b * 1e3:.4f} mm before, {a * 1e3:.4f} mm after)")
     if args.json:
         return res
     print(f"robot {model.name}, calibration {args.calibration}: {res['measurements']} measurements from "
           f"{meas.source}; {'tracker refitted' if args.reregister else 'nothing refitted'}")
-    rows = [["position RMS [mm]", f"{b * 1e3:.4f}", f"{a * 1e3:.4f}"],
+    rows = [["position RMS (3-D) [mm]", f"{b * 1e3:.4f}", f"{a * 1e3:.4f}"],
             ["position max [mm]", f"{res['before']['position_max_m'] * 1e3:.4f}",
              f"{res['after']['position_max_m'] * 1e3:.4f}"]]
     if res["orientation_measured"]:
         rows.append(["orientation RMS [mrad]", f"{res['before']['orientation_rms_rad'] * 1e3:.4f}",
                      f"{res['after']['orientation_rms_rad'] * 1e3:.4f}"])
     print(table(["", "before (nominal)", "after (calibrated)"], rows))
-    print(f"position error RMS reduced by {res['improvement'] * 100:.1f} %")
+    print(f"position error RMS (3-D) reduced by {res['improvement'] * 100:.1f} %")
     if res.get("by_group"):
         print("\nby posture (against the training campaign):")
         print(table(["postures", "poses", "before RMS mm", "after RMS mm"],

@@ -96,16 +96,20 @@ def parse_number(value, field: str) -> float:
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Zµ]*)\s*$", re.ASCII)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-_EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad", "time": "1s or 250ms"}
+MASS_UNITS = {"kg": 1.0, "g": 1e-3, "t": 1e3}
+_EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad", "time": "1s or 250ms",
+             "mass": "165kg or 0.5t"}
+_TABLES = {"time": TIME_UNITS, "mass": MASS_UNITS}
 
 
 def parse_quantity(text, kind: str = "length", field: str = "value") -> float:
-    """SI value of a length, angle or time written with its unit: ``'1.4mm'``, ``'0.3 mrad'``, ``'2 s'``.
+    """SI value of a length, angle, time or mass written with its unit: ``'1.4mm'``, ``'0.3 mrad'``, ``'2 s'``,
+    ``'165kg'``.
 
     A number without a unit is an error (a bare 1.4 could be metres or millimetres), as is an unknown
     unit or a non-finite value; the UnitError names ``field`` and shows the accepted forms.
     """
-    units = {"length": LENGTH_UNITS, "angle": ANGLE_UNITS, "time": TIME_UNITS}[kind]
+    units = {"length": LENGTH_UNITS, "angle": ANGLE_UNITS, "time": TIME_UNITS, "mass": MASS_UNITS}[kind]
     forms = f"write it with its unit, e.g. {_EXAMPLES[kind]} ({kind} units: {', '.join(sorted(units))})"
     m = _QUANTITY.match(str(text)) if isinstance(text, str) else None
     if not m:
@@ -113,10 +117,10 @@ def parse_quantity(text, kind: str = "length", field: str = "value") -> float:
     number, unit = float(m.group(1)), m.group(2)
     if not unit:
         raise UnitError(f"{field}: {text!r} has no unit; {forms}")
-    if kind == "time":
-        if unit not in TIME_UNITS:
-            raise UnitError(f"{field}: unknown time unit {unit!r}; {forms}")
-        scale = TIME_UNITS[unit]
+    if kind in _TABLES:
+        if unit not in _TABLES[kind]:
+            raise UnitError(f"{field}: unknown {kind} unit {unit!r}; {forms}")
+        scale = _TABLES[kind][unit]
     else:
         scale = length_scale(unit, field) if kind == "length" else angle_scale(unit, field)
     value = number * scale

@@ -91,7 +91,7 @@ def _registration_line(reg) -> str:
                          "measurements",
             "none": "none: the measurements are taken as base-frame poses",
             "given": "a given base -> tracker transform"}[reg["method"]]
-    line = (f"Registration: {what}; position residual RMS {reg['residual_rms_m'] * 1e3:.4f} mm, "
+    line = (f"Registration: {what}; position residual RMS (3-D) {reg['residual_rms_m'] * 1e3:.4f} mm, "
             f"max {reg['residual_max_m'] * 1e3:.4f} mm.")
     if reg.get("targets_estimated"):
         line += " Targets in the tool frame (mm): " + "; ".join(
@@ -136,7 +136,7 @@ def markdown(res, model, budget, files) -> str:
         L += ["## Identified parameter errors", "",
               f"Rank {ident.get('rank', '-')} of {ident.get('unknowns', '-')} unknowns"
               + (f", condition {ident['condition']:.3g}" if "condition" in ident else "")
-              + f"; residual RMS {ident['residual_rms_before_m'] * 1e3:.4f} mm"
+              + f"; residual RMS per axis {ident['residual_rms_before_m'] * 1e3:.4f} mm"
               + (f" -> {ident['residual_rms_after_m'] * 1e3:.4f} mm" if "residual_rms_after_m" in ident else "") + ".",
               ""]
         if ident.get("unidentifiable"):

@@ -152,7 +152,7 @@ def validation_before_after(validation: dict, path, title="Hold-out validation")
         e = np.sort(np.asarray(errs[label])) * 1e3
         rms = validation[label]["position_rms_m"] * 1e3
         ax1.plot(e, (np.arange(len(e)) + 1) / len(e), color=color,
-                 label=f"{label} calibration (RMS {rms:.4f} mm)")
+                 label=f"{label} calibration (3-D RMS {rms:.4f} mm)")
     ax1.set_xscale("log")
     ax1.set_xlabel("held-out position error |dP| [mm]")
     ax1.set_ylabel("fraction of held-out measurements")

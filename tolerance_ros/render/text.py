@@ -59,3 +59,12 @@ def fmt(x, digits=4) -> str:
     if x is None or (isinstance(x, float) and not np.isfinite(x)):
         return "inf" if x is not None and x > 0 else "-"
     return f"{x:.{digits}g}" if abs(x) >= 1e4 or (abs(x) < 1e-3 and x != 0) else f"{x:.{digits}f}"
+
+
+def length_text(m, digits=3) -> str:
+    """A length (m) in the unit of its size: um below 1 mm, mm below 1 m, else m (``digits`` significant)."""
+    if m is None or not np.isfinite(m):
+        return "-"
+    a = abs(m)
+    value, unit = (m * 1e6, "um") if a < 1e-3 else (m * 1e3, "mm") if a < 1.0 else (m, "m")
+    return f"{value:.{digits}g} {unit}"

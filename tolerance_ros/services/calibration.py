@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.accuracy.io import MeasurementError, read_measurements
-from ..core.calibration.calibrate import MODELS, PRIOR, calibrate_measurements
+from ..core.calibration.calibrate import MODELS, PRIOR, FitOptions, calibrate_measurements
 from ..core.calibration.writers import SI, calibration_text, save_calibration
 from ..core.models.base import Mechanism
 from .allocation import DEFAULT_TIME_LIMIT_S, MAX_TIME_LIMIT_S, MIN_TIME_LIMIT_S
@@ -116,14 +116,17 @@ def run_calibration(job: CalibrationJob, progress=None):
             raise MeasurementError(f"window: no measurement of {job.log} is stamped in [{job.window[0]:.9g}, "
                                    f"{job.window[1]:.9g}] s")
         meas = meas.select(keep)
-    cal = calibrate_measurements(job.mechanism, meas, None, job.registration, job.noise, job.orientation_noise,
-                                 job.folds, job.seed, job.parameters, job.robust, job.prior, progress)
+    opts = FitOptions(registration=job.registration, sigma_position=job.noise, sigma_orientation=job.orientation_noise,
+                      robust=job.robust, prior=job.prior, folds=job.folds, seed=job.seed)
+    cal = calibrate_measurements(job.mechanism, meas, None, opts, parameters=job.parameters, progress=progress)
     cal.sources.update(measurements=job.log)
     v = cal.validation
     resp = {"id": job.id, "ok": True, "status": "done", "success": bool(cal.plausibility["ok"]), "robot": job.robot,
             "measurements": cal.measurements, "skipped": len(meas.skipped), "model": cal.model,
-            "validation": {k: v[k] for k in ("method", "folds", "poses", "before", "after", "improvement")},
-            "plausibility": cal.plausibility, "rejected": cal.rejected, "repeatability": cal.repeatability}
+            "validation": {k: v[k] for k in ("method", "folds", "poses", "before", "after", "improvement",
+                                             "before_kept", "after_kept", "kept_measurements") if k in v},
+            "fit": cal.fit_dict(), "plausibility": cal.plausibility, "rejected": cal.rejected,
+            "suspect": cal.suspect, "warnings": cal.warnings, "repeatability": cal.repeatability}
     return resp, cal
 
 

@@ -147,3 +147,102 @@ def test_every_column_of_the_fit_jacobian_matches_finite_differences():
         rm = _stack(model, q, T_meas, x - e, layout, tg, idx, True, 0.5, g)[1]
         # r = measured - model, measured here the model at x: J is minus the derivative of r
         assert np.allclose(-(rp - rm) / (2 * h), J[:, j], atol=1e-6), j
+
+
+def _scipy_cost(model, q, T_base, ident, prior, targets, idx, gravity=None, cmask=None):
+    """The minimum of ``identify``'s objective over the same free unknowns, found by scipy's Levenberg-Marquardt
+    (tolerances 1e-15) on a residual written here from the model's forward kinematics alone (no Jacobian of
+    ours): |measured point - B(x) T(q + g c, dx) X_k|^2 + prior @ x^2."""
+    from scipy.optimize import least_squares
+    from tolerance_ros.core.accuracy.identification import base_matrix
+    p = model.n_params
+    free = ident.free_columns
+    x0 = ident.x.copy()
+    K = len(targets)
+    nt = 3 * K if ident.targets_std is not None else 0
+    P = T_base[:, :3, 3]
+
+    def full(v):
+        x = np.zeros_like(x0)
+        x[free] = v
+        return x
+
+    def residual(v):
+        x = full(v)
+        qq = q
+        if cmask is not None:
+            c = np.zeros(model.dof)
+            c[cmask] = x[p + 6 + nt:]
+            qq = q + gravity * c
+        T = base_matrix(x[p:p + 6]) @ model.fk(qq, x[:p])
+        pts = targets.offsets.copy()
+        if nt:
+            pts = pts + x[p + 6:p + 6 + nt].reshape(K, 3)
+        model_pts = np.einsum("nij,nj->ni", T[:, :3, :3], pts[idx]) + T[:, :3, 3]
+        return np.concatenate([(P - model_pts).ravel(), np.sqrt(prior[free]) * v])
+
+    start = np.zeros(len(free))  # from nominal, not from our answer
+    res = least_squares(residual, start, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=100000,
+                        x_scale=np.full(len(free), 1e-3))
+    return float(res.fun @ res.fun)
+
+
+@pytest.mark.parametrize("regularised", [False, True])
+def test_identify_reaches_the_optimum_scipy_finds_on_a_dh_arm(gao, truth, regularised):
+    """The converged fit's cost equals scipy's minimum of the same objective to 1e-9, and the fit says how it
+    stopped; a cap of 1 iteration is reported as not converged."""
+    delta, dx, q, T = truth
+    q, T = q[:80], T[:80]
+    Tb = register(gao.fk(q), T).to_base(T)
+    prior_std = np.full(gao.n_params, 1e-3) if regularised else None
+    if regularised:
+        prior_std[gao.joint_columns()] = np.inf
+    ident = identify(gao, q, Tb, prior_std, 1e-5, hold="dependent", noise_from_residuals=True)
+    conv = ident.convergence
+    assert conv.converged and conv.stop in ("gradient", "step") and conv.gradient_cosine < 1e-6
+    prior = np.zeros(len(ident.x))
+    if regularised:
+        prior[:gao.n_params] = np.where(np.isinf(prior_std), 0.0, (1e-5 / prior_std) ** 2)
+    from tolerance_ros.core.accuracy.targets import Targets
+    cost = _scipy_cost(gao, q, Tb, ident, prior, Targets.at_tool(), np.zeros(len(q), int))
+    assert conv.cost == pytest.approx(cost, rel=1e-9)
+    capped = identify(gao, q, Tb, prior_std, 1e-5, hold="dependent", noise_from_residuals=True, iterations=1)
+    assert not capped.convergence.converged and capped.convergence.stop == "iteration cap"
+    assert "NOT CONVERGED" in capped.convergence.words()
+
+
+def test_identify_reaches_the_optimum_scipy_finds_on_a_urdf_arm_with_targets_and_compliance():
+    """The FANUC URDF (origins at pitch +-pi/2), three reflectors fitted with the registration, a compliance per
+    joint loaded by a point mass at the flange, a prior on the origin errors: scipy's minimum to 1e-9."""
+    from pathlib import Path
+    from tolerance_ros.core.accuracy.targets import Targets
+    from tolerance_ros.core.calibration.elastic import Load
+    from tolerance_ros.core.models import URDFChain
+    model = URDFChain(Path(__file__).resolve().parents[2] / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf")
+    rng = np.random.default_rng(3)
+    q = model.sample_joints(40, 4)
+    dx = rng.normal(0, 2e-4, model.n_params)
+    load = Load("point-mass", 100.0, (0.0, 0.0, 0.0))
+    g = load.torques(model, q)
+    c_true = np.array([0, 2e-7, 2e-7, 1e-7, 1e-7, 0])
+    offs = np.array([[0.03, 0.09, 0.0], [0.03, -0.045, 0.078], [0.03, -0.045, -0.078]])
+    idx = np.tile(np.arange(3), len(q))
+    rows = np.repeat(np.arange(len(q)), 3)
+    T_tool = model.fk(q + g * c_true, dx)[rows]
+    Tb = np.tile(np.eye(4), (len(rows), 1, 1))
+    Tb[:, :3, 3] = np.einsum("nij,nj->ni", T_tool[:, :3, :3], offs[idx]) + T_tool[:, :3, 3] + \
+        rng.normal(0, 3e-5, (len(rows), 3))
+    targets = Targets.from_offsets(("A", "B", "C"), offs + rng.normal(0, 1e-3, (3, 3)))
+    cmask = np.ptp(g, axis=0) > 1e-9
+    prior_std = np.where(np.array(model.param_kinds) == "length", 1e-3, 1e-3)
+    prior_std[model.joint_columns()] = np.inf
+    ident = identify(model, q[rows], Tb, prior_std, 1e-5, hold="dependent", noise_from_residuals=True,
+                     targets=targets, target_index=idx, estimate_targets=True, gravity=g[rows], compliance=cmask,
+                     compliance_prior=np.full(model.dof, 1e-6))
+    assert ident.convergence.converged
+    prior = np.zeros(len(ident.x))
+    prior[:model.n_params] = np.where(np.isinf(prior_std), 0.0, (1e-5 / prior_std) ** 2)
+    prior[-int(cmask.sum()):] = (1e-5 / 1e-6) ** 2
+    cost = _scipy_cost(model, q[rows], Tb, ident, prior, targets, idx, g[rows], cmask)
+    assert ident.convergence.cost == pytest.approx(cost, rel=1e-9)
+    assert ident.compliance[2] == pytest.approx(2e-7, rel=0.2)

@@ -67,7 +67,10 @@ def test_outliers_are_rejected_and_listed(gao):
     meas.T[bad, :3, 3] += [[0.02, 0, 0], [0, -0.005, 0.003]]
     cal = calibrate_measurements(gao, meas, sigma_position=NOISE)
     assert [r["row"] for r in cal.rejected] == bad and all("exceeds" in r["reason"] for r in cal.rejected)
-    assert cal.rejected[0]["pose"] == "P3" and cal.validation["after"]["position_rms_m"] < 3 * NOISE
+    v = cal.validation
+    assert cal.rejected[0]["pose"] == "P3" and v["after_kept"]["position_rms_m"] < 3 * NOISE
+    assert v["kept_measurements"] == v["measurements"] - 2 and v["excluded"] == bad
+    assert v["after"]["position_rms_m"] > 10 * NOISE        # every measurement is scored, the outliers too
     kept = calibrate_measurements(gao, meas, sigma_position=NOISE, robust=False)
     assert not kept.rejected and kept.validation["after"]["position_rms_m"] > 10 * NOISE
 

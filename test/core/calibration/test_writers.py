@@ -167,8 +167,8 @@ def test_calibration_file_errors_name_the_field(gao, gao_calibration, tmp_path):
     (lambda t: t + "junk: " + "[" * 5000 + "]" * 5000 + "\n", r", line \d+: nested deeper than 32 levels"),
     (lambda t: t.replace("rank: ", "rank: x, other: "), r": fit.rank: expected a number, got str"),
     (lambda t: t.replace("rank: ", "rank: .inf, other: "), r": fit.rank: expected a whole number, got inf"),
-    (lambda t: t.replace("noise_m: ", "noise_m: " + "9" * 400 + ", other: "),
-     r": fit.noise_m: an integer of 400 digits is too large"),
+    (lambda t: t.replace("noise_per_axis_m: ", "noise_per_axis_m: " + "9" * 400 + ", other: "),
+     r": fit.noise_per_axis_m: an integer of 400 digits is too large"),
 ])
 def test_calibration_files_that_would_trace_back_are_the_calibrations_error(gao, gao_calibration, tmp_path, edit,
                                                                             message):

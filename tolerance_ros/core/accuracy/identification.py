@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geometry import exp_so3, rotation_error
+from ..geometry import exp_so3, matrix_log_vec, rotation_error
+from ..models.base import ModelError
 from .targets import Targets, shift_jacobian
 
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
@@ -61,6 +62,12 @@ class Identification:
     row_residuals: np.ndarray | None = None
     weights: np.ndarray | None = None
     n_free: int = 0
+    x: np.ndarray | None = None
+    free_columns: np.ndarray | None = None
+    convergence: "Convergence | None" = None
+    held_judged_at: str = "nominal"
+    effective_unknowns: float = 0.0
+    undetermined: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return {"method": self.method,
@@ -70,7 +77,9 @@ class Identification:
                 "unknowns": self.n_unknowns, "condition": self.condition, "unidentifiable": self.unidentifiable,
                 "residual_rms_before_m": self.residual_rms_before, "residual_rms_after_m": self.residual_rms_after,
                 "iterations": self.iterations, "out_of_tolerance": self.out_of_tolerance, "held": self.held,
-                "aliases": self.aliases, "sigma_m": self.sigma, "fit_condition": self.fit_condition}
+                "aliases": self.aliases, "sigma_m": self.sigma, "fit_condition": self.fit_condition,
+                "convergence": None if self.convergence is None else self.convergence.to_dict(),
+                "undetermined": dict(self.undetermined)}
 
 
 def base_jacobian(p) -> np.ndarray:
@@ -100,14 +109,17 @@ def column_scale(delta, p: int) -> np.ndarray:
     return np.concatenate([d, np.full(6, SCALE_WITHOUT_BUDGET)])
 
 
-def _prior(delta, sigma_position, p, estimate_base=True) -> np.ndarray:
-    """Diagonal of the regulariser: (sigma / tolerance)^2 with a budget (0 where the tolerance is infinite,
-    the scale of ``column_scale`` where it is 0), a weak ridge without."""
-    if delta is None:
-        prior = np.full(p + 6, 1e-12)
-    else:
+def _prior(delta, sigma_position, p, estimate_base=True, base_prior=None) -> np.ndarray:
+    """Diagonal of the regulariser, (p + 6,): (sigma / tolerance)^2 of each parameter with a budget (0 where
+    the tolerance is infinite, the scale of ``column_scale`` where it is 0), 0 without; on the base
+    correction 0 unless ``base_prior`` = (length m, angle rad) is given."""
+    prior = np.zeros(p + 6)
+    if delta is not None:
         d = np.asarray(delta, float)
-        prior = np.where(np.isinf(np.r_[d, np.zeros(6)]), 0.0, (sigma_position / column_scale(d, p)) ** 2)
+        prior[:p] = np.where(np.isinf(d), 0.0, (sigma_position / column_scale(d, p)[:p]) ** 2)
+    if base_prior is not None:
+        prior[p:p + 3] = (sigma_position / float(base_prior[0])) ** 2
+        prior[p + 3:] = (sigma_position / float(base_prior[1])) ** 2
     if not estimate_base:
         prior[p:] = 1e12
     return prior
@@ -235,15 +247,24 @@ def dependent_parameters(Js, p, estimate_base=True, tol_rank=1e-6) -> np.ndarray
     return dependent_columns(Js, np.arange(p), np.arange(p, p + 6) if estimate_base else np.zeros(0, int), tol_rank)
 
 
-def dependent_columns(Js, estimable, nuisance, tol_rank=1e-6) -> np.ndarray:
+TIE = 1e-6  # relative weight by which a preferred column wins a tie of the pivoting (never chance)
+
+
+def dependent_columns(Js, estimable, nuisance, tol_rank=1e-6, preference=None) -> np.ndarray:
     """Mask over the ``estimable`` columns of the scaled Jacobian ``Js``: those to hold so that the rest and
     the ``nuisance`` columns (always estimated: base, targets) are identifiable.
 
     The nuisance columns' span is projected out of the estimable columns, and QR with column pivoting
     (the elimination of redundant parameters of Hollerbach & Wampler 1996) keeps the columns whose pivot
-    exceeds ``tol_rank`` times the largest singular value of ``Js``; the others are dependent.
+    exceeds ``tol_rank`` times the largest singular value of ``Js``; the others are dependent. Columns of
+    equal size (a joint's zero offset and the turn of its origin about the joint's axis are the same column)
+    are kept in the order of ``preference`` (len(estimable),) (small whole numbers, higher first), then the
+    earlier one: each column is weighted by ``1 + TIE * (preference + order)`` so that rounding never breaks
+    the tie.
     """
     A = Js[:, estimable]
+    pref = np.zeros(len(estimable)) if preference is None else np.asarray(preference, float)
+    A = A * (1.0 + TIE * (pref + 0.5 * (1.0 - np.arange(len(estimable)) / max(len(estimable), 1))))
     if len(nuisance):
         Qb, Rb = np.linalg.qr(Js[:, nuisance])
         Qb = Qb[:, np.abs(np.diag(Rb)) > 1e-12 * max(np.abs(Rb).max(), 1e-300)]
@@ -292,17 +313,129 @@ def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iteratio
     return ident
 
 
-def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientation=None, iterations=8,
+MAX_ITERATIONS = 200   # cap of the damped Gauss-Newton loop; a fit that reaches it says so (Identification.convergence)
+FTOL = 1e-12           # converged: a full Gauss-Newton step would lower the cost by less than this share
+XTOL = 1e-12           # converged: the step is below this share of the unknowns (in column-scale units)
+PRIOR_SHARE = 0.7      # a parameter whose posterior std is above this share of its prior std is set by the prior
+NEAR_COPY = 0.99       # two estimated unknowns correlated beyond this cannot be told apart by the data
+
+
+@dataclass
+class Convergence:
+    """How the damped Gauss-Newton (Levenberg-Marquardt) loop ended.
+
+    stop : 'gradient' (a full Gauss-Newton step would lower the cost by less than ``FTOL`` of it), 'step' (the
+    step is below ``XTOL`` of the unknowns), 'no descent' (no damped step lowers the cost: at the minimum to
+    rounding when the decrement is below 1e-9 of the cost) or 'iteration cap'.  gradient_cosine : the
+    largest cosine between the residual and a column of the Jacobian (0 at a minimum, scale-free; with a
+    prior, of the augmented problem).  decrement : the cost a full Gauss-Newton step would still remove,
+    as a share of the cost.  cost : the final cost, |r|^2 + the prior's term (m^2).
+    """
+
+    iterations: int
+    stop: str
+    converged: bool
+    gradient_cosine: float
+    decrement: float
+    cost: float
+
+    def to_dict(self) -> dict:
+        return {"iterations": self.iterations, "stop": self.stop, "converged": self.converged,
+                "gradient_cosine": self.gradient_cosine, "decrement": self.decrement, "cost_m2": self.cost}
+
+    def words(self) -> str:
+        """The stop in words, for reports."""
+        if self.stop == "iteration cap":
+            return (f"NOT CONVERGED: stopped by the cap of {self.iterations} iterations (a full step would still "
+                    f"lower the cost by {self.decrement:.2g} of it)")
+        return f"converged in {self.iterations} iterations ({self.stop} test; largest gradient cosine " \
+               f"{self.gradient_cosine:.1e})"
+
+
+def _update(x, step, rot):
+    """x + step, the rotation vectors at ``rot`` (k, 3) composed (``exp(step) exp(x)``) as their columns are
+    the derivative of a turn applied on the left."""
+    out = x + step
+    if len(rot):
+        R = exp_so3(step[rot]) @ exp_so3(x[rot])
+        out[rot] = matrix_log_vec(R)
+    return out
+
+
+def _minimise(evaluate, x, free, scale, prior, rot, cap):
+    """(x, J, r, Convergence): Levenberg-Marquardt on ``|r(x)|^2 + prior @ x^2`` over the ``free`` unknowns,
+    from x. ``evaluate(x) -> (J, r)``; columns scaled by ``scale``. Each iteration takes the eigenvectors of
+    the scaled normal matrix once: the Gauss-Newton step and every damped one (Levenberg, ``H + mu I`` in
+    the scaled space, Nielsen's update of ``mu``) are then sums over them, directions the data leave
+    undetermined (eigenvalues below 1e-12 of the largest) left out. Stops by the tests of ``Convergence``."""
+    J, r = evaluate(x)
+    cost = float(r @ r + prior @ (x * x))
+    mu, nu, it, stop = 0.0, 2.0, 0, "iteration cap"
+    sf, pf = scale[free], prior[free] * scale[free] ** 2
+    decrement = cosine = np.inf
+    while True:
+        Jf = J[:, free] * sf
+        H = Jf.T @ Jf + np.diag(pf)
+        g = Jf.T @ r - prior[free] * x[free] * sf
+        lam, V = np.linalg.eigh(H)
+        top = max(float(lam[-1]) if lam.size else 0.0, 1e-300)
+        live = lam > 1e-12 * top
+        gv = V.T @ g
+        decrement = float(np.sum(gv[live] ** 2 / lam[live])) / cost if cost > 0 else 0.0
+        norms = np.sqrt(np.sum(Jf * Jf, axis=0) + pf)
+        cosine = float(np.max(np.abs(g) / np.where(norms > 0, norms, 1.0))) / max(np.sqrt(cost), 1e-300) \
+            if len(free) else 0.0
+        if decrement <= FTOL:
+            stop = "gradient"
+            break
+        if it >= cap:
+            break
+        it += 1
+        accepted = False
+        while mu <= 1e6 * top:
+            s = V[:, live] @ (gv[live] / (lam[live] + mu))
+            step = np.zeros_like(x)
+            step[free] = s * sf
+            x_new = _update(x, step, rot)
+            try:
+                J_new, r_new = evaluate(x_new)
+                cost_new = float(r_new @ r_new + prior @ (x_new * x_new))
+            except (ValueError, ArithmeticError):  # a step the model cannot assemble (a parallel mechanism)
+                cost_new = np.inf
+            pred = float(2.0 * s @ g - s @ H @ s)
+            rho = (cost - cost_new) / pred if pred > 0 else -1.0
+            if np.isfinite(cost_new) and cost_new < cost and rho > 0:
+                mu = mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if mu > 1e-12 * top else 0.0
+                nu = 2.0
+                accepted = True
+                break
+            mu = max(mu * nu, 1e-6 * top)
+            nu *= 2.0
+        if not accepted:
+            stop = "no descent"
+            break
+        small = np.max(np.abs(s)) <= XTOL * (np.max(np.abs(x[free] / sf)) + XTOL)
+        x, J, r, cost = x_new, J_new, r_new, cost_new
+        if small:
+            stop = "step"
+            break
+    converged = stop in ("gradient", "step") or (stop == "no descent" and decrement <= 1e-9)
+    return x, J, r, Convergence(it, stop, bool(converged), cosine, max(decrement, 0.0), cost)
+
+
+def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientation=None, iterations=MAX_ITERATIONS,
              estimate_base=True, tol_rank=1e-6, hold=None, noise_from_residuals=False, targets=None,
              target_index=None, estimate_targets=False, gravity=None, compliance=None,
-             weights=None, estimate=None, analysis=True, compliance_prior=None) -> Identification:
+             weights=None, estimate=None, analysis=True, compliance_prior=None, base_prior=None,
+             start=None) -> Identification:
     """Estimate parameter errors dx (and a base correction) from measured base-frame poses (n, 4, 4).
 
-    Regularised Levenberg-Marquardt on the nonlinear model: minimise ``|r(dx)|^2 / sigma^2 + |dx / delta|^2``
-    (a Gauss-Newton step, damped only where it would raise the cost). Identifiability from the SVD of the
-    column-scaled Jacobian at the nominal parameters (a structural property of the model and the poses;
-    the perturbed model only blurs its null space): singular values below ``tol_rank`` of the largest
-    leave a null space, and a parameter with a weight of 0.1 or more in it cannot be separated from
+    Levenberg-Marquardt on the nonlinear model until converged (``Convergence``: the step and gradient
+    tests, or the cap ``iterations``): minimise ``|r(dx)|^2 / sigma^2 + |dx / delta|^2``. No prior on the base
+    correction and the targets unless ``base_prior`` = (length m, angle rad) is given. Identifiability from
+    the SVD of the column-scaled Jacobian at the nominal parameters (a structural property of the model and
+    the poses; the perturbed model only blurs its null space): singular values below ``tol_rank`` of the
+    largest leave a null space, and a parameter with a weight of 0.1 or more in it cannot be separated from
     others. ``sigma_orientation`` (rad) adds the orientation rows (measured frames only).
 
     targets, target_index : the measured targets' frames in the tool frame (``targets.Targets``) and each
@@ -311,14 +444,19 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     each row's joints (N m, N) and the (dof,) mask of the joints whose compliance (rad/(N m), m/N) is
     estimated: the joints deflect by ``c * g``; ``compliance_prior`` (dof,) their prior standard deviations
     (rad/(N m), m/N; None: none). weights : (n,) row weights (0 leaves a row out).
-    analysis : False skips the identifiability analysis (rank, condition, unidentifiable, aliases), for
-    fits that only predict (cross-validation).
+    analysis : False skips the identifiability analysis (rank, condition, unidentifiable, aliases, what
+    the data cannot tell), for fits that only predict (cross-validation). start : an ``Identification`` of
+    the same unknowns to start from (a refit with other weights or noise).
 
     ``estimate``: the names of the parameters to estimate (None: all; the others are held at 0). ``hold``:
     None holds no more; ``"dependent"`` also holds the parameters (and compliances) of ``dependent_columns``
-    (judged at nominal among those without a prior, the base and targets always estimated) at 0; a list of
-    names holds those. With ``noise_from_residuals`` the covariance is scaled by the residual noise
-    ``|r|^2 / (rows - unknowns)`` instead of ``sigma_position^2`` (the prior, if any, is kept).
+    (a prior does not make a dependent parameter identifiable: it would only share the correction among
+    copies; judged on columns scaled by 1 mm and 1 mrad whatever the prior, so that the choice among equal
+    columns is ``dependent_columns``'s preference; the base and targets always estimated) at 0, judged at
+    nominal, then at the solution among the
+    columns still free (refitted when the solution shows more); a list of names holds those. With
+    ``noise_from_residuals`` the covariance is scaled by the residual noise ``|r|^2 / (rows - effective
+    unknowns)`` instead of ``sigma_position^2`` (the prior, if any, is kept).
     """
     q = model.check_joints(q)
     T_meas = np.asarray(T_meas, float)
@@ -334,75 +472,91 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     sqrt_w = None if weights is None else np.sqrt(w)
     scale = np.concatenate([column_scale(delta, p), np.full(layout.nt + layout.nr, SCALE_WITHOUT_BUDGET),
                             _compliance_scale(gravity, layout)])
-    prior = np.concatenate([_prior(delta, sigma_position, p, estimate_base), np.full(layout.n - p - 6, 1e-12)])
+    prior = np.concatenate([_prior(delta, sigma_position, p, estimate_base, base_prior),
+                            np.zeros(layout.n - p - 6)])
     if layout.nc and compliance_prior is not None:
         prior[layout.c] = (sigma_position / np.asarray(compliance_prior, float)[layout.cmask]) ** 2
-    x = np.zeros(layout.n)
-    J, r, _ = _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity, sqrt_w)
+    rot = np.r_[np.arange(p + 3, p + 6), np.arange(layout.r.start, layout.r.stop)].reshape(-1, 3) \
+        if estimate_base else np.arange(layout.r.start, layout.r.stop).reshape(-1, 3)
+
+    def evaluate(x):
+        J, r, _ = _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity, sqrt_w)
+        return J, r
+
+    x0 = np.zeros(layout.n)
+    J0, r0 = evaluate(x0)
     rows_used = max(int(np.count_nonzero(w)), 1) * (6 if use_ori else 3)
-    Js = J * scale
-    rms0 = float(np.sqrt(r @ r / rows_used))
+    Js0 = J0 * scale
+    natural = np.concatenate([np.full(p + 6 + layout.nt + layout.nr, SCALE_WITHOUT_BUDGET), scale[layout.c]])
+    rms0 = float(np.sqrt(r0 @ r0 / rows_used))
     held = np.zeros(layout.n, bool)
     if not estimate_base:
         held[layout.base] = True
     if estimate is not None:
         held[:p] = True
         held[model.param_index(list(estimate))] = False
-    if isinstance(hold, str) and hold == "dependent":
-        nuisance = layout.nuisance if estimate_base else layout.nuisance[6:]
-        cand = layout.estimable[~held[layout.estimable]]
-        cand = cand[prior[cand] <= 1e-12]  # a column with a prior is determined by it
-        held[cand[dependent_columns(Js, cand, nuisance, tol_rank)]] = True
+    dependent = isinstance(hold, str) and hold == "dependent"
+    nuisance = layout.nuisance if estimate_base else layout.nuisance[6:]
+    cand = layout.estimable[~held[layout.estimable]]
+    prefer = _preference(model, layout, cand)
+    if dependent:
+        held[cand[dependent_columns(J0 * natural, cand, nuisance, tol_rank, prefer)]] = True
     elif hold is not None:
         held[model.param_index(list(hold))] = True
-    free = np.flatnonzero(~held)
-    cost = r @ r + prior @ (x * x)
-    lam, it = 0.0, 0
-    for it in range(1, iterations + 1):
-        Jf = J[:, free] * scale[free]
-        A = Jf.T @ Jf + np.diag(prior[free] * scale[free] ** 2)
-        g = Jf.T @ r - prior[free] * x[free] * scale[free]
-        for _ in range(12):
-            step = np.linalg.solve(A + lam * np.diag(np.diag(A)), g) * scale[free]
-            x_new = x.copy()
-            x_new[free] += step
-            J_new, r_new, _ = _stack(model, q, T_meas, x_new, layout, targets, idx, use_ori, w_ori, gravity, sqrt_w)
-            cost_new = r_new @ r_new + prior @ (x_new * x_new)
-            if np.isfinite(cost_new) and cost_new <= cost * (1 + 1e-12):
-                lam = lam / 10 if lam > 1e-6 else 0.0
-                break
-            lam = max(lam * 10, 1e-4)
-        else:
+    x = x0.copy()
+    if start is not None and getattr(start, "x", None) is not None and len(start.x) == layout.n:
+        x = np.where(held, 0.0, start.x)
+    judged = "nominal"
+    for _ in range(3):
+        free = np.flatnonzero(~held)
+        x, J, r, conv = _minimise(evaluate, x, free, scale, prior, rot, iterations)
+        if not dependent or not len(cand):
             break
-        x, J, r, cost = x_new, J_new, r_new, cost_new
-        if np.max(np.abs(step) / scale[free]) < 1e-10:
+        at = held.copy()  # a dependence that only the solution shows, among the columns still free
+        still = ~held[cand]
+        at[cand[still][dependent_columns(J * natural, cand[still], nuisance, tol_rank, prefer[still])]] = True
+        judged = "nominal and solution"
+        if np.array_equal(at, held):
             break
+        held = at
+        x = np.where(held, 0.0, x)
     Jf = J[:, free]
+    sf = scale[free]
+    H = (Jf * sf).T @ (Jf * sf) + np.diag(prior[free] * sf ** 2)
+    Hinv = np.linalg.pinv(H)
+    edf = float(np.trace(Hinv @ ((Jf * sf).T @ (Jf * sf)))) if len(free) else 0.0
     noise = sigma_position
     if noise_from_residuals:
-        dof = rows_used - len(free)
-        if dof < 1:
+        dof = rows_used - edf
+        if rows_used - len(free) < 1 or dof < 1:
             raise ValueError(f"identification: {rows_used} residuals for {len(free)} unknowns; the noise cannot be "
                              f"estimated (measure more poses)")
         noise = float(np.sqrt(r @ r / dof))
     cov = np.zeros((layout.n, layout.n))
-    cov[np.ix_(free, free)] = np.linalg.pinv(Jf.T @ Jf + np.diag(prior[free])) * noise ** 2
-    cols = np.flatnonzero(np.linalg.norm(Js, axis=0) > 0)
+    cov[np.ix_(free, free)] = Hinv * np.outer(sf, sf) * noise ** 2
+    cols = np.flatnonzero(np.linalg.norm(Js0, axis=0) > 0)
     main = np.arange(p + 6)
     if analysis:
-        s, V = _singular_values_and_vectors(Js[:, cols])
+        s, V = _singular_values_and_vectors(Js0[:, cols])
         rank, cond, weight = _identifiability(s, V, cols, layout.n, tol_rank)
     else:
         rank, cond, weight = 0, float("nan"), np.zeros(layout.n)
     ident = _result(model, x[main], cov[np.ix_(main, main)], rank, cond, weight[main], cols[cols < p + 6], delta,
-                    rms0, float(np.sqrt(r @ r / rows_used)), it, "gauss-newton", estimate_base)
+                    rms0, float(np.sqrt(r @ r / rows_used)), conv.iterations, "gauss-newton", estimate_base)
+    ident.x = x
+    ident.free_columns = free
+    ident.convergence = conv
+    ident.held_judged_at = judged
     ident.held = [model.param_names[j] for j in np.flatnonzero(held[:p])]
     ident.sigma = noise
+    ident.effective_unknowns = edf
     if analysis:
-        ident.aliases = _aliases(Js, free[free < p + 6], np.flatnonzero(held[:p]), scale,
+        ident.aliases = _aliases(Js0, free[free < p + 6], np.flatnonzero(held[:p]), scale,
                                  tuple(model.param_names) + BASE_NAMES)
-        sf = _singular_values_and_vectors(Js[:, free])[0]
-        ident.fit_condition = float(sf.max() / sf.min()) if sf.size and sf.min() > 0 else float("inf")
+        ev = np.linalg.eigvalsh(H) if len(free) else np.zeros(0)
+        ident.fit_condition = float(np.sqrt(ev.max() / ev.min())) if ev.size and ev.min() > 0 else float("inf")
+        names = _unknown_names(model, layout)
+        ident.undetermined = _undetermined(names, free, cov, prior, scale, sigma_position, noise, layout)
     else:
         ident.unidentifiable = []
     ident.targets = Targets(targets.names, _targets_with(targets, layout, x), targets.frames)
@@ -413,11 +567,62 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
         ident.compliance[layout.cmask] = x[layout.c]
         ident.compliance_std = np.zeros(model.dof)
         ident.compliance_std[layout.cmask] = np.sqrt(np.maximum(np.diag(cov)[layout.c], 0.0))
-        ident.compliance_held = [model.joint_names[j] for j, h in zip(np.flatnonzero(layout.cmask), held[layout.c]) if h]
+        ident.compliance_held = [model.joint_names[j] for j, h in zip(np.flatnonzero(layout.cmask), held[layout.c])
+                                 if h]
     ident.row_residuals = _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity)[2]
     ident.weights = w
     ident.n_free = int(len(free))
     return ident
+
+
+def _preference(model, layout, cols) -> np.ndarray:
+    """Which of equal columns to keep: joint zero offsets and compliances first, then shifts, then turns."""
+    pref = np.zeros(layout.n)
+    pref[:layout.p] = [1.0 if k == "length" else 0.0 for k in model.param_kinds]
+    try:
+        pref[model.joint_columns()] = 2.0
+    except ModelError:  # a mechanism whose joints are not parameters (the 3-PUPS): no offsets to prefer
+        pass
+    pref[layout.c] = 2.0
+    return pref[cols]
+
+
+def _unknown_names(model, layout) -> list:
+    """Names of the unknowns in the order of ``_Layout``."""
+    names = list(model.param_names) + list(BASE_NAMES)
+    names += [f"target{k}.{a}" for k in range(layout.nt // 3) for a in "xyz"]
+    names += [f"target{k}.r{a}" for k in range(layout.nr // 3) for a in "xyz"]
+    names += [f"{j}.compliance" for j, m in zip(model.joint_names, layout.cmask) if m]
+    return names
+
+
+def _undetermined(names, free, cov, prior, scale, sigma_position, noise, layout) -> dict:
+    """{name: reason} of the estimated parameters and compliances the data cannot tell: set by the prior (its
+    posterior std above ``PRIOR_SHARE`` of the prior's), or a near-copy of another unknown (posterior
+    correlation beyond ``NEAR_COPY``)."""
+    out = {}
+    est = [j for j in free if j < layout.p or layout.c.start <= j < layout.c.stop]
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    for j in est:
+        if prior[j] > 0:
+            prior_sd = sigma_position / np.sqrt(prior[j]) * noise / sigma_position
+            if sd[j] > PRIOR_SHARE * prior_sd:
+                out[names[j]] = (f"set by the prior: its std {sd[j]:.3g} is {sd[j] / prior_sd * 100:.0f} % of the "
+                                 f"prior's; the data hardly tell it")
+    if len(free) > 1:
+        C = cov[np.ix_(free, free)]
+        d = np.sqrt(np.maximum(np.diag(C), 1e-300))
+        R = C / np.outer(d, d)
+        pos = {j: i for i, j in enumerate(free)}
+        for j in est:
+            i = pos[j]
+            row = np.abs(R[i])
+            row[i] = 0.0
+            k = int(np.argmax(row))
+            if row[k] > NEAR_COPY and names[j] not in out:
+                out[names[j]] = (f"a near-copy of {names[free[k]]} (correlation {R[i, k]:+.3f}): only their "
+                                 f"combination is determined")
+    return out
 
 
 def _compliance_scale(gravity, layout) -> np.ndarray:
@@ -437,8 +642,9 @@ def identify_from_normal_equations(model, JtJ, Jtr, rtr, rows, delta=None, sigma
     p = model.n_params
     prior = _prior(delta, sigma_position, p)
     A = JtJ + np.diag(prior)
-    x = np.linalg.solve(A, Jtr)
-    cov = np.linalg.inv(A) * sigma_position ** 2
+    Ainv = np.linalg.pinv(A)  # the least-norm answer where the poses leave unknowns undetermined
+    x = Ainv @ Jtr
+    cov = Ainv * sigma_position ** 2
     scale = column_scale(delta, p)
     N = JtJ * np.outer(scale, scale)
     cols = np.flatnonzero(np.diag(N) > 0)

@@ -3,6 +3,10 @@
 The as-built robot has parameter errors drawn within the budget (seeded); the tracker measures the
 tool pose in its own frame (``T_tracker_base`` maps base-frame poses into the tracker frame) with
 Gaussian noise on position (m) and orientation (rad, a small rotation about a random axis).
+
+``edited_urdf`` makes an as-built URDF by editing its joint origins (shifts, turns and zero offsets
+composed exactly and written as rpy), and ``PinocchioArm`` measures it with pinocchio: a truth that does
+not go through the error model under test.
 """
 from __future__ import annotations
 
@@ -70,3 +74,64 @@ def measure_targets(model: Mechanism, q, dx=None, targets=None, noise_position=0
     return Measurements(stamps[rows], T, q[rows], model.joint_names,
                         None if labels is None else np.asarray(labels, dtype=object)[rows], np.full(len(T), -1),
                         not points, "simulated", [], names[idx] if K > 1 or targets.names[0] else None)
+
+
+def _rotation(w) -> np.ndarray:
+    return exp_so3(np.asarray(w, float))[0]
+
+
+def edited_urdf(text: str, edits: dict) -> str:
+    """URDF text with joint origins edited: ``edits[joint] = (dxyz (3,) m added in the parent frame, rotation
+    vector (3,) rad applied in the parent frame on the left of the origin's rotation, zero offset (rad, a turn
+    about the joint axis at the origin))``; each edited origin written as the rpy of its exact rotation."""
+    import xml.etree.ElementTree as ET
+    from ..geometry import rpy_from_matrix, rpy_to_matrix
+    root = ET.fromstring(text)
+    for j in root.findall("joint"):
+        if j.get("name") not in edits:
+            continue
+        dxyz, w, off = edits[j.get("name")]
+        org = j.find("origin")
+        if org is None:
+            org = ET.SubElement(j, "origin")
+        xyz = np.array([float(v) for v in org.get("xyz", "0 0 0").split()])
+        rpy = np.array([float(v) for v in org.get("rpy", "0 0 0").split()])
+        ax = j.find("axis")
+        axis = np.array([float(v) for v in (ax.get("xyz") if ax is not None else "1 0 0").split()])
+        R = _rotation(w) @ rpy_to_matrix(rpy) @ _rotation(axis / np.linalg.norm(axis) * off)
+        org.set("xyz", " ".join(repr(float(v)) for v in xyz + np.asarray(dxyz, float)))
+        org.set("rpy", " ".join(repr(float(v)) for v in rpy_from_matrix(R[None])[0]))
+    return ET.tostring(root, encoding="unicode")
+
+
+class PinocchioArm:
+    """Points on the tip link of a URDF, by pinocchio's forward kinematics (joint vectors in the URDF's own
+    joint order, which for a serial chain of 1-DOF joints is the chain's order)."""
+
+    def __init__(self, text: str, tip: str):
+        import pinocchio as pin
+        self.pin = pin
+        self.model = pin.buildModelFromXML(text)
+        self.data = self.model.createData()
+        self.fid = self.model.getFrameId(tip)
+
+    def points(self, q, offsets) -> np.ndarray:
+        """(n, K, 3) points at ``offsets`` (K, 3) m in the tip frame, base frame, m."""
+        out = np.empty((len(q), len(offsets), 3))
+        for i, qi in enumerate(np.asarray(q, float)):
+            self.pin.framesForwardKinematics(self.model, self.data, qi)
+            M = self.data.oMf[self.fid]
+            out[i] = np.asarray(offsets, float) @ M.rotation.T + M.translation
+        return out
+
+    def point_mass_torques(self, q, mass, h=1e-6) -> np.ndarray:
+        """(n, dof) gravity torque of a point mass (kg) at the tip frame's origin, N m: m g dz/dq by central
+        differences (gravity 9.81 m/s^2 along -z)."""
+        q = np.asarray(q, float)
+        out = np.empty_like(q)
+        z0 = np.zeros((1, 3))
+        for j in range(q.shape[1]):
+            dq = np.zeros(q.shape[1])
+            dq[j] = h
+            out[:, j] = (self.points(q + dq, z0)[:, 0, 2] - self.points(q - dq, z0)[:, 0, 2]) / (2 * h)
+        return out * mass * 9.81

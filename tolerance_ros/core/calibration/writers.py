@@ -25,8 +25,14 @@ Calibration file (YAML; ``units`` applies to ``parameters``, ``base_correction``
     held: [d1, theta1]                             # not identifiable from these poses: left at nominal
     unidentifiable: [d1, theta1, base.z, base.rz]  # the identifiability analysis of `report`
     aliases: {a6: {theta6: -91.12}}                # estimate = own error + c * held error (file units)
-    fit: {measurements: 90, poses: 30, rows: 270, unknowns: 30, rank: 28, condition: 25.2,
-          fit_condition: 21.3, noise_m: 1.0e-05, residual_rms_before_m: ..., residual_rms_after_m: ...}
+    fit: {measurements: 90, poses: 30, rows: 270, unknowns: 30, rank: 28, condition: 25.2, fit_condition: 21.3,
+          noise_per_axis_m: 1.0e-05, position_rms_m: ..., position_max_m: ...,    # 3-D, in-sample, kept rows
+          per_axis_rms_before_m: ..., per_axis_rms_after_m: ...}
+    convergence: {iterations: 9, stop: gradient, converged: true, gradient_cosine: ..., decrement: ..., words: ...}
+    undetermined: {joint_1.rx: "set by the prior: ..."}   # estimated, but not told by the data
+    suspect: [{row: 7, ...}]                       # beyond the threshold, kept (their removal loses identifiability)
+    warnings: [...]
+    load: {model: point-mass, mass_kg: 1.0, point_m: [0, 0, 0], description: ...}   # of the elastostatic term
     validation: {method: ..., before: {position_rms_m: ...}, after: {...}, improvement: 0.93, per_pose: {...}}
     rejected: [{row: 12, target: A, residual_m: ..., threshold_m: ..., reason: ...}]   # outliers left out
     plausibility: {ok: true, problems: []}
@@ -58,7 +64,9 @@ from ..resources import not_a_file
 from ..units import UnitError, angle_scale, length_scale, parse_number
 from ..accuracy.targets import Targets
 from ..yamlio import loads_yaml, read_yaml
-from .calibrate import Calibration, calibrated_mechanism, corrected_origins
+from .elastic import Load
+from .mechanism import calibrated_mechanism, corrected_origins
+from .result import Calibration
 
 FORMAT = "tolerance_ros.calibration/2"
 FORMATS = ("tolerance_ros.calibration/1", FORMAT)
@@ -136,10 +144,12 @@ def _document(cal: Calibration, units=None) -> dict:
         "held": list(cal.held),
         "unidentifiable": list(cal.unidentifiable),
         "aliases": {n: {h: float(c * scale_of[h] / scale_of[n]) for h, c in a.items()} for n, a in cal.aliases.items()},
-        "fit": {"measurements": cal.measurements, "poses": cal.poses, "rows": cal.rows, "unknowns": cal.unknowns,
-                "rank": cal.rank, "condition": float(cal.condition), "fit_condition": float(cal.fit_condition),
-                "noise_m": float(cal.sigma), "residual_rms_before_m": float(cal.residual_rms_before),
-                "residual_rms_after_m": float(cal.residual_rms_after)},
+        "fit": {k: v for k, v in _plain(cal.fit_dict()).items() if k != "convergence" and v is not None},
+        "convergence": _plain(cal.convergence),
+        "undetermined": _plain(cal.undetermined),
+        "suspect": _plain(cal.suspect),
+        "warnings": _plain(cal.warnings),
+        "load": _plain(cal.load),
         "validation": _plain(_without_samples(cal.validation)),
         "targets": _targets_doc(cal.targets, cal.targets_std, ls, as_),
         "compliance": None if cal.compliance is None else {
@@ -216,7 +226,8 @@ _COUNTS = ("measurements", "poses", "rows", "unknowns", "rank")  # the whole num
 _SECTIONS = {"units": dict, "sources": dict, "registration": dict, "base_correction": dict, "parameters": dict,
              "held": list, "unidentifiable": list, "aliases": dict, "fit": dict, "validation": dict, "targets": dict,
              "compliance": dict, "nominal_registration": dict, "model": dict, "rejected": list, "plausibility": dict,
-             "repeatability": dict, "training": dict}
+             "repeatability": dict, "training": dict, "convergence": dict, "undetermined": dict, "suspect": list,
+             "warnings": list, "load": dict}
 
 
 def _read(path):
@@ -345,16 +356,29 @@ def _calibration_from_dict(doc, path, model):
     cal = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), dx, std, base, T, tool, held,
                       list(doc.get("unidentifiable") or []), aliases, float(fitd.get("condition", np.nan)),
                       float(fitd.get("fit_condition", np.nan)), int(fitd.get("rank", 0)),
-                      int(fitd.get("unknowns", 0)), float(fitd.get("noise_m", np.nan)),
-                      float(fitd.get("residual_rms_before_m", np.nan)),
-                      float(fitd.get("residual_rms_after_m", np.nan)), int(fitd.get("measurements", 0)),
+                      int(fitd.get("unknowns", 0)), float(fitd.get("noise_per_axis_m", fitd.get("noise_m", np.nan))),
+                      float(fitd.get("per_axis_rms_before_m", fitd.get("residual_rms_before_m", np.nan))),
+                      float(fitd.get("per_axis_rms_after_m", fitd.get("residual_rms_after_m", np.nan))),
+                      int(fitd.get("measurements", 0)),
                       int(fitd.get("poses", 0)), int(fitd.get("rows", 0)), str(reg.get("method", "base")),
                       doc.get("validation"), dict(sources), targets=targets, targets_std=targets_std,
                       compliance=compliance, compliance_std=compliance_std, nominal_registration=nominal,
                       model=doc.get("model") or {}, rejected=list(doc.get("rejected") or []),
                       plausibility=doc.get("plausibility") or {"ok": True, "problems": []},
                       repeatability=doc.get("repeatability"), training=doc.get("training"),
-                      has_orientation=bool(targets.frames) if targets is not None else True)
+                      has_orientation=bool(targets.frames) if targets is not None else True,
+                      convergence=doc.get("convergence"), undetermined=dict(doc.get("undetermined") or {}),
+                      suspect=list(doc.get("suspect") or []), warnings=[str(w) for w in doc.get("warnings") or []],
+                      position_rms=None if fitd.get("position_rms_m") is None else float(fitd["position_rms_m"]),
+                      position_max=None if fitd.get("position_max_m") is None else float(fitd["position_max_m"]))
+    if doc.get("load") is not None:
+        try:
+            Load.from_dict(doc["load"])
+        except (TypeError, ValueError) as exc:
+            raise CalibrationError(f"load: {exc}") from None
+        cal.load = dict(doc["load"])
+    if compliance is not None and cal.load is None:
+        cal.load = Load.for_model(model).to_dict() if Load.for_model(model) else None
     return cal
 
 

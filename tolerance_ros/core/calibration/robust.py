@@ -1,0 +1,233 @@
+"""One robust fit of a calibration candidate: the registration, the identification, the outliers.
+
+``fit`` registers the tracker to the nominal base frame (globally, with each target's offset on the tool
+when asked), then identifies the candidate's parameter errors, a base correction and the targets together
+(``accuracy.identification.identify``: converged Levenberg-Marquardt, a minimal set of dependent
+parameters held at nominal, judged at nominal and at the solution). A regularised candidate weighs its
+Gaussian prior against the fit's own residual noise (a fixed point: fit, estimate the noise from its
+residuals, fit again); the registration carries no prior unless ``FitOptions.registration_prior`` asks.
+
+Robust: the outliers are judged with the residuals of this fit itself, never inherited from a stiffer
+model: fit, reject the measurements whose position residual exceeds ``REJECT`` robust sigmas (the median
+residual over that of a 3-D normal error, never below the tracker's noise), fit again, until the set is
+stable (at most ``MAX_REJECTED`` of the measurements). A rejection that would change which parameters
+are identifiable is not made: those measurements are kept and listed as ``suspect``. SI throughout.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+
+import numpy as np
+
+from ..accuracy.identification import MAX_ITERATIONS, base_matrix, identify
+from ..accuracy.registration import register
+from ..models.base import PRISMATIC, Mechanism
+
+REGISTRATIONS = ("base", "base+tool")
+MODELS = ("registration", "joint-offsets", "full", "full+elastic")
+DEFLECTION = (0.01, 0.03)   # m, rad: prior std of a joint's elastic deflection at its largest load (regularised fits)
+PRIOR = (0.01, 0.01)        # m, rad: default prior std of the origin errors of a regularised fit
+CHI3_MEDIAN = 1.5382        # median of |e| for e ~ N(0, I3): sqrt(chi2_3 median)
+REJECT = 4.594              # |e| / sigma beyond which a residual is an outlier: sqrt(chi2_3 quantile 0.9999)
+TOL_RANK = 1e-6             # a parameter whose scaled pivot is below this share of the largest is held
+MAX_REJECTED = 0.25         # at most this share of the measurements is rejected
+ROUNDS = 12                 # fit-judge-refit rounds (the rejected set and the noise settle in two to four)
+NOISE_SETTLED = 1e-3        # the prior's noise is settled when a round changes it by less than this share
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """How a calibration fits, validates and chooses (SI).
+
+    registration : 'base' (the tracker) or 'base+tool' (and each target's offset on the tool).
+    sigma_position : tracker position noise, m (weights the rows; the floor of every noise estimate).
+    sigma_orientation : tracker orientation noise, rad, or None (orientations not fitted).
+    robust : reject outliers (``fit``).  prior : (length m, angle rad) prior std of the origin errors of the
+    regularised candidates, or None.  registration_prior : (m, rad) prior std of the base correction, or
+    None (none).  folds, seed : the k-fold split by test pose.  iterations : cap of each fit's loop.
+    payload : (kg, (3,) m in the tool frame) point mass that loads the joints of the elastostatic term, or
+    None (the URDF's inertials, else a lumped 1 kg at the tool frame, see ``elastic.Load``).
+    """
+
+    registration: str = "base"
+    sigma_position: float = 1e-5
+    sigma_orientation: float | None = None
+    robust: bool = True
+    prior: tuple | None = PRIOR
+    registration_prior: tuple | None = None
+    folds: int = 10
+    seed: int = 0
+    iterations: int = MAX_ITERATIONS
+    payload: tuple | None = None
+
+    def __post_init__(self):
+        if self.registration not in REGISTRATIONS:
+            raise ValueError(f"registration: expected one of {REGISTRATIONS}, got {self.registration!r}")
+        if not (np.isfinite(self.sigma_position) and self.sigma_position > 0):
+            raise ValueError(f"sigma_position: expected a positive noise (m), got {self.sigma_position!r}")
+        if self.folds < 2:
+            raise ValueError("folds: must be >= 2")
+
+    def updated(self, **changes) -> "FitOptions":
+        """A copy with ``changes``; TypeError naming an unknown option."""
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise TypeError(f"unknown calibration option(s) {unknown}; known: {sorted(known)}")
+        return replace(self, **changes) if changes else self
+
+
+@dataclass
+class FitData:
+    """The measurements of a fit: joints q (n, dof) rad or m, tracker readings T (n, 4, 4) m, each row's target
+    ``idx`` (n,) among ``names``, whether the readings are frames, and the joints' gravity loads (n, dof) N m
+    or N (None without an elastostatic term)."""
+
+    q: np.ndarray
+    T: np.ndarray
+    idx: np.ndarray
+    names: tuple = ("",)
+    frames: bool = True
+    gravity: np.ndarray | None = None
+
+    def __post_init__(self):
+        self._registrations = {}
+
+    def __len__(self):
+        return len(self.q)
+
+    def registration(self, model: Mechanism, tool: bool):
+        """The global registration of these measurements to ``model``'s nominal poses (made once per kind)."""
+        key = (id(model), bool(tool))
+        if key not in self._registrations:
+            self._registrations[key] = register(model.fk(self.q), self.T, tool=tool, index=self.idx, names=self.names,
+                                                frames=self.frames)
+        return self._registrations[key]
+
+    def subset(self, rows) -> "FitData":
+        return FitData(self.q[rows], self.T[rows], self.idx[rows], self.names, self.frames,
+                       None if self.gravity is None else self.gravity[rows])
+
+
+@dataclass
+class Fit:
+    """One robust fit: the registration, the identification, the rows it rejected (mask), its threshold (m),
+    the rows kept although beyond it (``suspect``: their removal would change what is identifiable), and
+    the noise the prior was weighed against (m, per axis)."""
+
+    reg: object
+    ident: object
+    rejected: np.ndarray
+    threshold: float
+    suspect: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    noise: float = 0.0
+
+    @property
+    def converged(self) -> bool:
+        return self.ident.convergence is None or self.ident.convergence.converged
+
+
+def estimate_sets(model: Mechanism, which: str, gravity):
+    """(names of the parameters to estimate, (dof,) mask of the compliances to estimate or None)."""
+    if which not in MODELS:
+        raise ValueError(f"parameters: expected 'auto' or one of {list(MODELS)}, got {which!r}")
+    if which == "registration":
+        return [], None
+    if which == "joint-offsets":
+        return [model.param_names[j] for j in model.joint_columns()], None
+    if which == "full":
+        return list(model.param_names), None
+    if gravity is None:
+        raise ValueError(f"parameters: 'full+elastic' needs a URDF robot (robot {model.name!r} has no gravity load "
+                         f"model)")
+    return list(model.param_names), np.ptp(gravity, axis=0) > 1e-9
+
+
+def prior_vector(model: Mechanism, prior) -> np.ndarray | None:
+    """(p,) prior standard deviations of a regularised fit: ``prior`` = (length m, angle rad) for every
+    origin error, joint zero offsets unregularised (they are often large); None without a prior."""
+    if prior is None:
+        return None
+    delta = np.array([prior[0] if k == "length" else prior[1] for k in model.param_kinds], float)
+    delta[model.joint_columns()] = np.inf
+    return delta
+
+
+def _judge(r, rejected, sigma_position):
+    """(rows beyond the threshold (n,), threshold m) of position residuals ``r`` (n,) m."""
+    n = len(r)
+    kept = r[~rejected] if np.any(~rejected) else r
+    sigma = np.median(kept) / CHI3_MEDIAN
+    threshold = REJECT * max(sigma, sigma_position)  # never below what the tracker's own noise explains
+    new = r > threshold
+    cap = int(MAX_REJECTED * n)
+    if new.sum() > cap:
+        new = np.zeros(n, bool)
+        if cap:
+            new[np.argsort(r)[-cap:]] = True
+    return new, float(threshold)
+
+
+def fit(model: Mechanism, data: FitData, which: str, prior, opts: FitOptions, analysis=True) -> Fit:
+    """The robust fit of candidate ``which`` (``MODELS``) with ``prior`` (m, rad) or None (see the module
+    docstring)."""
+    tool = opts.registration == "base+tool"
+    if len(data.names) > 1 and not tool:
+        raise ValueError(f"registration: {len(data.names)} targets ({', '.join(data.names)}) sit at different points "
+                         f"of the tool; fit their offsets with registration 'base+tool'")
+    n = len(data)
+    estimate, cmask = estimate_sets(model, which, data.gravity)
+    sigma = opts.sigma_position
+    use_ori = opts.sigma_orientation if data.frames else None
+    reg = data.registration(model, tool)
+    T_base = reg.to_base(data.T)
+    delta = prior_vector(model, prior) if estimate else None
+    cprior = None
+    if delta is not None and cmask is not None:
+        deflection = np.where(np.array(model.joint_types) == PRISMATIC, DEFLECTION[0], DEFLECTION[1])
+        top = np.abs(data.gravity).max(axis=0)
+        cprior = deflection / np.where(top > 0, top, 1.0)
+    noise = max(reg.rms / np.sqrt(3.0), sigma) if delta is not None else sigma
+
+    def identify_with(rows_out, noise, start):
+        kw = dict(sigma_position=noise, sigma_orientation=None if use_ori is None else use_ori * noise / sigma)
+        return identify(model, data.q, T_base, delta, iterations=opts.iterations, hold="dependent",
+                        noise_from_residuals=True, tol_rank=TOL_RANK, targets=reg.targets, target_index=data.idx,
+                        estimate_targets=tool, gravity=data.gravity, compliance=cmask, estimate=estimate,
+                        analysis=analysis, compliance_prior=cprior, base_prior=opts.registration_prior,
+                        weights=None if not rows_out.any() else (~rows_out).astype(float), start=start, **kw)
+
+    rejected = np.zeros(n, bool)
+    suspect = np.zeros(n, bool)
+    threshold = np.inf
+    ident = identify_with(rejected, noise, None)
+    whole = ident  # the fit of every row: what the data identify when nothing is left out
+    for _ in range(ROUNDS):
+        new_noise = max(ident.sigma, sigma) if delta is not None else noise
+        new = rejected
+        if opts.robust:
+            new, threshold = _judge(ident.row_residuals, rejected, sigma)
+            new &= ~suspect
+        if np.array_equal(new, rejected) and abs(new_noise / noise - 1.0) < NOISE_SETTLED:
+            break
+        trial = identify_with(new, new_noise, ident)
+        if new.any() and _loses_identifiability(whole, trial):
+            suspect |= new
+            new = rejected
+            trial = identify_with(new, new_noise, ident)
+        rejected, noise, ident = new, new_noise, trial
+    return Fit(reg, ident, rejected, threshold, suspect & ~rejected, noise)
+
+
+def _loses_identifiability(whole, trial) -> bool:
+    """True when ``trial`` (some rows left out) holds a parameter or compliance that ``whole`` estimates."""
+    return bool(set(trial.held) - set(whole.held)) or \
+        bool(set(getattr(trial, "compliance_held", [])) - set(getattr(whole, "compliance_held", [])))
+
+
+def predict(model: Mechanism, fitted: Fit, data: FitData):
+    """(measured (n, 4, 4) in the base frame, calibrated prediction (n, 4, 4)) of rows by a fit."""
+    ident = fitted.ident
+    q = data.q if ident.compliance is None else data.q + data.gravity * ident.compliance
+    T = base_matrix(ident.base) @ model.fk(q, ident.dx)
+    return fitted.reg.to_base(data.T), ident.targets.poses(T, data.idx)
