@@ -24,8 +24,8 @@ def add_arguments(p):
                         "registration alone, the joint offsets, every parameter, or every parameter and a joint "
                         "compliance times its gravity load (URDF robots: their inertials, --payload, or a lumped "
                         "point mass at the tool frame)")
-    p.add_argument("--prior", default="10mm,10mrad",
-                   help="prior std of the origin errors of the regularised fits, LENGTH,ANGLE (default 10mm,10mrad), "
+    p.add_argument("--prior", default="5mm,5mrad",
+                   help="prior std of the origin errors of the regularised fits, LENGTH,ANGLE (default 5mm,5mrad), "
                         "or none")
     p.add_argument("--registration-prior", default="none",
                    help="prior std of the base correction, LENGTH,ANGLE (default none: the registration is free)")

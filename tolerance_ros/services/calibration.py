@@ -6,7 +6,7 @@ Request (on ``tolerance/calibrate/request``, std_msgs/String JSON; the shape of 
      "window": [t0, t1],                  # optional: only measurements stamped in [t0, t1] (s)
      "registration": "base",              # or "base+tool"
      "parameters": "auto",                # registration | joint-offsets | full | full+elastic
-     "prior": [0.01, 0.01],               # m, rad; null: no regularised candidate
+     "prior": [0.005, 0.005],             # m, rad; null: no regularised candidate
      "noise": 1e-5, "orientation_noise": null, "folds": 10, "seed": 0, "robust": true,
      "time_limit": 300}
     {"id": ..., "command": "status"}, {"id": ..., "command": "cancel", "target": <id of a job>}

@@ -26,7 +26,7 @@ from ..models.base import PRISMATIC, Mechanism
 REGISTRATIONS = ("base", "base+tool")
 MODELS = ("registration", "joint-offsets", "full", "full+elastic")
 DEFLECTION = (0.01, 0.03)   # m, rad: prior std of a joint's elastic deflection at its largest load (regularised fits)
-PRIOR = (0.01, 0.01)        # m, rad: default prior std of the origin errors of a regularised fit
+PRIOR = (0.005, 0.005)      # m, rad: default prior std of the origin errors of a regularised fit (see the docs)
 CHI3_MEDIAN = 1.5382        # median of |e| for e ~ N(0, I3): sqrt(chi2_3 median)
 REJECT = 4.594              # |e| / sigma beyond which a residual is an outlier: sqrt(chi2_3 quantile 0.9999)
 TOL_RANK = 1e-6             # a parameter whose scaled pivot is below this share of the largest is held

@@ -17,7 +17,7 @@ Calibration file (YAML; ``units`` applies to ``parameters``, ``base_correction``
       by_name: {A: {xyz: [...], rpy: [0, 0, 0], std: [...]}}   # one per target ('' for the one unnamed)
     compliance: {arm_2_joint: {value: ..., std: ...}, ...}   # rad/(N m) or m/N; null without the elastic term
     nominal_registration: {T_tracker_base: {...}, base: {...}, targets: {...}}   # the registration-only fit
-    model: {parameters: full, prior: [0.01, 0.01], how: ..., candidates: [...]}  # what was identified, and why
+    model: {parameters: full, prior: [0.005, 0.005], how: ..., candidates: [...]}  # what was identified, and why
     base_correction: {xyz: [...], rotation_vector: [...]}   # on the left of the model: T = B T(q, dx)
     parameters:                                    # identified - nominal, standard uncertainty
       a1: {error: 0.0123, std: 0.0011}
