@@ -134,7 +134,8 @@ def print_allocation(doc):
     mc = ver["monte_carlo"]
     s = mc["position_m"]
     print(f"\nMonte Carlo, {mc['poses']} poses, '{mc['distribution']}' errors: pass {s['pass_rate'] * 100:.2f} %, "
-          f"max {s['max'] * 1e3:.4f}, mean {s['mean'] * 1e3:.4f}, std {s['std'] * 1e3:.4f} mm")
+          f"max {s['max'] * 1e3:.4f}, mean {s['mean'] * 1e3:.4f}, std {s['std'] * 1e3:.4f} mm (the same as "
+          f"verify --samples {mc['poses']} --seed {mc['seed']} --errors {mc['distribution']} on these tolerances)")
     sc = ver["sign_control"]
     t = sc["position_m"]
     print(f"with the paper's sign control ({len(sc['pairs'])} correlated pairs, -delta on "

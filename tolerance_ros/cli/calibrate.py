@@ -101,7 +101,7 @@ def run(args):
         files["calibration"] = str(save_calibration(cal, out / "calibration.yaml"))
     else:
         files["refused"] = str(save_calibration(cal, out / "calibration.refused.yaml"))
-        for problem in cal.plausibility["problems"]:
+        for problem in reversed(cal.plausibility["problems"]):  # the first, most basic reason on the last line
             missed(args, f"calibration refused: {problem}")
     if not cal.convergence.get("converged", True):
         missed(args, f"calibration: the fit {cal.convergence['words']}")

@@ -12,13 +12,13 @@ from ..core.resources import ConfigNotFound
 from ..core.synthesis.problem import InfeasibleError
 from ..core.threads import limited
 from . import (allocate, calibrate, compensate, import_table, jacobian, paper, plan_campaign, report, robots,
-               sensitivity, validate, verify)
+               sensitivity, simulate, validate, verify)
 from .common import (CAPS, CHECKED_BY_COMMAND, EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError,
                      Parser, UsageError, check_cap, check_outputs, common_arguments, os_error_message,
                      output_kinds)
 
 COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, calibrate, validate, compensate, plan_campaign,
-            import_table, paper)
+            simulate, import_table, paper)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -103,13 +103,16 @@ def main(argv=None) -> int:
         for name in ("samples", "poses", "random", "mc_poses", "ga_tol", "ga_rounds", "n"):
             if getattr(args, name, 1) is not None and getattr(args, name, 1) < 1:
                 raise UsageError(f"--{name.replace('_', '-')}: must be >= 1")
+        if isinstance(getattr(args, "seed", None), int) and not 0 <= args.seed < 2 ** 63:
+            raise UsageError(f"--seed: must be a whole number from 0 to 2**63 - 1, got {args.seed}")
     except UsageError as exc:
         return _fail(parser.prog, "invalid_request", str(exc), as_json)
     prog = f"{parser.prog} {args.command}"
     args.missed = []
     try:
+        own = getattr(sys.modules.get(args.func.__module__), "OWN_CAPS", ())  # the caps the command checks itself
         for name in CAPS:  # a count above its cap is refused before any work
-            if name not in CHECKED_BY_COMMAND and isinstance(getattr(args, name, None), int):
+            if name not in CHECKED_BY_COMMAND and name not in own and isinstance(getattr(args, name, None), int):
                 check_cap(getattr(args, name), name)
         check_outputs(args)
         with limited(1):

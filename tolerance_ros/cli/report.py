@@ -18,6 +18,9 @@ def add_arguments(p):
     p.add_argument("--registration", choices=["base", "base+tool", "none"], default="base",
                    help="estimate the base (and tool) transform, or take measurements as base-frame")
     p.add_argument("--skip-bad", action="store_true", help="skip malformed rows (they are listed), instead of failing")
+    p.add_argument("--no-robust", action="store_true",
+                   help="keep every row in the registration (by default rows beyond 4.6 robust sigmas of its residual "
+                        "are left out of it and of the verdicts, and listed)")
     p.add_argument("--out", metavar="DIR", help="write report.md, plots, JSON and CSV into DIR")
     p.add_argument("--stream", action="store_true", help="constant memory for large CSV files (summary only)")
 
@@ -49,7 +52,7 @@ def run(args):
               f"{s['position_error_m']['mean'] * 1e3:.4f} mm, max {s['position_error_m']['max'] * 1e3:.4f} mm")
         return None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
-    res = evaluate_file(model, meas, budget, campaign, registration=args.registration)
+    res = evaluate_file(model, meas, budget, campaign, registration=args.registration, robust=not args.no_robust)
     _over_limit(args, res["summary"])
     files = write_report(res, args.out, model, budget) if args.out else {}
     body = {k: v for k, v in res.items() if k != "rows"}
@@ -73,6 +76,8 @@ def run(args):
     if reg.get("targets_estimated"):
         print("targets in the tool frame [mm]: " + "; ".join(
             f"{t['name'] or 'tool point'} ({', '.join(f'{v * 1e3:.3f}' for v in t['xyz_m'])})" for t in reg["targets"]))
+    for r in res.get("left_out", []):
+        print(f"left out: {r['where']}: {r['reason']}")
     for w in res.get("warnings", []):
         print(f"WARNING: {w}")
         missed(args, w)
@@ -99,5 +104,5 @@ def run(args):
 def _over_limit(args, summary):
     n = summary["verdicts"].get("over limit", 0)
     if n:
-        what = ", ".join(f"{k} {v}" for k, v in summary["exceeded"].items() if "limit" in k and v)
+        what = "; ".join(f"{v} over the {k}" for k, v in summary["exceeded"].items() if "limit" in k and v)
         missed(args, f"{n} of {summary['measurements']} measurements over the design limit ({what})")

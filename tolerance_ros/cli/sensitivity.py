@@ -10,6 +10,8 @@ from ..core.units import parse_quantity
 from ..render.text import Progress, fmt, table
 from .common import SENSITIVITY_SAMPLES, check_cap, load_model, quantity
 
+OWN_CAPS = ("samples",)  # its own, smaller cap than verify's (SENSITIVITY_SAMPLES)
+
 NAME = "sensitivity"
 HELP = "sensitivity, salience, ceilings and correlation"
 ROBOT = True

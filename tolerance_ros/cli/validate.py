@@ -22,6 +22,9 @@ def add_arguments(p):
                    help="refit the tracker's placement only (it moved between the campaigns); the targets and the "
                         "parameters stay the calibration's")
     p.add_argument("--skip-bad", action="store_true", help="skip malformed rows (they are listed), instead of failing")
+    p.add_argument("--no-robust", action="store_true",
+                   help="with --reregister, keep every row in the tracker's refit (by default rows beyond 4.6 robust "
+                        "sigmas are left out of it and of the figures, and listed)")
 
 
 def run(args):
@@ -39,13 +42,15 @@ def run(args):
     cal = load_calibration(args.calibration, model)
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
-    res = predict_measurements(cal, model, meas, args.reregister, campaign)
+    res = predict_measurements(cal, model, meas, args.reregister, campaign, robust=not args.no_robust)
     res["calibration"] = str(args.calibration)
     res["skipped_rows"] = meas.skipped
     b, a = res["before"]["position_rms_m"], res["after"]["position_rms_m"]
     if a >= b:
         missed(args, f"the calibration does not predict {meas.source} better than the nominal robot "
                      f"(3-D position RMS {b * 1e3:.4f} mm before, {a * 1e3:.4f} mm after)")
+    for w in res["warnings"]:  # last: the likely cause
+        missed(args, w)
     if args.json:
         return res
     print(f"robot {model.name}, calibration {args.calibration}: {res['measurements']} measurements from "
@@ -56,6 +61,8 @@ def run(args):
     if res["orientation_measured"]:
         rows.append(["orientation RMS [mrad]", f"{res['before']['orientation_rms_rad'] * 1e3:.4f}",
                      f"{res['after']['orientation_rms_rad'] * 1e3:.4f}"])
+    for r in res["left_out"]:
+        print(f"left out: {r['where']}: {r['reason']}")
     print(table(["", "before (nominal)", "after (calibrated)"], rows))
     print(f"position error RMS (3-D) reduced by {res['improvement'] * 100:.1f} %")
     if res.get("by_group"):
@@ -72,3 +79,7 @@ def run(args):
     print(table(["pose", "n", "group", "before RMS mm", "after RMS mm"],
                 [[name, v["n"], v["group"] or "-", f"{v['before_rms_m'] * 1e3:.4f}", f"{v['after_rms_m'] * 1e3:.4f}"]
                  for name, v in res["per_pose"].items()]))
+    for note in res["notes"]:
+        print(f"NOTE: {note}")
+    for w in res["warnings"]:
+        print(f"WARNING: {w}")

@@ -78,13 +78,13 @@ class Budget:
         kinds = kinds or {}
 
         def conv(name, v):
-            return float(v) / (as_ if kinds.get(name, _guess_kind(name)) == "angle" else ls)
+            return _clean(float(v) / (as_ if kinds.get(name, _guess_kind(name)) == "angle" else ls))
 
         out = {"robot": self.robot, "units": dict(units), "criterion": self.criterion, "limit": {}}
         if self.limit_position is not None:
-            out["limit"]["position"] = self.limit_position / ls
+            out["limit"]["position"] = _clean(self.limit_position / ls)
         if self.limit_orientation is not None:
-            out["limit"]["orientation"] = self.limit_orientation / as_
+            out["limit"]["orientation"] = _clean(self.limit_orientation / as_)
         out["tolerances"] = {n: conv(n, v) for n, v in self.tolerances.items()}
         if self.free:
             out["free"] = list(self.free)
@@ -206,3 +206,9 @@ def load_budget(spec, model=None) -> Budget:
         raise BudgetError(f"{path}: {exc}") from None
     budget.path = str(path)
     return budget
+
+
+def _clean(x: float) -> float:
+    """``x`` to 15 significant digits: a unit conversion's last-bit noise (1e-5 m is 0.009999999999999998 mm)
+    removed, every digit a tolerance can carry kept."""
+    return float(f"{x:.15g}")

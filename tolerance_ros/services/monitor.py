@@ -22,6 +22,7 @@ from ..core.ingest import IngestError, JointOrder, StateBuffer, pose_from_values
 from ..core.jsonio import dumps_fast
 from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
+from ..core.accuracy.checks import StreamCheck
 from ..core.accuracy.targets import Targets
 from .contracts import check_budget
 
@@ -56,7 +57,8 @@ class MonitorLogic:
         self.pending = deque()                    # (seq, stamp, T, arrival, target index)
         self.seq = 0
         self.counts = {"received": 0, "paired": 0, "unpaired": 0, "rejected": 0, "joint_states": 0,
-                       "joint_states_rejected": 0}
+                       "joint_states_rejected": 0, "not_judged": 0}
+        self.check = StreamCheck(model)
         self.last = None
         self.last_reasons = deque(maxlen=20)
         self.log = None
@@ -197,8 +199,18 @@ class MonitorLogic:
             self._write({"event": "unpaired", "seq": seq, "reason": reason})
             return None
         joint_stamp, q = found
+        beyond = self.check.joint_problem(q)
+        if beyond:
+            self.counts["unpaired"] += 1
+            reason = f"the joint state at {joint_stamp:.6f} s cannot be this robot's: {beyond}"
+            self.last_reasons.append(f"measurement {seq} unpaired: {reason}")
+            self._write({"event": "unpaired", "seq": seq, "reason": reason})
+            return None
         r = self.acc.add(T[None], q[None], target=[k])
         self.counts["paired"] += 1
+        problem = self.check.add(T[:3, 3], r["nominal"][0], r["position_error"][0])
+        if problem:
+            self.counts["not_judged"] += 1
         e_ori = r["orientation_error"]
         res = {"seq": seq, "stamp": t, "joints": q, "target": self.targets.names[k], "label": str(r["label"][0]),
                "verdict": str(r["verdict"][0]), "position_error": float(r["position_error"][0]),
@@ -217,6 +229,10 @@ class MonitorLogic:
         """DiagnosticStatus content: level (0 OK, 1 WARN, 2 ERROR), name, message, key values (strings)."""
         c, v = self.counts, self.acc.counts
         level, msg = OK, "measurements within the predicted bound"
+        if self.check.problem:
+            return {"level": ERROR, "name": self.name, "message": self.check.problem, "hardware_id": self.model.name,
+                    "values": {k: _fmt(val) for k, val in {"received": c["received"], "paired": c["paired"],
+                                                           "not_judged": c["not_judged"]}.items()}}
         if self.budget is None:
             level, msg = WARN, "no tolerance budget yet"
         if c["unpaired"] or c["rejected"]:
@@ -253,9 +269,11 @@ class MonitorLogic:
     def report(self) -> dict:
         """JSON-ready report: counts, the accumulator summary (per test pose ISO 9283), the last result."""
         last = None if self.last is None else {k: v for k, v in self.last.items() if k != "dp"}
+        problem = self.check.problem
         return {"robot": self.model.name, "calibration": self.calibration, "before": self.before,
-                "counts": dict(self.counts), "pending": len(self.pending),
-                "recent_issues": list(self.last_reasons), "summary": self.acc.summary(), "last": last,
+                "counts": dict(self.counts), "pending": len(self.pending), "problems": [problem] if problem else [],
+                "recent_issues": list(self.last_reasons), "summary": None if problem else self.acc.summary(),
+                "last": None if problem else last,
                 "budget": None if self.budget is None else {"source": self.budget.source,
                                                              "criterion": self.budget.criterion,
                                                              "limit_position_m": self.budget.limit_position}}

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..ingest import IngestError, JointOrder
+from . import checks
 from .accumulator import AccuracyAccumulator
 from .identification import identify
 from .io import MeasurementError, read_csv
@@ -17,34 +18,67 @@ IDENTIFY_MAX = 20000  # up to this many measurements the nonlinear identificatio
 
 
 def evaluate_file(model, meas, budget=None, campaign=None, registration="base", keep_rows=True,
-                  sigma_position=1e-5, sigma_orientation=None) -> dict:
-    """Evaluate measurements (see the module docstring).
+                  sigma_position=1e-5, sigma_orientation=None, robust=True) -> dict:
+    """Evaluate measurements (see the module docstring), after the checks of ``checks``: a length unit that
+    cannot be right, a joint column out of range, the wrong campaign or a registered residual no robot
+    error explains are refused (``checks.CheckError``); rows beyond the joint limits and, with ``robust``,
+    rows the registration leaves out are listed in ``left_out`` and judged no further.
 
     registration : 'base' (estimate base -> tracker), 'base+tool' (and each target's offset on the
     tool), 'none' (measurements already in the base frame) or a Registration (its targets are used).
     Every error is taken at the measured target; measurements without orientation get no orientation
-    figure. ``warnings`` names what cannot be right (measurements in another frame than the one claimed).
+    figure. ``warnings`` names what the verdict should be read with (measurements in another frame than the
+    one claimed, a target offset the registration does not fit, poses the campaign does not have).
     """
     if len(meas) == 0:
         raise MeasurementError(f"{meas.source}: no measurements")
     q = measurement_joints(model, meas, campaign)
     names = meas.target_names
-    T_tool = model.fk(q)
-    warnings = []
+    problem = checks.units_problem(model, q, meas.T[:, :3, 3])
+    if problem:
+        raise checks.CheckError(f"{meas.source}: {problem}")
+    labels = _labels(meas)
+    screened = checks.screen(model, q, meas, campaign, labels)
+    warnings = list(screened.notes)
+    T_tool_all = model.fk(q)
     if isinstance(registration, Registration):
         reg = registration
-        idx = meas.target_index(reg.targets.names)
+        idx_all = meas.target_index(reg.targets.names)
     else:
-        idx = meas.target_index(names)
-        reg = register_measurements(T_tool, meas, idx, names, registration)
-        if registration == "none":
-            warnings += frame_warnings(T_tool, meas, idx, names, reg)
+        idx_all = meas.target_index(names)
+        keep = screened.keep.copy()
+        if registration in ("base", "base+tool"):
+            if registration == "base" and len(names) > 1:
+                raise ValueError(f"registration: {len(names)} targets ({', '.join(names)}) sit at different points "
+                                 f"of the tool; fit their offsets with registration 'base+tool'")
+            reg, out, thr = checks.robust_register(T_tool_all[keep], meas.T[keep], idx_all[keep], names,
+                                                   registration == "base+tool", meas.has_orientation, robust)
+            rows = np.flatnonzero(keep)
+            far = np.zeros(len(q), bool)
+            far[rows[out]] = True
+            resid = dict(zip(rows, reg.residuals))
+            screened.leave_out(far, lambda i: f"registered residual {resid[i] * 1e3:.4g} mm exceeds {thr * 1e3:.4g} mm "
+                               f"({checks.REJECT:g} robust standard deviations)", meas.where)
+            scatter = checks.repeat_scatter(meas.T[screened.keep, :3, 3], _groups(q, labels)[screened.keep],
+                                            idx_all[screened.keep])
+            sel = screened.keep[keep]
+            refused, hints = checks.diagnose(model, q[keep], meas.T[keep], idx_all[keep], names, registration,
+                                             meas.has_orientation, reg, sel, scatter)
+            if refused:
+                raise checks.CheckError(f"{meas.source}: {refused}")
+            warnings += hints
+        else:
+            reg = register_measurements(T_tool_all, meas, idx_all, names, registration)
+            warnings += frame_warnings(T_tool_all, meas, idx_all, names, reg)
+    left_out = screened.left_out
+    if not screened.keep.all():
+        meas = meas.select(screened.keep)
+        q, idx_all = q[screened.keep], idx_all[screened.keep]
+        labels = None if labels is None else labels[screened.keep]
+    idx = idx_all
     delta = budget.vector_for(model) if budget is not None else None
     acc = AccuracyAccumulator.from_budget(model, budget, campaign, reg.T_tracker_base, reg.targets,
                                           orientation=meas.has_orientation)
-    labels = None
-    if meas.pose is not None and any(str(p) for p in meas.pose):
-        labels = np.array([str(p) for p in meas.pose], dtype=object)
     rows = []
     for a in range(0, len(q), 5000):
         b = min(len(q), a + 5000)
@@ -55,7 +89,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     out = {"source": meas.source, "robot": model.name, "measurements": len(q), "skipped_rows": meas.skipped,
            "orientation_measured": bool(meas.has_orientation), "targets": list(reg.targets.names),
            "registration": {"method": method, **reg.to_dict()}, "summary": acc.summary(sigma_position),
-           "warnings": warnings}
+           "warnings": warnings, "left_out": left_out}
     T_base = reg.to_base(meas.T)
     if campaign is not None:
         lab = labels if labels is not None else acc.label(q)
@@ -76,6 +110,20 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
                        "orientation_error": (np.concatenate([r["orientation_error"] for r in rows])
                                              if meas.has_orientation else None), **cat}
     return out
+
+
+def _labels(meas):
+    """(n,) test-pose labels of the rows, or None when no row names its pose."""
+    if meas.pose is not None and any(str(p) for p in meas.pose):
+        return np.array([str(p) for p in meas.pose], dtype=object)
+    return None
+
+
+def _groups(q, labels):
+    """(n,) pose group of each row: by label, else by equal joints."""
+    keys = labels if labels is not None else [tuple(r) for r in np.round(np.asarray(q, float), 9)]
+    lookup = {}
+    return np.array([lookup.setdefault(k, len(lookup)) for k in keys], int)
 
 
 def register_measurements(T_tool, meas, idx, names, registration) -> Registration:

@@ -30,7 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..accuracy.registration import spread_ratio
+from ..accuracy import checks
+from ..accuracy.checks import robot_reach
 from ..models.base import Mechanism
 from .crossval import Folds, kept_figures, pose_groups, score, validate
 from .elastic import Load
@@ -45,7 +46,6 @@ __all__ = ["Calibration", "FitOptions", "MODELS", "PRIOR", "REGISTRATIONS", "cal
 PARSIMONY = 0.01            # the simplest candidate within this share of the lowest cross-validated RMS wins
 PLAUSIBLE_LENGTH = 0.05     # identified length errors above this fraction of the robot's reach are refused
 PLAUSIBLE_ANGLE = 0.2       # rad: identified angle errors (and elastic deflections) above this are refused
-PLAUSIBLE_SPREAD = (0.5, 2.0)  # measured over nominal spread of the points: outside, the units are wrong
 REPEATED = 0.02             # rad or m: a posture within this of a training one repeats it
 INSIDE_MARGIN = 0.05        # rad or m: the training ranges widened by this are "inside"
 
@@ -92,7 +92,10 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, options: FitOptions |
     groups, pose_names = pose_groups(q, labels)
     if len(pose_names) < 2:
         raise ValueError("validation: needs at least 2 distinct test poses (measure more poses)")
-    if not has_orientation:
+    ignored = None
+    if not has_orientation and opts.sigma_orientation is not None:
+        ignored = (f"the measurements are points: the orientation noise given "
+                   f"({opts.sigma_orientation * 1e6:.4g} urad) has no orientation to weigh; only positions are fitted")
         opts = opts.updated(sigma_orientation=None)
     load = Load.for_model(model, opts.payload)
     gravity = load.torques(model, q) if load is not None else None
@@ -146,7 +149,7 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, options: FitOptions |
     cal.validation = kept_figures(validations[best["label"]], final.rejected)
     problems += _plausibility_problems(model, cal)
     cal.plausibility = {"ok": not problems, "problems": problems}
-    cal.warnings = _warnings(cal, final, validations[best["label"]])
+    cal.warnings = ([ignored] if ignored else []) + _warnings(cal, final, validations[best["label"]])
     cal.repeatability = repeatability(final.reg.to_base(T_tracker)[:, :3, 3], final, groups, idx, len(names))
     cal.training = {"joint_ranges": np.c_[q.min(axis=0), q.max(axis=0)].tolist(),
                     "postures": np.unique(np.round(q, 6), axis=0).tolist()}
@@ -203,22 +206,21 @@ def calibrate_measurements(model, meas, campaign=None, options: FitOptions | Non
     """``calibrate`` for a ``Measurements`` (joints from its columns or from the campaign's test poses)."""
     from ..accuracy.evaluation import measurement_joints
     q = measurement_joints(model, meas, campaign)
+    screened = checks.screen(model, q, meas)   # rows beyond the joint limits: left out, said
+    if not screened.keep.all():
+        meas, q = meas.select(screened.keep), q[screened.keep]
     labels = meas.pose if meas.pose is not None and any(str(p) for p in meas.pose) else None
-    return calibrate(model, q, meas.T, labels, options, parameters=parameters, has_orientation=meas.has_orientation,
-                     sources={"measurements": meas.source}, target_index=meas.target_index(),
-                     target_names=meas.target_names, stamps=meas.stamps, progress=progress, **changes)
+    cal = calibrate(model, q, meas.T, labels, options, parameters=parameters, has_orientation=meas.has_orientation,
+                    sources={"measurements": meas.source}, target_index=meas.target_index(),
+                    target_names=meas.target_names, stamps=meas.stamps, progress=progress, **changes)
+    cal.warnings = [f"left out before the fit: {r['where']}: {r['reason']}" for r in screened.left_out] + cal.warnings
+    return cal
 
 
 def _units_problems(model, q, T_tracker) -> list:
-    """Reasons the measurements cannot be in the length unit claimed (their spread against the robot's)."""
-    ratio = spread_ratio(model.fk(q)[:, :3, 3], T_tracker[:, :3, 3])
-    lo, hi = PLAUSIBLE_SPREAD
-    if lo <= ratio <= hi:
-        return []
-    hint = " (metres labelled millimetres?)" if ratio < 0.01 else " (millimetres labelled metres?)" if ratio > 100 \
-        else ""
-    return [f"units: the measured points spread {ratio:.4g} times as far as the robot's tool moves; the length unit "
-            f"of the measurements cannot be right{hint}"]
+    """Reasons the measurements cannot be in the units claimed (``checks.units_problem``)."""
+    problem = checks.units_problem(model, q, T_tracker[:, :3, 3])
+    return [problem] if problem else []
 
 
 def _plausibility_problems(model, cal) -> list:
@@ -243,12 +245,6 @@ def _plausibility_problems(model, cal) -> list:
                    f"({v['before']['position_rms_m'] * 1e3:.4f} mm before, {v['after']['position_rms_m'] * 1e3:.4f} "
                    f"mm after)")
     return out
-
-
-def robot_reach(model: Mechanism, samples=512) -> float:
-    """Largest distance (m) of the tool point from the base origin over seeded joint samples."""
-    q = model.sample_joints(samples, 7)
-    return float(np.linalg.norm(model.fk(q)[:, :3, 3], axis=1).max())
 
 
 def _row_list(fitted, mask, stamps, labels, names, idx, kind) -> list:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..accuracy.identification import base_matrix
-from ..accuracy.registration import register
+from ..accuracy import checks
 from ..accuracy.verdicts import pose_errors
 from ..models.base import Mechanism
 from .calibrate import INSIDE_MARGIN, REPEATED, Calibration, pose_groups
@@ -34,32 +34,63 @@ def posture_groups(cal: Calibration, q) -> np.ndarray | None:
 
 
 def predict_campaign(cal: Calibration, model: Mechanism, q, T_tracker, target_index=None, labels=None,
-                     has_orientation=True, reregister=False) -> dict:
+                     has_orientation=True, reregister=False, meas=None, robust=True) -> dict:
     """Before (nominal robot, registration-only fit) and after (calibrated robot) errors of a campaign of
     tracker readings T_tracker (n, 4, 4) at joints q (n, dof); a plain dict, SI.
 
+    The campaign is checked first (``accuracy.checks``): a length or angle unit that cannot be right, or a
+    joint column out of range, is refused; rows beyond the joint limits are left out and listed (``meas``
+    names their file lines). With ``reregister`` the tracker's placement is refitted for each model,
+    robustly: rows beyond ``checks.REJECT`` robust sigmas are left out of it and of the figures, and listed.
+
     Keys: measurements, reregistered, before / after {position_rms_m, position_max_m, orientation_rms_rad,
-    orientation_max_rad}, improvement, per_pose {pose: {n, group, before_rms_m, after_rms_m}}, by_group
-    {group: {n, poses, before_rms_m, after_rms_m}}, by_target, position_error_m {before, after}.
+    orientation_max_rad} (3-D, over the kept rows), improvement, per_pose {pose: {n, group, before_rms_m,
+    after_rms_m}}, by_group {group: {n, poses, before_rms_m, after_rms_m}}, by_target, position_error_m
+    {before, after}, left_out [{row, where, reason}], warnings (what says the verdict is off: the tracker
+    moved, the robot changed), notes (what is not scored).
     """
     q = model.check_joints(q)
     T_tracker = np.asarray(T_tracker, float)
     n = len(q)
     idx = np.zeros(n, int) if target_index is None else np.asarray(target_index, int)
+    problem = checks.units_problem(model, q, T_tracker[:, :3, 3])
+    if problem:
+        raise checks.CheckError(problem)
+    screened = checks.screen(model, q, meas)
     ori = bool(has_orientation and cal.has_orientation)
+    notes = []
+    if has_orientation and not cal.has_orientation:
+        notes.append("the campaign measured orientations, but the calibration fitted positions only: orientation is "
+                     "not scored")
     nominal = cal.nominal_registration or {"T_tracker_base": cal.T_tracker_base, "targets": cal.targets,
                                            "base": np.zeros(6)}
     T_after_tool = cal.B @ cal.mechanism_chain(model).fk(q, cal.dx)
     T_before_tool = base_matrix(nominal["base"]) @ model.fk(q)
     models = {"before": (T_before_tool, nominal["targets"], nominal["T_tracker_base"]),
               "after": (T_after_tool, cal.targets, cal.T_tracker_base)}
-    out = {"measurements": int(n), "reregistered": bool(reregister), "orientation_measured": ori}
-    errs = {}
-    for label, (T_tool, targets, A) in models.items():
+    placements = {}
+    keep = screened.keep.copy()
+    for label in ("after", "before"):  # the calibrated model's outliers first: they are left out of both
+        T_tool, targets, A = models[label]
         if reregister:
-            A = register(T_tool, T_tracker, index=idx, targets=targets).T_tracker_base
-        T_pred = targets.poses(T_tool, idx)
-        T_seen = np.linalg.inv(A) @ T_tracker
+            reg, out, thr = checks.robust_register(T_tool[keep], T_tracker[keep], idx[keep], targets.names,
+                                                   robust=robust, targets=targets)
+            A = reg.T_tracker_base
+            far = np.zeros(n, bool)
+            far[np.flatnonzero(keep)[out]] = True
+            resid = dict(zip(np.flatnonzero(keep), reg.residuals))
+            screened.leave_out(far, lambda i: f"residual {resid[i] * 1e3:.4g} mm after the tracker was refitted to the "
+                               f"{label} model exceeds {thr * 1e3:.4g} mm ({checks.REJECT:g} robust standard "
+                               f"deviations)", lambda i: meas.where(i) if meas is not None else f"row {int(i)}")
+            keep = screened.keep.copy()
+        placements[label] = A
+    out = {"measurements": int(n), "scored": int(keep.sum()), "reregistered": bool(reregister),
+           "orientation_measured": ori, "left_out": screened.left_out, "notes": notes}
+    errs = {}
+    for label, (T_tool, targets, _) in models.items():
+        A = placements[label]
+        T_pred = targets.poses(T_tool[keep], idx[keep])
+        T_seen = np.linalg.inv(A) @ T_tracker[keep]
         dp, dphi = pose_errors(T_pred, T_seen)
         ep, eo = np.linalg.norm(dp, axis=1), np.linalg.norm(dphi, axis=1)
         errs[label] = (ep, eo)
@@ -68,6 +99,9 @@ def predict_campaign(cal: Calibration, model: Mechanism, q, T_tracker, target_in
                       "orientation_max_rad": float(eo.max()) if ori else None,
                       "T_tracker_base": A}
     out["improvement"] = 1.0 - out["after"]["position_rms_m"] / out["before"]["position_rms_m"]
+    out["warnings"] = _warnings(cal, out, T_after_tool[keep], T_tracker[keep], idx[keep], reregister)
+    q, idx = q[keep], idx[keep]
+    labels = None if labels is None else np.asarray(labels, dtype=object)[keep]
     groups, names = pose_groups(q, labels)
     posture = posture_groups(cal, q)
     per_pose = {}
@@ -89,13 +123,35 @@ def predict_campaign(cal: Calibration, model: Mechanism, q, T_tracker, target_in
     return out
 
 
-def predict_measurements(cal: Calibration, model: Mechanism, meas, reregister=False, campaign=None) -> dict:
+def _warnings(cal, out, T_tool, T_tracker, idx, reregistered) -> list:
+    """What says the verdict is off: the tracker moved (refitting it alone explains the error), or the robot
+    changed (far beyond the calibration's own held-out figure)."""
+    warnings = []
+    rms = out["after"]["position_rms_m"]
+    if not reregistered and len(T_tool) >= 3:
+        try:
+            reg, _, _ = checks.robust_register(T_tool, T_tracker, idx, cal.targets.names, targets=cal.targets)
+            hint = checks.moved_hint(rms, float(np.sqrt(np.mean(reg.residuals ** 2))))
+        except ValueError:
+            hint = None
+        if hint:
+            return [hint]
+    v = cal.validation or {}
+    held_out = (v.get("after_kept") or v.get("after") or {}).get("position_rms_m")
+    hint = checks.changed_hint(rms, held_out)
+    if hint:
+        warnings.append(hint)
+    return warnings
+
+
+def predict_measurements(cal: Calibration, model: Mechanism, meas, reregister=False, campaign=None,
+                         robust=True) -> dict:
     """``predict_campaign`` of a ``Measurements`` (its targets must be among the calibration's)."""
     from ..accuracy.evaluation import measurement_joints
     q = measurement_joints(model, meas, campaign)
     idx = meas.target_index(cal.targets.names)
     labels = meas.pose if meas.pose is not None and any(str(p) for p in meas.pose) else None
-    out = predict_campaign(cal, model, q, meas.T, idx, labels, meas.has_orientation, reregister)
+    out = predict_campaign(cal, model, q, meas.T, idx, labels, meas.has_orientation, reregister, meas, robust)
     out["source"] = meas.source
     return out
 

@@ -60,7 +60,7 @@ from ..models.base import Mechanism, ModelError
 from ..models.dh import DHChain
 from ..models.loader import frame_from_dict, load_robot
 from ..models.urdf import URDFChain
-from ..resources import not_a_file
+from ..resources import ConfigNotFound, not_a_file
 from ..units import UnitError, angle_scale, length_scale, parse_number
 from ..accuracy.targets import Targets
 from ..yamlio import loads_yaml, read_yaml
@@ -133,7 +133,8 @@ def _document(cal: Calibration, units=None) -> dict:
         "format": FORMAT,
         "robot": cal.robot,
         "units": units,
-        "sources": {k: (str(v) if v is not None else None) for k, v in cal.sources.items()},
+        "sources": {k: ([str(x) for x in v] if isinstance(v, (list, tuple)) else str(v) if v is not None else None)
+                    for k, v in cal.sources.items()},
         "registration": {"method": cal.registration,
                          "T_tracker_base": {"xyz": _floats(T[:3, 3] / ls),
                                             "rpy": _floats(rpy_from_matrix(T[None, :3, :3])[0] / as_)},
@@ -283,7 +284,15 @@ def calibration_robot(path) -> Mechanism:
         if cand.is_file():
             chain = {k: sources.get(k) for k in ("tip_link", "base_link")} if cand.suffix == ".urdf" else {}
             return load_robot(cand, **chain)
-    return load_robot(str(doc.get("robot")))
+    try:
+        return load_robot(str(doc.get("robot")))
+    except (ConfigNotFound, ModelError, OSError) as exc:
+        if not src:
+            raise
+        where = "relative to the calibration file" if not Path(src).is_absolute() else "absolute"
+        raise CalibrationError(f"calibration {str(path)!r}: its robot file {src!r} ({where}) does not exist "
+                               f"(was the calibration folder moved?), and {doc.get('robot')!r} is not a shipped "
+                               f"robot; give the robot with --robot (and --tip-link for a URDF)") from None
 
 
 def _calibration_from_dict(doc, path, model):

@@ -151,8 +151,8 @@ def verify_allocation(problem: SynthesisProblem, delta, n_mc=10000, seed=0, n_sa
                       correlation_threshold=0.7, distribution=None) -> dict:
     """Independent checks of a tolerance set: supremum under every criterion, Monte Carlo, sign control.
 
-    The Monte Carlo poses are ``model.sample_joints(n_mc, default_rng(seed))``: the same sample as the
-    analysis of a tolerance set with that seed (``analysis.monte_carlo`` on those poses).
+    The Monte Carlo is ``analysis.monte_carlo(n=n_mc, seed=seed)``, poses and errors: what ``tolerance-ros verify
+    --samples n_mc --seed seed --errors <distribution>`` computes for the same tolerances.
     """
     return _verify(problem, delta, n_mc, seed, n_samples, n_starts, correlation_threshold, distribution)[0]
 
@@ -175,9 +175,9 @@ def _verify(problem, delta, n_mc, seed, n_samples=20000, n_starts=12, correlatio
             s["pass"] = bool(s["value"] <= lim)
             sup[crit][rows] = s
     dist = distribution or MC_DISTRIBUTION[problem.criterion]
-    q = model.sample_joints(n_mc, np.random.default_rng(seed))
-    mc = analysis.monte_carlo(model, d, distribution=dist, seed=seed + 2, q=q, limit_position=problem.limit,
+    mc = analysis.monte_carlo(model, d, n=n_mc, distribution=dist, seed=seed, limit_position=problem.limit,
                               limit_orientation=problem.orientation_limit)
+    q = mc.q
     J = model.error_jacobian(model.sample_joints(2000, np.random.default_rng(seed + 3))).position
     pairs = analysis.correlated_pairs(analysis.correlation(J), model.param_names, correlation_threshold)
     signs = analysis.sign_control(model.param_names, pairs)

@@ -134,7 +134,8 @@ def read_log(path, skip_bad=False) -> Measurements:
     targets = np.array([meas[k][2] for k in keys], dtype=object)
     return Measurements(np.array([meas[k][0] for k in keys]), T, np.array([pairs[k][0] for k in keys]),
                         order.joint_names, np.array([pairs[k][1] for k in keys], dtype=object), np.full(len(keys), -1),
-                        not kinds[0], source, skipped, targets if any(targets) else None)
+                        not kinds[0], source, skipped, targets if any(targets) else None,
+                        np.array([logged[k][0] for k in keys], int))
 
 
 def _brief(value):

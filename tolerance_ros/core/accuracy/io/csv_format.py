@@ -256,6 +256,7 @@ def _convert(raw, spec, last, skip_bad, source):
     if raw:
         block = _convert_fast([r for _, r in raw], spec, last)
         if block is not None:
+            block.lines = np.array([n for n, _ in raw], int)
             return block, [], float(block.stamps[-1])
     return _convert_slow(raw, spec, last, skip_bad, source)
 
@@ -294,7 +295,7 @@ def _convert_fast(rows, spec, last):
 
 
 def _convert_slow(raw, spec, last, skip_bad, source):
-    buf, skipped = [], []
+    buf, skipped, lines = [], [], []
     for lineno, row in raw:
         try:
             if len(row) != spec.ncols:
@@ -310,10 +311,12 @@ def _convert_slow(raw, spec, last, skip_bad, source):
             continue
         last = rec[0][0]
         buf.append(rec)
+        lines.append(lineno)
     A = np.array([r[0] for r in buf], float).reshape(len(buf), len(spec.num_cols))
     R, joints = spec.rotations_and_joints(A)
     block = _Block(A[:, 0], A[:, 1:4], R, [r[1] for r in buf], np.array([r[2] for r in buf], int), joints,
                    [r[3] for r in buf] if "target" in spec.cols else None)
+    block.lines = np.array(lines, int)
     return block, skipped, last
 
 
@@ -324,6 +327,7 @@ class _Block:
     def __init__(self, stamps, pos, R, poses, cycles, joints, targets=None):
         self.stamps, self.pos, self.R, self.poses, self.cycles, self.joints = stamps, pos, R, poses, cycles, joints
         self.targets = targets
+        self.lines = None
 
 
 def _num(text, what):
@@ -383,7 +387,7 @@ def _pack(block, spec, source, skipped):
     targets = np.array(block.targets, dtype=object) if block.targets is not None else None
     return Measurements(block.stamps, T, joints, spec.joint_names, np.array(block.poses, dtype=object),
                         np.asarray(block.cycles, dtype=int), spec.orientation is not None, source, list(skipped),
-                        targets)
+                        targets, block.lines)
 
 
 def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="deg", joint_units=None) -> Path:

@@ -17,7 +17,8 @@ class Measurements:
     ``T`` (n, 4, 4): the measured pose in the tracker frame (m); without orientation (``has_orientation``
     False) only its position is measured and its rotation is the identity, never read. ``target`` (n,)
     names the reflector or marker each row measured (None: one target, unnamed); rows of one pose visit
-    share its stamp, joints and labels.
+    share its stamp, joints and labels. ``line`` (n,): where each row came from in its file (the line of a
+    CSV row or of a campaign log's measurement; None where the reader has no lines).
     """
 
     stamps: np.ndarray
@@ -30,6 +31,7 @@ class Measurements:
     source: str = ""
     skipped: list = field(default_factory=list)
     target: np.ndarray | None = None
+    line: np.ndarray | None = None
 
     def __len__(self):
         return len(self.stamps)
@@ -40,6 +42,10 @@ class Measurements:
         if self.target is None:
             return ("",)
         return tuple(dict.fromkeys(str(t) for t in self.target))
+
+    def where(self, i) -> str:
+        """Where row ``i`` comes from, in words: 'line 12' of its file, or 'row 12' (0-based) without lines."""
+        return f"line {int(self.line[i])}" if self.line is not None else f"row {int(i)}"
 
     def target_index(self, names=None) -> np.ndarray:
         """(n,) index of each row's target in ``names`` (default ``target_names``)."""
@@ -58,7 +64,7 @@ class Measurements:
         pick = (lambda a: None if a is None else a[rows])
         return Measurements(self.stamps[rows], self.T[rows], pick(self.joints), self.joint_names, pick(self.pose),
                             pick(self.cycle), self.has_orientation, self.source, list(self.skipped),
-                            pick(self.target))
+                            pick(self.target), pick(self.line))
 
 
 def concat(parts) -> Measurements:
@@ -71,5 +77,6 @@ def concat(parts) -> Measurements:
                         np.concatenate([p.pose for p in parts]) if first.pose is not None else None,
                         np.concatenate([p.cycle for p in parts]) if first.cycle is not None else None,
                         first.has_orientation, first.source, [s for p in parts for s in p.skipped],
-                        np.concatenate([p.target for p in parts]) if first.target is not None else None)
+                        np.concatenate([p.target for p in parts]) if first.target is not None else None,
+                        np.concatenate([p.line for p in parts]) if first.line is not None else None)
 
