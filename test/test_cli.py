@@ -489,17 +489,17 @@ def test_plan_calibrate_compensate_closes_the_loop(capsys, tmp_path, gao):
     assert "alpha6" in out and "converged in" in out and "in-sample position RMS (3-D)" in out
     compensated = tmp_path / "iso_compensated.yaml"
     code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration",
-                         str(tmp_path / "cal" / "calibration.yaml"), "--targets", "gao2023_iso_cube",
+                         str(tmp_path / "cal" / "calibration.yaml"), "--poses", "gao2023_iso_cube",
                          "--out", str(compensated), "--json")
     assert code == 0, err
     comp = json.loads(out)
-    assert [t["name"] for t in comp["targets"]] == ["P1", "P2", "P3", "P4", "P5"]
-    assert all(t["reached"] and t["residual_position_m"] < 1e-9 for t in comp["targets"])
+    assert [t["name"] for t in comp["poses"]] == ["P1", "P2", "P3", "P4", "P5"]
+    assert all(t["reached"] and t["residual_position_m"] < 1e-9 for t in comp["poses"])
     back = load_campaign(compensated, gao).joints_for(gao)
-    np.testing.assert_allclose(back, [t["joints"] for t in comp["targets"]], atol=1e-12)
-    code, out, _ = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration",
-                       str(tmp_path / "cal" / "calibration.yaml"), "--targets", "gao2023_iso_cube")
-    assert code == 0 and "P5" in out and "correction" in out
+    np.testing.assert_allclose(back, [t["joints"] for t in comp["poses"]], atol=1e-12)
+    code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration",
+                         str(tmp_path / "cal" / "calibration.yaml"), "--targets", "gao2023_iso_cube")
+    assert code == 0 and "P5" in out and "correction" in out and "--targets is now --poses" in err
 
 
 def test_calibrate_without_improvement_exits_3(capsys, tmp_path, gao):
@@ -523,7 +523,7 @@ def test_calibrate_without_improvement_exits_3(capsys, tmp_path, gao):
     (["calibrate", "--robot", "gao2023_7dof", "--measurements", "m.csv", "--out", "x", "--folds", "1"], "--folds"),
     (["plan-campaign", "--robot", "gao2023_7dof", "--n", "5", "--candidates", "50"], "plan at least"),
     (["plan-campaign", "--robot", "gao2023_7dof", "--orientation-noise", "1e-5"], "--orientation-noise"),
-    (["compensate", "--robot", "gao2023_7dof", "--calibration", "missing.yaml", "--targets", "gao2023_iso_cube"],
+    (["compensate", "--robot", "gao2023_7dof", "--calibration", "missing.yaml", "--poses", "gao2023_iso_cube"],
      "file not found"),
 ])
 def test_calibration_commands_report_bad_input_in_one_line(capsys, argv, message):
@@ -585,11 +585,11 @@ def test_compensate_writes_a_flagged_target_with_its_nominal_joints_unless_accep
     targets.write_text(yaml.safe_dump(campaign_dict(gao, [[0.0] * 7, [0, 0.5, 0, 0, 0, 0, 0]], "t")))
     for accept in (False, True):
         out_file = tmp_path / f"out_{accept}.yaml"
-        code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration", str(cal), "--targets",
+        code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration", str(cal), "--poses",
                              str(targets), "--out", str(out_file), "--json", *(["--accept-flagged"] if accept else []))
         assert code == 0, err
         doc = json.loads(out)
-        home, bent = doc["targets"]
+        home, bent = doc["poses"]
         assert home["near_singularity"] and not bent["near_singularity"]
         assert np.abs(home["correction"]).max() > 0.1                       # rad: what would have been written
         written = load_campaign(out_file, gao).joints_for(gao)

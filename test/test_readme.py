@@ -80,10 +80,9 @@ def test_the_walkthrough_covers_the_first_hour():
     steps = walkthrough_steps()
     shell = [t for k, t, _ in steps if k == "bash"]
     assert shell[0] == ". .venv/bin/activate"  # before any bare tolerance-ros or python
-    for word in ("robots", "jacobian", "sensitivity", "verify", "allocate", "plan-campaign", "calibrate",
+    for word in ("robots", "jacobian", "sensitivity", "verify", "allocate", "plan-campaign", "simulate", "calibrate",
                  "compensate", "import", "validate"):
         assert any(t.startswith(f"tolerance-ros {word} ") or t == f"tolerance-ros {word}" for t in shell), word
-    assert any(t.startswith("python bench/") for t in shell)
     assert [k for k, _, _ in steps].count("python") == 2
 
 

@@ -44,9 +44,9 @@ def test_the_points_are_what_compensate_gives_in_any_joint_order_extra_joints_un
     q = gao.sample_joints(8, 4) * 0.6
     cal_path = save_calibration(calibration, tmp_path / "calibration.yaml")
     (tmp_path / "targets.yaml").write_text(yaml.safe_dump(campaign_dict(gao, q, "t", 1)))
-    assert main(["compensate", "--robot", "gao2023_7dof", "--calibration", str(cal_path), "--targets",
+    assert main(["compensate", "--robot", "gao2023_7dof", "--calibration", str(cal_path), "--poses",
                  str(tmp_path / "targets.yaml"), "--json", "--quiet"]) == 0
-    cli = np.array([r["joints"] for r in json.loads(capsys.readouterr().out)["targets"]])
+    cli = np.array([r["joints"] for r in json.loads(capsys.readouterr().out)["poses"]])
     order = [3, 0, 6, 1, 5, 2, 4]
     names = [gao.joint_names[i] for i in order] + ["gripper"]
     P = np.c_[q[:, order], np.full(len(q), 0.02)]

@@ -1,6 +1,7 @@
-"""`tolerance-ros compensate`: joints that put the calibrated robot's tool at each target."""
+"""`tolerance-ros compensate`: joints that put the calibrated robot's tool at each of a program's poses."""
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -10,21 +11,23 @@ from ..render.text import table
 from .common import CLIError, load_model, missed
 
 NAME = "compensate"
-HELP = "joints that put the calibrated robot's tool at each target"
+HELP = "joints that put the calibrated robot's tool at each of a program's poses"
 ROBOT = True
 
 
 def add_arguments(p):
     p.add_argument("--calibration", required=True, help="calibration.yaml written by calibrate")
-    p.add_argument("--targets", required=True, help="campaign file: test poses as nominal joints or as tool poses")
+    p.add_argument("--poses", help="the program's poses to correct: a campaign file of nominal joints or tool poses")
+    p.add_argument("--targets", dest="poses_old", help=argparse.SUPPRESS)  # the name before --poses: a reflector
+    # is a "target" everywhere else (--target below, the monitor's targets)
     p.add_argument("--match", choices=["pose", "position"], default="pose", help="match the whole pose or the position")
-    p.add_argument("--seed", type=int, default=0, help="seed of the starts for tool-pose targets")
+    p.add_argument("--seed", type=int, default=0, help="seed of the starts for tool poses")
     p.add_argument("--target", help="the calibration's target whose point is the tool point (default: its first; "
                                     "pose targets are tool poses there)")
     p.add_argument("--out", metavar="FILE", help="write the compensated joints as a campaign file (a flagged "
-                                                  "target with its nominal joints, named in the file's notes)")
+                                                  "pose with its nominal joints, named in the file's notes)")
     p.add_argument("--accept-flagged", action="store_true",
-                   help="write the compensated joints of flagged targets too (out of reach, near a singularity, out "
+                   help="write the compensated joints of flagged poses too (out of reach, near a singularity, out "
                         "of limits)")
 
 
@@ -38,7 +41,13 @@ def run(args):
         calibrated, nominal = cal.mechanism(model, args.target), cal.nominal_at_tool_point(model, args.target)
     except ValueError as exc:
         raise CLIError(f"--target: {exc}") from None
-    targets = load_campaign(args.targets, model)
+    if args.poses_old and args.poses:
+        raise CLIError("--poses: give it once (--targets is its old name)")
+    if args.poses_old:
+        print("compensate: --targets is now --poses (a target is a reflector or marker elsewhere)", file=sys.stderr)
+    if not (args.poses or args.poses_old):
+        raise CLIError("--poses: the program's poses to correct (a campaign file) are required")
+    targets = load_campaign(args.poses or args.poses_old, model)
     by_joints = [i for i, tp in enumerate(targets.poses) if tp.joints is not None]
     by_pose = [i for i, tp in enumerate(targets.poses) if tp.joints is None]
     results = [None] * len(targets.poses)
@@ -47,13 +56,13 @@ def run(args):
             continue
         if kind == "joints":
             q = np.array([targets.poses[i].joints for i in idx])
-            comp = compensate(calibrated, nominal, joints=model.check_joints(q, "targets"), match=args.match)
+            comp = compensate(calibrated, nominal, joints=model.check_joints(q, "poses"), match=args.match)
         else:
             comp = compensate(calibrated, nominal, poses=np.array([targets.poses[i].pose for i in idx]), match=args.match,
                               rng=args.seed)
         d = comp.to_dict()
         for k, i in enumerate(idx):
-            results[i] = {"name": targets.poses[i].name, "target": kind, "nominal_joints": d["nominal_joints"][k],
+            results[i] = {"name": targets.poses[i].name, "given": kind, "nominal_joints": d["nominal_joints"][k],
                           "joints": d["joints"][k], "correction": d["correction"][k],
                           "residual_position_m": float(comp.residual_position[k]),
                           "residual_orientation_rad": float(comp.residual_orientation[k]),
@@ -61,7 +70,7 @@ def run(args):
                           "out_of_limits": bool(comp.out_of_limits[k])}
     unreached = [r["name"] for r in results if not r["reached"]]
     if unreached:
-        missed(args, f"{len(unreached)} target(s) out of reach of the calibrated robot: {', '.join(unreached)}")
+        missed(args, f"{len(unreached)} pose(s) out of reach of the calibrated robot: {', '.join(unreached)}")
     for r in results:
         r["flags"] = [f for f, on in (("out of reach", not r["reached"]), ("near singularity", r["near_singularity"]),
                                       ("out of limits", r["out_of_limits"])) if on]
@@ -80,7 +89,7 @@ def run(args):
             doc["notes"] = ("flagged, written with their nominal joints (--accept-flagged writes their compensated "
                             "joints): " + "; ".join(kept))
             if not args.quiet:
-                print(f"compensate: {len(kept)} flagged target(s) written with their nominal joints: "
+                print(f"compensate: {len(kept)} flagged pose(s) written with their nominal joints: "
                       f"{'; '.join(kept)} (--accept-flagged to write the corrections)", file=sys.stderr)
         out_path = Path(args.out)
         out_path.parent.mkdir(parents=True, exist_ok=True)
@@ -88,17 +97,17 @@ def run(args):
         out_path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
     if args.json:
         return {"robot": model.name, "calibration": str(args.calibration), "match": args.match,
-                "joint_names": list(model.joint_names), "targets": results,
+                "joint_names": list(model.joint_names), "poses": results,
                 "out_of_reach": unreached, "out": str(out_path) if out_path else None}
     rev = [t != "prismatic" for t in model.joint_types]
 
     def shown(v, per_rad, per_m):
         return ", ".join(f"{x * (per_rad if r else per_m):.4f}" for x, r in zip(v, rev))
 
-    print(f"robot {model.name}, calibration {args.calibration}: {len(results)} targets ({args.match}); joints in deg "
+    print(f"robot {model.name}, calibration {args.calibration}: {len(results)} poses ({args.match}); joints in deg "
           f"(prismatic mm), corrections in mdeg (prismatic um)")
-    print(table(["target", "given", "compensated joints", "correction", "residual um", "flags"],
-                [[r["name"], r["target"], shown(r["joints"], 180 / np.pi, 1e3),
+    print(table(["pose", "given", "compensated joints", "correction", "residual um", "flags"],
+                [[r["name"], r["given"], shown(r["joints"], 180 / np.pi, 1e3),
                   shown(r["correction"], 18e4 / np.pi, 1e6), f"{r['residual_position_m'] * 1e6:.3g}",
                   ", ".join(r["flags"]) + (" (nominal written)" if out_path and r["written"] == "nominal" else "")]
                  for r in results]))

@@ -101,7 +101,7 @@ def main(argv=None) -> int:
     try:
         args = parser.parse_args(_attach_negative_values(argv, parser))
         for name in ("samples", "poses", "random", "mc_poses", "ga_tol", "ga_rounds", "n"):
-            if getattr(args, name, 1) is not None and getattr(args, name, 1) < 1:
+            if isinstance(getattr(args, name, None), int) and getattr(args, name) < 1:
                 raise UsageError(f"--{name.replace('_', '-')}: must be >= 1")
         if isinstance(getattr(args, "seed", None), int) and not 0 <= args.seed < 2 ** 63:
             raise UsageError(f"--seed: must be a whole number from 0 to 2**63 - 1, got {args.seed}")

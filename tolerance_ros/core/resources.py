@@ -67,8 +67,15 @@ def resolve(kind: str, spec: str | os.PathLike, suffixes=(".yaml", ".yml")) -> P
             if cand.is_file():
                 return cand
     known = sorted(p.stem for p in root.glob("*") if p.suffix in suffixes) if root and root.is_dir() else []
-    raise ConfigNotFound(kind, f"{what} {str(spec)!r}: no such file, and not a shipped name "
-                               f"(known: {', '.join(known) or 'none'})")
+    raise ConfigNotFound(kind, f"{what} {str(spec)!r}: no such file, and not a shipped name"
+                               f"{did_you_mean(str(spec), known)} (known: {', '.join(known) or 'none'})")
+
+
+def did_you_mean(name: str, known) -> str:
+    """'; did you mean 'x'?' for the closest of ``known`` to a mistyped ``name``, or ''."""
+    import difflib
+    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 def shipped(kind: str, suffixes=(".yaml", ".yml")) -> list[str]:

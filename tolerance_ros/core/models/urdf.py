@@ -26,7 +26,7 @@ import numpy as np
 
 from ..compat import frame_joint
 from ..geometry import axis_angle_matrix, cross3, rpy_to_matrix
-from ..resources import not_a_file
+from ..resources import did_you_mean, not_a_file
 from ..yamlio import decode_utf8, read_bytes
 from .base import PRISMATIC, REVOLUTE, CompiledChain, ErrorJacobian, ModelError
 
@@ -88,7 +88,8 @@ class URDFChain(CompiledChain):
         base_T = np.eye(4)
         if base_link is not None:
             if not model.existFrame(base_link):
-                raise ModelError(f"base_link: no link named {base_link!r} in the URDF")
+                raise ModelError(f"base_link: no link named {base_link!r} in the URDF"
+                                 f"{did_you_mean(base_link, [f.name for f in model.frames])}")
             bf = model.frames[model.getFrameId(base_link)]
             if frame_joint(bf) != 0:
                 raise ModelError(f"base_link: {base_link!r} moves with joint "
@@ -166,7 +167,9 @@ class URDFChain(CompiledChain):
         (the file and robot) heads the errors."""
         if tip_link is not None:
             if not model.existFrame(tip_link):
-                raise ModelError(f"tip_link: no link or frame named {tip_link!r} in {where}")
+                names = [f.name for f in model.frames]
+                raise ModelError(f"tip_link: no link or frame named {tip_link!r} in {where}"
+                                 f"{did_you_mean(tip_link, names)}")
             return model.getFrameId(tip_link), tip_link
         leaves = moving_leaves(model, root)
         if len(leaves) != 1:

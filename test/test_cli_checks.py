@@ -1,0 +1,131 @@
+"""The command line's answers that cannot be fooled or misread (issue 28): `simulate` with the truth beside,
+refusals whose last line is the reason, options checked before any work, figures reproducible from one command
+to another, files without representation noise."""
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from helpers import example_urdf
+from tolerance_ros.cli import main
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture(scope="module")
+def xarm_campaign(tmp_path_factory):
+    """A planned 12-pose campaign of the xArm7 (3 cycles) and its simulated measurements."""
+    tmp = tmp_path_factory.mktemp("xarm")
+    urdf = example_urdf("xarm7.urdf")
+    assert main(["plan-campaign", "--robot", str(urdf), "--n", "12", "--cycles", "3", "--candidates", "300",
+                 "--out", str(tmp / "plan.yaml"), "--quiet"]) == 0
+    assert main(["simulate", "--robot", str(urdf), "--campaign", str(tmp / "plan.yaml"), "--tolerances",
+                 "uniform:0.1mm,0.5mrad", "--noise", "20um", "--out", str(tmp / "m.csv"), "--quiet"]) == 0
+    return urdf, tmp
+
+
+def test_simulate_writes_the_measurements_and_the_truth_in_the_calibration_format(capsys, xarm_campaign):
+    urdf, tmp = xarm_campaign
+    truth = yaml.safe_load((tmp / "m.truth.yaml").read_text())
+    assert truth["format"] == "tolerance_ros.calibration/2" and truth["model"]["parameters"] == "truth"
+    assert truth["sources"]["joint_names"] == [f"joint{i}" for i in range(1, 8)]   # a list, not its text
+    errors = [p["error"] for p in truth["parameters"].values()]
+    assert any(e != 0 for e in errors) and max(abs(e) for e in errors) <= 0.5 + 1e-12   # mm and mrad, within
+    code, out, err = run(capsys, "validate", "--calibration", tmp / "m.truth.yaml", "--measurements", tmp / "m.csv",
+                         "--json")
+    doc = json.loads(out)
+    assert code == 0 and doc["after"]["position_rms_m"] < 3 * np.sqrt(3) * 20e-6 < doc["before"]["position_rms_m"]
+
+
+def test_simulate_reflectors_and_its_errors(capsys, xarm_campaign, tmp_path):
+    urdf, tmp = xarm_campaign
+    code, out, err = run(capsys, "simulate", "--robot", urdf, "--campaign", tmp / "plan.yaml", "--tolerances",
+                         "uniform:0.1mm,0.5mrad", "--out", tmp_path / "r.csv", "--target-offset", "R1=30mm,60mm,0mm",
+                         "--target-offset", "R2=0mm,-60mm,40mm", "--json")
+    doc = json.loads(out)
+    assert code == 0 and doc["targets"] == ["R1", "R2"] and doc["rows"] == 2 * doc["visits"]
+    head = next(line for line in (tmp_path / "r.csv").read_text().splitlines() if line.startswith("stamp"))
+    assert ",target," in head and "roll" not in head
+    for argv, message in (
+            (["--noise", "20"], "--noise: '20' has no unit"),
+            (["--target-offset", "R1=30,60,0"], "--target-offset: '30' has no unit"),
+            (["--campaign", tmp_path / "none.yaml"], "none.yaml"),
+            (["--out", tmp_path / "m.txt"], "--out: the measurements are a CSV file")):
+        args = {"--campaign": tmp / "plan.yaml", "--out": tmp_path / "x.csv", **dict(zip(argv[::2], argv[1::2]))}
+        code, out, err = run(capsys, "simulate", "--robot", urdf, "--tolerances", "uniform:0.1mm,0.5mrad", "--quiet",
+                             *[a for kv in args.items() for a in kv])
+        assert code == 2 and message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    code, out, err = run(capsys, "simulate", "--robot", example_urdf("ur5_robot.urdf"), "--campaign",
+                         tmp / "plan.yaml", "--tolerances", "uniform:0.1mm,0.5mrad", "--out", tmp_path / "u.csv")
+    assert code == 2 and "--tip-link" in err and "ee_link" in err
+
+
+def test_a_refused_calibration_says_its_first_reason_last(capsys, xarm_campaign, tmp_path):
+    urdf, tmp = xarm_campaign
+    lines = (tmp / "m.csv").read_text().splitlines()
+    i = next(k for k, line in enumerate(lines) if line.startswith("stamp"))
+    cols = lines[i].split(",")
+    pos = [cols.index(c) for c in ("x[mm]", "y[mm]", "z[mm]")]
+    body = []
+    for line in lines[i + 1:]:
+        f = line.split(",")
+        for k in pos:
+            f[k] = repr(float(f[k]) / 1000)
+        body.append(",".join(f))
+    (tmp_path / "metres.csv").write_text("\n".join(lines[:i + 1] + body) + "\n")
+    code, out, err = run(capsys, "calibrate", "--robot", urdf, "--measurements", tmp_path / "metres.csv",
+                         "--out", tmp_path / "cal", "--quiet", "--folds", "3")
+    assert code == 3 and "metres labelled millimetres" in err.strip().splitlines()[-1]
+
+
+def test_orientation_noise_on_points_is_said(capsys, xarm_campaign, tmp_path):
+    urdf, tmp = xarm_campaign
+    assert main(["simulate", "--robot", str(urdf), "--campaign", str(tmp / "plan.yaml"), "--tolerances",
+                 "uniform:0.1mm,0.5mrad", "--out", str(tmp_path / "p.csv"), "--target-offset", "R=0mm,0mm,0mm",
+                 "--quiet"]) == 0
+    capsys.readouterr()
+    code, out, err = run(capsys, "calibrate", "--robot", urdf, "--measurements", tmp_path / "p.csv", "--registration",
+                         "base+tool", "--orientation-noise", "10urad", "--parameters", "joint-offsets", "--folds", "3",
+                         "--out", tmp_path / "cal", "--quiet")
+    assert code == 0 and "WARNING: the measurements are points: the orientation noise given (10 urad)" in out
+
+
+def test_options_are_checked_before_any_work(capsys):
+    code, out, err = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--seed", "-1")
+    assert code == 2 and "--seed" in err
+    code, out, err = run(capsys, "sensitivity", "--robot", "gao2023_7dof", "--samples", "1000000000")
+    assert code == 2 and "cap of 50000" in err
+
+
+def test_allocates_monte_carlo_is_verifys_with_the_same_seed(capsys, tmp_path):
+    budget = tmp_path / "b.yaml"
+    code, out, err = run(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "2mm", "--seed", "3",
+                         "--mc-poses", "2000", "--out", budget, "--json", "--quiet")
+    assert code == 0, err
+    mc = json.loads(out)["verification"]["monte_carlo"]
+    code, out, err = run(capsys, "verify", "--robot", "gao2023_7dof", "--tolerances", budget, "--samples", "2000",
+                         "--seed", "3", "--errors", mc["distribution"], "--json")
+    ver = json.loads(out)["position_m"]
+    assert ver["max"] == pytest.approx(mc["position_m"]["max"], rel=1e-12)
+    assert ver["pass_rate"] == mc["position_m"]["pass_rate"]
+    text = budget.read_text()
+    assert "99999999" not in text and "00000000" not in text   # no conversion noise in the written values
+
+
+def test_the_failed_line_of_a_report_reads_as_words(capsys, tmp_path):
+    budget = tmp_path / "tight.yaml"
+    budget.write_text("robot: gao2023_7dof\nunits: {length: mm, angle: rad}\ncriterion: worst-case\n"
+                      "limit: {position: 0.001}\ntolerances: {a1: 0.0001}\ndefault: 0\n")
+    assert main(["plan-campaign", "--robot", "gao2023_7dof", "--n", "12", "--cycles", "2", "--candidates", "200",
+                 "--out", str(tmp_path / "plan.yaml"), "--quiet"]) == 0
+    assert main(["simulate", "--robot", "gao2023_7dof", "--campaign", str(tmp_path / "plan.yaml"), "--tolerances",
+                 "gao2023_delta2", "--out", str(tmp_path / "m.csv"), "--quiet"]) == 0
+    capsys.readouterr()
+    code, out, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "m.csv", "--budget",
+                         budget)
+    assert code == 3 and "24 of 24 measurements over the design limit (24 over the position limit" in err
