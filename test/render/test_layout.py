@@ -237,3 +237,18 @@ def test_a_tick_beyond_a_log_axis_view_is_not_taken_for_a_drawn_label():
     ax.set_ylim(1e-13, 1e3)
     assert not [p for p in layout_problems(fig) if "10^{-18}" in p]
     plt.close(fig)
+
+
+def test_per_pose_plots_read_well_at_30_poses_and_3_targets(checked, tmp_path):
+    """The real sizes a campaign reaches: 30 test poses (the report's bars) and 30 poses x 3 reflectors (90 bars
+    of the calibration's validation): the names are thinned or turned, never printed over one another."""
+    rng = np.random.default_rng(0)
+    per30 = {f"C{i + 1}": {"AP_p": v, "RP_l": v / 3} for i, v in enumerate(rng.uniform(1e-4, 1e-3, 30))}
+    plots.iso_per_pose(per30, tmp_path / "error_per_pose.png")
+    keys = [f"C{i + 1}@R{k + 1}" for i in range(30) for k in range(3)]
+    validation = {"per_pose": {key: {"AP_p_before_m": b, "AP_p_after_m": b / 10} for key, b in
+                               zip(keys, rng.uniform(1e-4, 1e-3, 90))},
+                  "position_error_m": {"before": rng.uniform(1e-4, 1e-3, 270), "after": rng.uniform(1e-5, 1e-4, 270)},
+                  "before": {"position_rms_m": 6e-4}, "after": {"position_rms_m": 6e-5}}
+    plots.validation_before_after(validation, tmp_path / "validation.png", "30 poses x 3 targets")
+    _assert_read_well(checked, ["error_per_pose.png", "validation.png"])

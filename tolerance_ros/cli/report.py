@@ -91,11 +91,20 @@ def run(args):
                 for n, v in res["per_pose"].items()]
         print(table(["pose", "n"] + [heads[k] for k in keys], rows))
     ident = res.get("identification")
-    if ident:
-        oot = ident.get("out_of_tolerance", [])
-        print(f"identification: {len(oot)} parameter(s) out of tolerance"
-              + (": " + ", ".join(f"{o['name']} ({o['ratio']:.2f}x)" for o in oot) if oot else "")
-              + (f"; not separable: {', '.join(ident['unidentifiable'])}" if ident.get("unidentifiable") else ""))
+    if ident and ident.get("groups") is not None:
+        from ..render.accuracy_report import group_text
+        grp = ident["groups"]
+        out = grp["out_of_tolerance"]
+        print(f"identification against the budget: {len(out)} of {len(grp['groups'])} groups out of tolerance "
+              f"(a group: an estimated parameter and the held ones it absorbs)"
+              + "".join(f"\n  {group_text(g)}: {g['error'] * 1e3:+.4f} against {g['tolerance'] * 1e3:.4f} "
+                        f"({g['ratio']:.2f}x; mm or mrad)" for g in out)
+              + (f"\n  absorbed by the registration (no campaign sees them): "
+                 f"{', '.join(grp['absorbed_by_registration'])}" if grp["absorbed_by_registration"] else "")
+              + (f"\n  not seen by these measurements: {', '.join(grp['not_seen'])}" if grp["not_seen"] else ""))
+    elif ident:
+        print(f"identification: without a budget no parameter is judged; rank {ident.get('rank')} of "
+              f"{ident.get('unknowns')} unknowns")
     for k, v in files.items():
         for f in (v if isinstance(v, list) else [v]):
             print(f"wrote {f}")

@@ -154,6 +154,33 @@ def markdown(res, model, budget, files) -> str:
             L.append("")
         elif budget is not None:
             L += ["No identifiable parameter is out of tolerance.", ""]
+        grp = ident.get("groups")
+        if grp:
+            L += ["### What the data can see, against the budget", "",
+                  "Each estimated parameter measures itself plus the held parameters it absorbs (to first order); "
+                  "the group's tolerance is the worst case of its members' tolerances, so that a fault in any of "
+                  "them shows.", "", "| group | error | tolerance | ratio | |", "|---|---|---|---|---|"]
+            for g in grp["groups"]:
+                L.append(f"| {group_text(g)} | {g['error'] * 1e3:+.4f} | {g['tolerance'] * 1e3:.4f} | "
+                         f"{g['ratio']:.2f} | {'OUT' if g['out'] else ''} |")
+            L += ["", "(errors and tolerances in mm for a length first member, mrad for an angle one)"]
+            if grp.get("absorbed_by_registration"):
+                L += ["", "Absorbed by the registration (no campaign sees them): "
+                      + ", ".join(grp["absorbed_by_registration"]) + "."]
+            if grp.get("not_seen"):
+                L += ["", "Not seen by these measurements: " + ", ".join(grp["not_seen"]) + "."]
+            L.append("")
     if files.get("plots"):
         L += ["## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in files["plots"]] + [""]
     return "\n".join(L)
+
+
+def group_text(group) -> str:
+    """'a6 - 0.09112 x theta6': a group's combination (coefficients in SI ratios)."""
+    parts = []
+    for k, (name, c) in enumerate(group["coefficients"].items()):
+        if k == 0:
+            parts.append(name)
+        else:
+            parts.append(f"{'-' if c < 0 else '+'} {abs(c):.4g} x {name}")
+    return " ".join(parts)

@@ -33,6 +33,24 @@ def _tick_names_height(names, fontsize=7) -> float:
     return 0.62 * fontsize / 72.0 * max((len(n) for n in names), default=0)
 
 
+def _name_ticks(ax, names, width_in, fontsize=7):
+    """x ticks named by ``names`` at 0..n-1, turned upright when they do not fit side by side, and thinned to
+    every k-th name when even upright they would touch in an axes ``width_in`` inches wide."""
+    names = [str(n) for n in names]
+    x = np.arange(len(names))
+    flat = sum(0.55 * fontsize / 72.0 * (len(n) + 1) for n in names)
+    if flat <= 0.9 * width_in:
+        ax.set_xticks(x)
+        ax.set_xticklabels(names, fontsize=fontsize)
+        return
+    per_label = 1.5 * fontsize / 72.0                  # one upright label's width, with its gap
+    step = max(1, int(np.ceil(len(names) * per_label / (0.9 * width_in))))
+    ax.set_xticks(x[::step])
+    ax.set_xticklabels(names[::step], rotation=90, fontsize=fontsize)
+    if step > 1:
+        ax.set_xticks(x, minor=True)
+
+
 def salience_bars(sens, path) -> Path:
     """Bar chart of the salience D_j per parameter (like Gao et al. Fig. 2)."""
     plt = _plt()
@@ -94,12 +112,12 @@ def panels_plot(x, panels: list, path, xlabel: str, title: str, logy=False) -> P
 def iso_per_pose(per: dict, path) -> Path:
     """Bars of ISO 9283 AP_p and RP_l (mm) per test pose."""
     plt = _plt()
-    fig, ((ax,),) = _subplots(plt, 1, 1, (7.5, 3.6))
+    width = min(14.0, max(7.5, 0.25 * len(per) + 3.0))
+    fig, ((ax,),) = _subplots(plt, 1, 1, (width, 3.6 + _tick_names_height(per)))
     x = np.arange(len(per))
     ax.bar(x - 0.2, [v["AP_p"] * 1e3 for v in per.values()], 0.4, label="AP_p (accuracy)")
     ax.bar(x + 0.2, [v["RP_l"] * 1e3 for v in per.values()], 0.4, label="RP_l (repeatability)")
-    ax.set_xticks(x)
-    ax.set_xticklabels(list(per))
+    _name_ticks(ax, list(per), width - 2.6)
     ax.set_ylabel("error [mm]")
     ax.set_title("ISO 9283 per test pose")
     _legend_beside(ax)
@@ -146,7 +164,8 @@ def validation_before_after(validation: dict, path, title="Hold-out validation")
     ISO 9283 AP_p per held-out test pose (mm, log scale), each before and after calibration."""
     plt = _plt()
     per = validation["per_pose"]
-    fig, ((ax1, ax2),) = _subplots(plt, 1, 2, (13.0, 3.4 + _tick_names_height(per)))
+    fig, ((ax1,), (ax2,)) = _subplots(plt, 2, 1, (10.0, 6.4 + _tick_names_height(per)),
+                                      gridspec_kw={"height_ratios": [1.0, 1.2]})
     errs = validation["position_error_m"]
     for label, color in (("before", "tab:red"), ("after", "tab:blue")):
         e = np.sort(np.asarray(errs[label])) * 1e3
@@ -162,9 +181,8 @@ def validation_before_after(validation: dict, path, title="Hold-out validation")
     ax2.bar(x - 0.2, [v["AP_p_before_m"] * 1e3 for v in per.values()], 0.4, color="tab:red", label="before")
     ax2.bar(x + 0.2, [v["AP_p_after_m"] * 1e3 for v in per.values()], 0.4, color="tab:blue", label="after")
     ax2.set_yscale("log")
-    ax2.set_xticks(x)
-    ax2.set_xticklabels(list(per), rotation=90, fontsize=7)
-    ax2.set_xlabel("held-out test pose")
+    _name_ticks(ax2, list(per), 7.6)
+    ax2.set_xlabel("held-out test pose" + (" @ target" if any("@" in k for k in per) else ""))
     ax2.set_ylabel("ISO 9283 AP_p [mm]")
     ax2.set_title("Pose accuracy per held-out test pose")
     _legend_beside(ax2)

@@ -97,9 +97,12 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
         out["per_pose"] = per_pose_statistics(list(acc.commanded()), acc.commanded(), T_base, keys,
                                               meas.has_orientation)
     if len(q) <= IDENTIFY_MAX:
-        ident = identify(model, q, T_base, delta, sigma_position,
-                         sigma_orientation if meas.has_orientation else None, targets=reg.targets, target_index=idx)
+        ori = sigma_orientation if meas.has_orientation else None
+        ident = identify(model, q, T_base, delta, sigma_position, ori, targets=reg.targets, target_index=idx)
         out["identification"] = ident.to_dict()
+        if delta is not None:
+            out["identification"]["groups"] = aliased_groups(model, q, T_base, delta, sigma_position, ori, reg.targets,
+                                                             idx)
     else:
         out["identification"] = out["summary"].pop("identification", None)
     if keep_rows:
@@ -110,6 +113,43 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
                        "orientation_error": (np.concatenate([r["orientation_error"] for r in rows])
                                              if meas.has_orientation else None), **cat}
     return out
+
+
+def aliased_groups(model, q, T_base, delta, sigma_position=1e-5, sigma_orientation=None, targets=None,
+                   target_index=None) -> dict:
+    """What the data can see of each parameter, against the budget: the fit without a prior that holds a minimal
+    set of dependent parameters at nominal; each estimated parameter j measures the combination
+    ``e_j + sum_h c_h e_h`` of itself and the held parameters it absorbs (``Identification.aliases``), whose
+    tolerance is ``delta_j + sum_h |c_h| delta_h`` (the worst case of the group; a held parameter whose
+    tolerance moves the group by less than 1 % of its own is left out of it). A fault in a held parameter
+    shows in its group, or is absorbed by the registration's base frame. SI.
+
+    Keys: ``groups`` [{parameters: [names], coefficients {name: c}, error, std, tolerance, ratio, out}], largest
+    ratio first; ``out_of_tolerance``: the groups over their tolerance; ``absorbed_by_registration``: the held
+    parameters the base correction absorbs (a registration takes them: no campaign sees them); ``not_seen``: the
+    held parameters these measurements do not see at all (no effect on what was measured).
+    """
+    ident = identify(model, q, T_base, None, sigma_position, sigma_orientation, hold="dependent",
+                     noise_from_residuals=True, targets=targets, target_index=target_index)
+    names = list(model.param_names)
+    d = np.asarray(delta, float)
+    groups = []
+    for j, name in enumerate(names):
+        if name in ident.held:
+            continue
+        # a held parameter belongs to the group when its tolerance can move the group by 1 % of its own
+        coef = {name: 1.0, **{h: c for h, c in ident.aliases.get(name, {}).items()
+                              if abs(c) * d[names.index(h)] >= 0.01 * d[j]}}
+        tol = float(sum(abs(c) * d[names.index(h)] for h, c in coef.items()))
+        err, std = float(ident.dx[j]), float(ident.std[j])
+        groups.append({"parameters": list(coef), "coefficients": coef, "error": err, "std": std, "tolerance": tol,
+                       "ratio": abs(err) / tol if tol > 0 else float("inf"), "out": bool(abs(err) > tol)})
+    groups.sort(key=lambda g: -g["ratio"])
+    base = {h for b, a in ident.aliases.items() if b.startswith("base.") for h, c in a.items() if abs(c) > 1e-6}
+    grouped = {h for g in groups for h in g["parameters"]}
+    return {"groups": groups, "out_of_tolerance": [g for g in groups if g["out"]],
+            "absorbed_by_registration": [h for h in ident.held if h in base],
+            "not_seen": [h for h in ident.held if h not in base and h not in grouped]}
 
 
 def _labels(meas):
