@@ -186,7 +186,7 @@ def validation_before_after(validation: dict, path, title="Hold-out validation")
     ax2.set_ylabel("ISO 9283 AP_p [mm]")
     ax2.set_title("Pose accuracy per held-out test pose")
     _legend_beside(ax2)
-    fig.suptitle(title, fontsize=10)
+    fig.suptitle(textwrap.fill(title, 120), fontsize=10)
     return _save(fig, plt, path)
 
 
