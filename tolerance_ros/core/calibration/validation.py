@@ -151,7 +151,10 @@ def predict_measurements(cal: Calibration, model: Mechanism, meas, reregister=Fa
     q = measurement_joints(model, meas, campaign)
     idx = meas.target_index(cal.targets.names)
     labels = meas.pose if meas.pose is not None and any(str(p) for p in meas.pose) else None
-    out = predict_campaign(cal, model, q, meas.T, idx, labels, meas.has_orientation, reregister, meas, robust)
+    try:
+        out = predict_campaign(cal, model, q, meas.T, idx, labels, meas.has_orientation, reregister, meas, robust)
+    except checks.CheckError as exc:
+        raise checks.CheckError(f"{meas.source}: {exc}") from None
     out["source"] = meas.source
     return out
 
