@@ -197,8 +197,9 @@ def monte_carlo(model: Mechanism, delta, n: int = 10000, distribution: str = "ex
 
     ``method='linear'`` uses ``|J dx|`` (the first-order model of the paper); ``'nonlinear'`` evaluates the
     perturbed forward kinematics exactly. Poses and errors come from independent seeded streams, so
-    the same seed gives the same poses whatever the distribution. ``progress(done, total)`` is called
-    after each chunk.
+    the same seed gives the same poses whatever the distribution: ``model.sample_joints(n,
+    default_rng(seed))``, the poses of the paper's tables and of the synthesis's verification.
+    ``progress(done, total)`` is called after each chunk.
     """
     delta = np.asarray(delta, dtype=float)
     if delta.shape != (model.n_params,):
@@ -208,7 +209,8 @@ def monte_carlo(model: Mechanism, delta, n: int = 10000, distribution: str = "ex
     if method not in ("linear", "nonlinear"):
         raise ValueError(f"method: expected 'linear' or 'nonlinear', got {method!r}")
     ss = np.random.SeedSequence(seed if isinstance(seed, int) else None)
-    pose_rng, err_rng = (np.random.default_rng(s) for s in ss.spawn(2))
+    pose_rng = np.random.default_rng(seed if isinstance(seed, int) else ss)  # the poses every study draws with seed
+    err_rng = np.random.default_rng(ss.spawn(2)[1])
     q = model.sample_joints(n, pose_rng) if q is None else model.check_joints(q)
     n = q.shape[0]
     dx_all = sample_errors(delta, n, distribution, err_rng, signs)

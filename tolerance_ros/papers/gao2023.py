@@ -260,7 +260,8 @@ def print_report(res):
     print(f"  angle ranking (alpha_i ~ theta_i): published {s['angle_ranking']['published']}, "
           f"reproduced {s['angle_ranking']['reproduced']} -> {'match' if s['angle_ranking']['match'] else 'DIFFERS'}")
     a7, t7 = s["alpha7_theta7"]["reproduced"]
-    print(f"  D(alpha7), D(theta7): published 0, reproduced {a7:.1e}, {t7:.1e}")
+    shown = ", ".join(f"{v:.1e}" if abs(v) > 1e-12 else "0 (to rounding)" for v in (a7, t7))
+    print(f"  D(alpha7), D(theta7): published 0, reproduced {shown}")
     le = s["lengths_equal"]
     print(f"  length errors equal: {le['min'] * 100:.4f} % .. {le['max'] * 100:.4f} % -> "
           f"{'match' if le['match'] else 'DIFFERS'}\n")

@@ -84,6 +84,7 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
                 f"(--floor-length, --floor-angle or --floor NAME=VALUE on the command line, \"floors\" in a "
                 f"request) or raise the limit")
     status, message = "max_iter", f"stopped after {max_iter} iterations"
+    cheapest = False
     _record_best(problem, tau, "the joint-space search of the feasibility check (every tolerance at its floor)")
     for it in range(max_iter):
         interrupt.check()
@@ -123,12 +124,13 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
         if log:
             log(history[-1])
         report.iteration()
-        if not added:
+        if not added and (objective != "optimal-precision" or cheapest):
             status, message = "converged", "no pose of the joint-space search exceeds the limit"
             _record_best(problem, np.clip(x * tau, tau, ceil), "the joint-space search of the active-set solver "
                                                                 "(not the final verification)")
             break
-        x = _solve_program(x, cons, objective, K, alpha, tau, unit, w, scale0, ceil)
+        cheapest = cheapest or not added   # optimal-precision: the cheapest of the most precise, from now on
+        x = _solve_program(x, cons, objective, K, alpha, tau, unit, w, scale0, ceil, cheapest)
     report.done()
     delta = np.zeros(model.n_params)
     delta[a] = np.clip(x * tau, tau, ceil)
@@ -226,7 +228,9 @@ def _objective(x, objective, K, alpha, tau, unit, w, scale):
     return f / scale, g / scale
 
 
-def _solve_program(x0, cons, objective, K, alpha, tau, unit, w, scale, ceil):
+def _solve_program(x0, cons, objective, K, alpha, tau, unit, w, scale, ceil, cheapest=False):
+    """The convex program on the constraints so far, from x0 (scaled tolerances); with ``cheapest`` (optimal
+    precision) the cheapest of the sets within ``TIE`` of its best precision."""
     Ms = np.concatenate([c.M for c in cons.values()], axis=0)
     hi = np.minimum(ceil / tau, 1e6)
     bounds = list(zip(np.ones_like(hi), hi))
@@ -243,6 +247,35 @@ def _solve_program(x0, cons, objective, K, alpha, tau, unit, w, scale, ceil):
     def cjac(x):
         return -2.0 * np.einsum("mpq,q->mp", Ms, x)
 
+    x = _minimize(fun, cfun, cjac, x0, hi, bounds)
+    if objective == "optimal-precision" and cheapest:
+        # The precision objective is linear: its optimum is often a face, not a point, and which point of it
+        # SLSQP ends on would depend on rounding. Among the equally precise sets, the cheapest (the cost is
+        # strictly convex): one answer, whatever the arithmetic.
+        value = -_objective(x, objective, K, alpha, tau, unit, w, scale)[0]
+        cost_scale = _objective(np.ones_like(hi), "min-cost", K, alpha, tau, unit, w, 1.0)[0]
+        lin = w * tau * unit / scale
+
+        def cost(x):
+            interrupt.check()
+            return _objective(x, "min-cost", K, alpha, tau, unit, w, cost_scale)
+
+        def cfun2(x):
+            return np.r_[cfun(x), (lin @ x - value * (1.0 - TIE)) / max(value, 1e-300)]
+
+        def cjac2(x):
+            return np.vstack([cjac(x), lin / max(value, 1e-300)])
+        x = _minimize(cost, cfun2, cjac2, x, hi, bounds, feasible=cfun)
+    return x
+
+
+TIE = 1e-9  # optimal-precision: the sets within this share of the best precision are equals; the cheapest wins
+
+
+def _minimize(fun, cfun, cjac, x0, hi, bounds, feasible=None):
+    """SLSQP from x0 (made feasible first) under ``cfun >= 0``; the answer pulled back along the ray to the
+    floors until ``feasible`` (default ``cfun``) holds."""
+    feasible = feasible or cfun
     x_start = np.clip(x0, 1.0, hi)
     # Start from a feasible point: shrink towards the floors until every constraint holds.
     for _ in range(60):
@@ -257,12 +290,12 @@ def _solve_program(x0, cons, objective, K, alpha, tau, unit, w, scale, ceil):
                    options={"maxiter": 500, "ftol": 1e-14})
     x = np.clip(res.x, 1.0, hi)
     # SLSQP may end a hair outside; pull back along the ray to the floors until feasible.
-    viol = cfun(x)
+    viol = feasible(x)
     if np.any(viol < 0):
         lo_t, hi_t = 0.0, 1.0
         for _ in range(60):
             mid = (lo_t + hi_t) / 2
-            if np.all(cfun(1.0 + (x - 1.0) * mid) >= 0):
+            if np.all(feasible(1.0 + (x - 1.0) * mid) >= 0):
                 lo_t = mid
             else:
                 hi_t = mid
