@@ -1,4 +1,5 @@
 """The paper's figures reproduced (Gao et al. 2023): what matches exactly, and the documented bands."""
+import numpy as np
 import pytest
 
 from tolerance_ros.papers import gao2023
@@ -100,3 +101,26 @@ def test_synthesis_study_beats_both_published_sets(gao):
     assert row[2] == f"{best['cost']:.0f}" and row[-1] == "100.00 % |"
     delta1 = next(line for line in md if line.startswith("| published delta_1"))
     assert "(34459 printed)" in delta1
+
+
+@pytest.mark.parametrize("kind", ["optimal-precision", "min-cost"])
+def test_the_main_jobs_allocation_is_the_same_on_the_compiled_and_the_numpy_path(kind, monkeypatch):
+    """`paper gao2023`'s active-set allocations computed with the compiled kernels and with the numpy reference
+    (what a first run on a cold kernel cache serves): the same tolerances and cost to the printed digits
+    (a tie between equally precise sets is broken by the cost, never by rounding)."""
+    from tolerance_ros.core.models import base
+    from tolerance_ros.core.synthesis import allocate
+    model = gao2023.load_robot(gao2023.ROBOT)
+    problem = gao2023.build_problem(model, gao2023.LIMIT, criterion="paper", seed=2023)
+    runs = {}
+    for path in ("compiled", "numpy"):
+        if path == "numpy":
+            monkeypatch.setattr(base, "_KERNELS", False)
+        else:
+            assert base.compiled_kernels() is not None
+        res = allocate(model, problem.limit, kind, "active-set", problem=problem, seed=2023, verify=False)
+        runs[path] = (res.delta, res.cost)
+    printed = np.where(np.array(model.param_kinds) == "length", 1e3, 1.0)   # Table 3: mm and rad, 4 decimals
+    np.testing.assert_allclose(runs["compiled"][0], runs["numpy"][0], rtol=1e-4, atol=0)
+    np.testing.assert_array_equal(np.round(runs["compiled"][0] * printed, 4), np.round(runs["numpy"][0] * printed, 4))
+    assert round(runs["compiled"][1]) == round(runs["numpy"][1])
