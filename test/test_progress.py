@@ -49,3 +49,22 @@ def test_progress_writes_a_line_at_least_every_few_seconds_on_a_long_step(monkey
     time.sleep(0.06)
     prog(2, 100)  # same step, but EVERY has passed: a line
     assert len(stream.getvalue().splitlines()) == 2
+
+
+def test_the_progress_beats_through_a_step_that_does_not_call_it_and_stops_at_the_end(monkeypatch):
+    """A step that calls nothing for 0.5 s, with EVERY 0.05 s: the line is written again several times, the
+    elapsed time moving; once done, nothing more is written."""
+    from tolerance_ros.render.text import Progress
+    stream = io.StringIO()
+    monkeypatch.setattr(Progress, "EVERY", 0.05)
+    prog = Progress("x", stream=stream)
+    prog(1, 10)
+    time.sleep(0.5)
+    lines = stream.getvalue().splitlines()
+    assert len(lines) >= 5 and all(line.startswith("x: 10% (") for line in lines)
+    elapsed = [float(line.split("(")[1].rstrip("s)")) for line in lines]
+    assert elapsed == sorted(elapsed) and elapsed[-1] >= 0.4   # the elapsed time moves
+    prog(10, 10)
+    n = len(stream.getvalue().splitlines())
+    time.sleep(0.2)
+    assert len(stream.getvalue().splitlines()) == n and stream.getvalue().splitlines()[-1].startswith("x: 100%")

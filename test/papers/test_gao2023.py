@@ -108,16 +108,16 @@ def test_the_main_jobs_allocation_is_the_same_on_the_compiled_and_the_numpy_path
     """`paper gao2023`'s active-set allocations computed with the compiled kernels and with the numpy reference
     (what a first run on a cold kernel cache serves): the same tolerances and cost to the printed digits
     (a tie between equally precise sets is broken by the cost, never by rounding)."""
-    from tolerance_ros.core.models import base
+    from tolerance_ros.core.models import kernels
     from tolerance_ros.core.synthesis import allocate
     model = gao2023.load_robot(gao2023.ROBOT)
     problem = gao2023.build_problem(model, gao2023.LIMIT, criterion="paper", seed=2023)
     runs = {}
     for path in ("compiled", "numpy"):
         if path == "numpy":
-            monkeypatch.setattr(base, "_KERNELS", False)
+            monkeypatch.setattr(kernels, "_unavailable", True)
         else:
-            assert base.compiled_kernels() is not None
+            assert kernels.get("dh") is not None
         res = allocate(model, problem.limit, kind, "active-set", problem=problem, seed=2023, verify=False)
         runs[path] = (res.delta, res.cost)
     printed = np.where(np.array(model.param_kinds) == "length", 1e3, 1.0)   # Table 3: mm and rad, 4 decimals

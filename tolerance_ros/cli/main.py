@@ -84,13 +84,36 @@ def _fail(prog, code, message, as_json) -> int:
     return EXIT_INTERNAL if code == "internal" else EXIT_INPUT
 
 
+def kernel_needs(argv) -> tuple:
+    """The compiled kernel families a command line needs first (``kernels.FAMILIES``), read from its robot
+    without loading it: a URDF chain, the 3-PUPS platform or a D-H chain, then the exact worst case."""
+    argv = list(argv)
+    robot = next((argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--robot"), "")
+    robot = robot or next((a.split("=", 1)[1] for a in argv if a.startswith("--robot=")), "")
+    text = robot.lower()
+    if "rong2018" in argv or "pups" in text:
+        return ("pups", "zonotope")
+    if text.endswith(".urdf") or text.endswith(".xml"):
+        return ("urdf", "zonotope")
+    if text.endswith((".yaml", ".yml")):
+        try:
+            with open(robot, encoding="utf-8") as f:
+                if re.search(r"^kind:\s*urdf\b", f.read(20000), re.M):
+                    return ("urdf", "zonotope")
+        except OSError:
+            pass
+    return ("dh", "zonotope")
+
+
 def entry() -> int:
     """The ``tolerance-ros`` process: ``main`` on the command line's arguments; on a cold kernel cache the
-    kernels compile in the background (said on stderr) while this call answers from the numpy path."""
+    kernels compile in a background child (said on stderr) while this call answers from the numpy path, the
+    families the command needs first, each put in force as soon as it is ready."""
     from ..core.models import warmup
-    if not warmup.cached() and warmup.start(background=True) == "compiling":
-        print("tolerance-ros: compiling the kernels in the background (the first run after an install, about a "
-              "minute); this call answers from the numpy path meanwhile", file=sys.stderr)
+    if not warmup.cached() and warmup.start(background=True, needs=kernel_needs(sys.argv[1:]),
+                                            nice=False) == "compiling":
+        print("tolerance-ros: compiling the kernels in the background (the first run after an install); this "
+              "call answers from the numpy path meanwhile and switches to them as they are ready", file=sys.stderr)
     return main()
 
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import interrupt
-from .models.base import compiled_kernels
+from .models import kernels as compiled
 
 _PERTURB = 1e-9
 
@@ -93,7 +93,7 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
     perturbation used only to choose the candidate sign vectors; every candidate is evaluated on the
     unperturbed generators, so the result is an attained value and is exact in generic position
     (within 2e-9 relative otherwise). O(n p^3) work: ``backend`` 'numba' runs the compiled kernel
-    ``kernels.zonotope_max`` (10x faster) when the kernels are available, 'numpy' (the reference, and
+    ``zonotope_kernel.zonotope_max`` (10x faster) when the kernels are available, 'numpy' (the reference, and
     the fallback) the batched numpy code below.
     """
     J, delta = _check(J, delta)
@@ -116,7 +116,7 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
     scale = np.abs(Ga).max(axis=(1, 2), keepdims=True)
     rng = np.random.default_rng(12345)
     Gp = Ga + _PERTURB * np.where(scale > 0, scale, 1.0) * rng.standard_normal(Ga.shape)
-    kernels = compiled_kernels() if backend == "numba" else None
+    kernels = compiled.get("zonotope") if backend == "numba" else None
     if kernels is not None:
         best_s = np.empty((n, m))
         for a in range(0, n, 256):

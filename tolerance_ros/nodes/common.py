@@ -84,7 +84,8 @@ def robot_set(node, specs, default) -> RobotSet:
     tip = declare(node, "tip_link", "", "robot_description: link the chain ends in (empty: the only moving leaf)")
     base = declare(node, "base_link", "", "robot_description: link the chain starts from (empty: the URDF root)")
     robots = RobotSet(specs, default, tip or None, base or None)
-    state = warmup.start(background=True, log=node.get_logger().info)
+    needs = [getattr(m, "kernel_family", None) for m in robots.models.values()] + ["zonotope"]
+    state = warmup.start(background=True, log=node.get_logger().info, needs=[f for f in needs if f])
     if state == "compiling":
         node.get_logger().info("compiling the kernels in the background (an empty cache: about a minute); the numpy "
                                "path answers meanwhile")

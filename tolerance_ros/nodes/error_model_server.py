@@ -22,7 +22,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from ..core.errors import CRITERIA
-from ..core.jsonio import dumps_fast, warm_up_base64
+from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, Limits, budget_from_message
 from ..services.compensation import calibration_from_graph, load_calibrations
 from ..services.error_model import ErrorModelService
@@ -63,7 +63,6 @@ class ErrorModelServer(Node):
             raise ValueError(f"bound_criterion: expected one of {list(CRITERIA)} or empty, got {self.criterion!r}")
         limits = Limits(max_bytes, max_poses, max_worst, max_comp_joints, max_comp_poses)
         self.service = ErrorModelService(robot_set(self, specs, default), limits=limits)
-        warm_up_base64()
         self.load_calibration()
         self.responses = self.create_publisher(String, f"{JACOBIAN_TOPIC}/response", SERVICE_RESPONSE_QOS)
         self.bound_pub = self.create_publisher(String, f"{PREFIX}/predicted_bound", STATUS_QOS)

@@ -200,18 +200,25 @@ def synthesis_study(seed: int = 2023, n_mc: int = 10000, ga_options=None, progre
            "sets": {}}
     total = len(SETS) + len(SYNTHESIS_RUNS)
     done = 0
+    scale = 10 ** 6  # the progress of each set, in millionths of it
+
+    def within(k):
+        """progress of the k-th set, as a share of it or as (done, of), in the study's progress"""
+        if not progress:
+            return None
+        return lambda a, b=None: progress(int(scale * (k + (a if b is None else a / max(b, 1)))), scale * total)
     for key, spec in SETS.items():
         delta = load_budget(spec, model).vector_for(model)
         out["sets"][f"published {key}"] = {
             "delta": delta, "cost": problem.cost(delta), "index_I_m": problem.index_I(delta),
             "published_cost": PUBLISHED_TABLE4[key]["cost"], "time_s": None,
-            "verification": verify_allocation(problem, delta, n_mc=n_mc, seed=seed)}
+            "verification": verify_allocation(problem, delta, n_mc=n_mc, seed=seed, progress=within(done))}
         done += 1
         if progress:
             progress(done, total)
     for solver, kind in SYNTHESIS_RUNS:
         res = allocate(model, problem.limit, kind, solver, problem=problem, seed=seed, n_mc=n_mc,
-                       solver_options=ga_options if solver == "ga" else None)
+                       solver_options=ga_options if solver == "ga" else None, progress=within(done))
         out["sets"][f"{solver} {kind}"] = {"delta": res.delta, "cost": res.cost, "index_I_m": res.index_I,
                                            "time_s": res.time_s, "status": res.status, "success": res.success,
                                            "verification": res.verification, "warnings": res.warnings}

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 
 import numpy as np
@@ -9,9 +10,10 @@ import numpy as np
 
 class Progress:
     """Progress on stderr: a bar on a terminal, a line every 10 % otherwise, and at least every ``EVERY``
-    seconds while it is called (a long step shows that the run moves); silent with --quiet."""
+    seconds from the first call to the last, the elapsed time moving even through a long step (a heartbeat
+    thread writes the current state again when the caller has not for ``EVERY`` s); silent with --quiet."""
 
-    EVERY = 2.0
+    EVERY = 1.0
 
     def __init__(self, label: str, enabled: bool = True, stream=None):
         self.label = label
@@ -20,6 +22,10 @@ class Progress:
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
         self.last = -1
         self.start = self.written = time.perf_counter()
+        self.frac = 0.0
+        self.finished = False
+        self._lock = threading.Lock()
+        self._beat = None
 
     def __call__(self, done, total):
         if not self.enabled or total <= 0:
@@ -27,19 +33,42 @@ class Progress:
         frac = min(1.0, done / total)
         step = int(frac * (50 if self.tty else 10))
         now = time.perf_counter()
-        if step == self.last and done < total and now - self.written < self.EVERY:
-            return
-        self.last = step
+        with self._lock:
+            self.frac = max(self.frac, frac)
+            if done >= total:
+                self.finished = True
+            if self._beat is None and not self.finished:
+                self._beat = threading.Thread(target=self._heartbeat, name="progress", daemon=True)
+                self._beat.start()
+            if step == self.last and done < total and now - self.written < self.EVERY:
+                return
+            self.last = step
+            self._write(now, done >= total)
+
+    def _write(self, now, end=False):
         self.written = now
         elapsed = now - self.start
         if self.tty:
-            bar = "#" * int(frac * 30)
-            self.stream.write(f"\r{self.label} [{bar:<30}] {frac * 100:5.1f}% {elapsed:6.1f}s")
-            if done >= total:
+            bar = "#" * int(self.frac * 30)
+            self.stream.write(f"\r{self.label} [{bar:<30}] {self.frac * 100:5.1f}% {elapsed:6.1f}s")
+            if end:
                 self.stream.write("\n")
         else:
-            self.stream.write(f"{self.label}: {frac * 100:.0f}% ({elapsed:.1f}s)\n")
+            self.stream.write(f"{self.label}: {self.frac * 100:.0f}% ({elapsed:.1f}s)\n")
         self.stream.flush()
+
+    def _heartbeat(self):
+        while True:
+            time.sleep(self.EVERY / 4)
+            with self._lock:
+                if self.finished:
+                    return
+                now = time.perf_counter()
+                if now - self.written >= self.EVERY:
+                    try:
+                        self._write(now)
+                    except (OSError, ValueError):  # the stream is gone: the process is ending
+                        return
 
 
 def table(headers, rows, aligns=None) -> str:

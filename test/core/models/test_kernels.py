@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 
 from helpers import example_urdf, random_dh
 from tolerance_ros.core.geometry import rpy_to_matrix
-from tolerance_ros.core.models import ModelError, URDFChain, base, kernels, load_robot
+from tolerance_ros.core.models import ModelError, URDFChain, base, chain_kernels, jit, kernels, load_robot
+from tolerance_ros.core.models import jacobian_writers as writers
 from tolerance_ros.core.models.dh import SMALL_BATCH
 
 TOL = 1e-12
@@ -198,9 +199,9 @@ def test_urdf_compiled_equals_numpy_reference_and_pinocchio(urdf_chains, case, n
 @pytest.fixture
 def choice():
     """The writer choice in force, restored after the test."""
-    saved = kernels._choice
+    saved = writers._choice
     yield
-    kernels._choice = saved
+    writers._choice = saved
 
 
 @pytest.mark.parametrize("case", [1, 3])
@@ -209,22 +210,22 @@ def test_urdf_every_writer_gives_the_same_bits_as_columns_in_place(urdf_chains, 
     rows), the same as the same poses' J of a small call, and equals the numpy reference; for the Panda and
     the odd chain, without and with per-pose dx."""
     chain = _with_backend(urdf_chains[case], "numba")
-    n = kernels.LARGE_BYTES // (6 * chain.n_params * 8) + 5
+    n = writers.LARGE_BYTES // (6 * chain.n_params * 8) + 5
     rng = np.random.default_rng(20 + case)
     q = chain.sample_joints(n, rng)
     for dx in (None, rng.normal(0, 1e-2, (n, chain.n_params))):
         answers = {}
-        for name in kernels.WRITERS:
-            kernels.choose_writers(force=name)
+        for name in writers.WRITERS:
+            writers.choose_writers(force=name)
             T, EJ = chain.fk_and_jacobian(q, dx)
-            assert EJ.J.nbytes >= kernels.LARGE_BYTES and kernels.writer_for(EJ.J.nbytes) == kernels.WRITERS.index(name)
+            assert EJ.J.nbytes >= writers.LARGE_BYTES and writers.writer_for(EJ.J.nbytes) == writers.WRITERS.index(name)
             answers[name] = T, EJ.J
         T, J = answers["columns"]
         for name, (T_w, J_w) in answers.items():
             assert np.array_equal(J_w, J) and np.array_equal(T_w, T), name
         for part in (slice(0, 40), slice(n - 40, n)):
             T_part, EJ_part = chain.fk_and_jacobian(q[part], None if dx is None else dx[part])
-            assert EJ_part.J.nbytes < kernels.MID_BYTES
+            assert EJ_part.J.nbytes < writers.MID_BYTES
             assert np.array_equal(J[part], EJ_part.J) and np.array_equal(T[part], T_part)
         T_ref, EJ_ref = _with_backend(chain, "numpy").fk_and_jacobian(q, dx)
         _assert_same(T, T_ref)
@@ -234,7 +235,7 @@ def test_urdf_every_writer_gives_the_same_bits_as_columns_in_place(urdf_chains, 
 def _timings(fastest):
     """A fake measurement in which ``fastest`` is the fastest writer for every size class."""
     def measure():
-        return {c: {w: (1e-3 if w == fastest else 30e-3) for w in kernels.WRITERS} for c in kernels.SIZES}
+        return {c: {w: (1e-3 if w == fastest else 30e-3) for w in writers.WRITERS} for c in writers.SIZES}
     return measure
 
 
@@ -242,41 +243,41 @@ def _timings(fastest):
 def test_the_writer_measured_fastest_is_chosen_and_remembered_for_this_cpu_only(tmp_path, fastest, choice,
                                                                                  monkeypatch):
     import json
-    monkeypatch.delenv(kernels.WRITER_ENV, raising=False)
-    path = tmp_path / kernels.CHOICE_FILE
-    made = kernels.choose_writers(_timings(fastest), path)
-    assert made["source"] == "measured" and made["writers"] == {c: fastest for c in kernels.SIZES}
-    assert kernels.writer_for(kernels.LARGE_BYTES) == kernels.WRITERS.index(fastest)
-    assert kernels.writer_for(kernels.MID_BYTES) == kernels.WRITERS.index(fastest)
-    assert kernels.writer_for(kernels.MID_BYTES - 1) == 0
-    other = next(w for w in kernels.WRITERS if w != fastest)
+    monkeypatch.delenv(writers.WRITER_ENV, raising=False)
+    path = tmp_path / writers.CHOICE_FILE
+    made = writers.choose_writers(_timings(fastest), path)
+    assert made["source"] == "measured" and made["writers"] == {c: fastest for c in writers.SIZES}
+    assert writers.writer_for(writers.LARGE_BYTES) == writers.WRITERS.index(fastest)
+    assert writers.writer_for(writers.MID_BYTES) == writers.WRITERS.index(fastest)
+    assert writers.writer_for(writers.MID_BYTES - 1) == 0
+    other = next(w for w in writers.WRITERS if w != fastest)
 
     def not_measured():
         raise AssertionError("measured again, though the choice for this CPU is remembered")
-    again = kernels.choose_writers(not_measured, path)
+    again = writers.choose_writers(not_measured, path)
     assert again["source"] == "remembered" and again["writers"] == made["writers"]
     doc = json.loads(path.read_text())
     doc["cpu"]["cpu"] = "another CPU"
     path.write_text(json.dumps(doc))
-    assert kernels.choose_writers(_timings(other), path)["writers"]["large"] == other   # made elsewhere: measured
+    assert writers.choose_writers(_timings(other), path)["writers"]["large"] == other   # made elsewhere: measured
     path.write_text("{not json")
-    assert kernels.choose_writers(_timings(fastest), path)["source"] == "measured"
+    assert writers.choose_writers(_timings(fastest), path)["source"] == "measured"
 
 
 def test_a_forced_writer_is_used_without_measuring_and_a_bad_one_refused(tmp_path, choice, monkeypatch):
-    monkeypatch.setenv(kernels.WRITER_ENV, "rows")
-    forced = kernels.choose_writers(_timings("stream"), tmp_path / kernels.CHOICE_FILE)
-    assert forced["source"] == "forced" and kernels.writer_for(kernels.LARGE_BYTES) == 1
-    assert not (tmp_path / kernels.CHOICE_FILE).exists()
-    monkeypatch.setenv(kernels.WRITER_ENV, "fastest")
-    with pytest.raises(ValueError, match=kernels.WRITER_ENV):
-        kernels.choose_writers(_timings("stream"), tmp_path / kernels.CHOICE_FILE)
+    monkeypatch.setenv(writers.WRITER_ENV, "rows")
+    forced = writers.choose_writers(_timings("stream"), tmp_path / writers.CHOICE_FILE)
+    assert forced["source"] == "forced" and writers.writer_for(writers.LARGE_BYTES) == 1
+    assert not (tmp_path / writers.CHOICE_FILE).exists()
+    monkeypatch.setenv(writers.WRITER_ENV, "fastest")
+    with pytest.raises(ValueError, match=writers.WRITER_ENV):
+        writers.choose_writers(_timings("stream"), tmp_path / writers.CHOICE_FILE)
 
 
 def test_the_writers_are_timed_on_every_size_class(choice):
-    times = kernels.time_writers(rounds=1)
-    assert set(times) == set(kernels.SIZES)
-    assert all(set(t) == set(kernels.WRITERS) and all(0 < v < 5 for v in t.values()) for t in times.values())
+    times = writers.time_writers(rounds=1)
+    assert set(times) == set(writers.SIZES)
+    assert all(set(t) == set(writers.WRITERS) and all(0 < v < 5 for v in t.values()) for t in times.values())
 
 
 def test_urdf_offset_columns_are_pinocchio_joint_jacobian(urdf_chains):
@@ -307,8 +308,8 @@ def test_every_input_form_uses_one_compiled_signature(gao, urdf_chains):
     gao.fk_and_jacobian(q, np.zeros((4, gao.n_params)), jacobian=False)
     urdf = _with_backend(urdf_chains[0], "numba")
     urdf.fk_and_jacobian(urdf.sample_joints(3, 0).tolist(), np.zeros(urdf.n_params))
-    assert len(kernels.dh_chain.signatures) == 1
-    assert len(kernels.urdf_chain.signatures) == 1
+    assert len(chain_kernels.dh_chain.signatures) == 1
+    assert len(chain_kernels.urdf_chain.signatures) == 1
 
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
@@ -340,7 +341,7 @@ def test_backend_choice_and_fallback(gao, monkeypatch):
     plain.compiled = False  # as a mechanism without compiled kernels
     with pytest.raises(ModelError, match="PUPS3 has no compiled kernels"):
         plain.backend = "numba"
-    monkeypatch.setattr(base, "_KERNELS", False)  # as when numba cannot be imported
+    monkeypatch.setattr(kernels, "_unavailable", True)  # as when numba cannot be imported
     fresh = load_robot("gao2023_7dof")
     assert fresh.backend == "numpy"
     with pytest.raises(ModelError, match="numba cannot be imported"):
@@ -371,11 +372,12 @@ def test_models_work_without_numba():
 
 def test_warm_up_kernels_readies_the_kernels_named_in_a_fresh_process():
     """What a node calls at start: afterwards no kernel compiles on a request or a new robot_description."""
-    code = ("from tolerance_ros.core.models import kernels, warm_up_kernels\n"
-            "every = (kernels.dh_chain, kernels.urdf_chain, kernels.base64_triples, kernels.base64_quads)\n"
+    code = ("from tolerance_ros.core.models import chain_kernels, pups_kernels, warm_up_kernels, zonotope_kernel\n"
+            "every = (chain_kernels.dh_chain, chain_kernels.urdf_chain, zonotope_kernel.zonotope_max,\n"
+            "         pups_kernels.pups_solve)\n"
             "assert not any(f.signatures for f in every)\n"
             "assert warm_up_kernels(('urdf',)) > 0.0\n"
-            "assert kernels.urdf_chain.signatures and not kernels.dh_chain.signatures\n"
+            "assert chain_kernels.urdf_chain.signatures and not chain_kernels.dh_chain.signatures\n"
             "warm_up_kernels()\n"
             "assert all(len(f.signatures) == 1 for f in every), [f.signatures for f in every]\n")
     _run_fresh(code, timeout=300)
@@ -384,23 +386,23 @@ def test_warm_up_kernels_readies_the_kernels_named_in_a_fresh_process():
 def test_warm_up_loads_the_kernels(gao, urdf_chains):
     assert kernels.warm_up() >= 0.0
     assert _with_backend(urdf_chains[0], "numba").warm_up() >= 0.0
-    assert kernels.dh_chain.signatures and kernels.urdf_chain.signatures
+    assert chain_kernels.dh_chain.signatures and chain_kernels.urdf_chain.signatures
 
 
 def test_sincos_within_an_ulp_of_libm():
     rng = np.random.default_rng(3)
     x = np.concatenate([rng.uniform(-50, 50, 20000), np.arange(-40, 41) * np.pi / 4, [0.0, -0.0, 1e-300],
-                        rng.uniform(-1e7, 1e7, 100), [kernels.SINCOS_LIMIT * 1.5, -3e12]])
+                        rng.uniform(-1e7, 1e7, 100), [chain_kernels.SINCOS_LIMIT * 1.5, -3e12]])
     s, c = np.empty_like(x), np.empty_like(x)
-    kernels.sincos(x, s, c, len(x))
+    chain_kernels.sincos(x, s, c, len(x))
     ulp = np.spacing(1.0)
     assert np.abs(s - np.sin(x)).max() <= ulp and np.abs(c - np.cos(x)).max() <= ulp
 
 
 def test_private_cache_dir_rejects_a_directory_others_can_write(tmp_path, monkeypatch):
-    monkeypatch.setattr(kernels.tempfile, "gettempdir", lambda: str(tmp_path))
-    path = kernels._private_cache_dir()
+    monkeypatch.setattr(jit.tempfile, "gettempdir", lambda: str(tmp_path))
+    path = jit._private_cache_dir()
     assert path == str(tmp_path / f"tolerance_ros-numba-{os.getuid()}")
     assert os.stat(path).st_mode & 0o777 == 0o700
     os.chmod(path, 0o777)
-    assert kernels._private_cache_dir() is None
+    assert jit._private_cache_dir() is None

@@ -226,7 +226,7 @@ def test_analysis_runs_unchanged(model):
     delta = np.full(27, 5e-6)
     lin = analysis.monte_carlo(model, delta, n=300, distribution="uniform", seed=2, method="linear")
     non = analysis.monte_carlo(model, delta, n=300, distribution="uniform", seed=2, method="nonlinear")
-    np.testing.assert_allclose(non.position, lin.position, rtol=1e-4, atol=1e-12)
+    np.testing.assert_allclose(non.position, lin.position, rtol=3e-4, atol=1e-12)   # second order of 5 um errors
     np.testing.assert_allclose(non.orientation, lin.orientation, rtol=1e-4, atol=1e-12)
 
 
@@ -492,8 +492,8 @@ def test_G_against_central_differences_on_both_paths(model, pe, ws, backend):
 
 
 def test_without_numba_the_numpy_path_runs(model, ws, monkeypatch):
-    from tolerance_ros.core.models import base
-    monkeypatch.setattr(base, "_KERNELS", False)  # as when numba cannot be imported
+    from tolerance_ros.core.models import kernels
+    monkeypatch.setattr(kernels, "_unavailable", True)  # as when numba cannot be imported
     fresh = load_robot("rong2018_3pups")
     assert fresh.backend == "numpy" and fresh._kernels() is None
     with pytest.raises(ModelError, match="numba cannot be imported"):

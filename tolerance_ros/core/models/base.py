@@ -17,36 +17,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
+
 REVOLUTE = "revolute"
 PRISMATIC = "prismatic"
 UNIT_OF_KIND = {"length": "m", "angle": "rad"}
 BACKENDS = ("numba", "numpy")
 _FLOAT64 = np.dtype(np.float64)
-PENDING = "pending"  # _KERNELS while warmup.start prepares the kernels in the background
-_KERNELS = None  # the compiled kernels module once imported, False when numba cannot be imported, or PENDING
 
 
-def compiled_kernels():
-    """The compiled kernels module (imports numba on first use), or None when numba cannot be imported or
-    the kernels are being prepared in the background (``warmup.start``: the numpy path answers meanwhile)."""
-    global _KERNELS
-    if _KERNELS is PENDING:
-        return None
-    if _KERNELS is None:
-        try:
-            from . import kernels
-        except ImportError:  # numba missing, or built for another numpy
-            _KERNELS = False
-        else:
-            _KERNELS = kernels
-    return _KERNELS or None
-
-
-def warm_up_kernels(which=("dh", "urdf", "base64", "zonotope", "pups")) -> float:
-    """Compile, or load from the cache, the compiled kernels named in ``which`` (see ``kernels.warm_up``;
-    none without numba); returns seconds."""
-    kernels = compiled_kernels()
-    return kernels.warm_up(which) if kernels is not None else 0.0
+def warm_up_kernels(which=None) -> float:
+    """Compile, or load from the cache, the compiled kernel families in ``which`` (``kernels.FAMILIES`` by
+    default; none without numba); returns seconds."""
+    if not kernels.available():
+        return 0.0
+    try:
+        return kernels.warm_up(kernels.FAMILIES if which is None else which)
+    except ImportError:
+        kernels.mark_unavailable()
+        return 0.0
 
 
 class ModelError(ValueError):
@@ -106,12 +95,14 @@ class Mechanism(ABC):
     _backend = None   # None: compiled when numba can be imported
     _units = (None, ())
 
+    kernel_family = None  # the compiled kernel family of fk_and_jacobian (``kernels.FAMILIES``), where compiled
+
     @property
     def backend(self) -> str:
         """'numba' (compiled kernels) or 'numpy' (the reference implementation) for ``fk_and_jacobian``."""
         if self._backend is not None:
             return self._backend
-        return "numba" if self.compiled and compiled_kernels() is not None else "numpy"
+        return "numba" if self.compiled and kernels.get(self.kernel_family) is not None else "numpy"
 
     @backend.setter
     def backend(self, name: str):
@@ -119,16 +110,15 @@ class Mechanism(ABC):
             raise ModelError(f"backend: expected one of {list(BACKENDS)}, got {name!r}")
         if name == "numba" and not self.compiled:
             raise ModelError(f"backend: {type(self).__name__} has no compiled kernels")
-        if name == "numba" and _KERNELS is not PENDING and compiled_kernels() is None:
+        if name == "numba" and not kernels.pending() and kernels.get(self.kernel_family) is None:
             raise ModelError("backend: numba cannot be imported (pip install numba)")
         self._backend = name
 
     def _kernels(self):
-        """The kernels module when fk_and_jacobian takes the compiled path, else None."""
+        """The kernel family's module when fk_and_jacobian takes the compiled path, else None."""
         if self._backend == "numpy" or not self.compiled:
             return None
-        kernels = _KERNELS if _KERNELS is not None else compiled_kernels()
-        return kernels if kernels and kernels is not PENDING else None
+        return kernels.get(self.kernel_family)
 
     def warm_up(self) -> float:
         """Compile or load from the cache the kernels this model calls; returns the seconds it took."""
@@ -306,15 +296,15 @@ class CompiledChain(Mechanism):
     compiled = True
 
     def fk_and_jacobian(self, q, dx=None, jacobian: bool = True):
-        kernels = self._kernels()
-        if kernels is None:
+        compiled = self._kernels()
+        if compiled is None:
             return self._fk_and_jacobian_numpy(q, dx, jacobian)
         q = self._joints_for_kernel(q)
         n = q.shape[0]
         dx = self._dx_for_kernel(dx, n)
         T = np.empty((n, 4, 4))
-        J = np.empty((n, 6, self.n_params)) if jacobian else kernels.NO_J
-        if self._run_kernel(kernels, q, kernels.NO_DX if dx is None else dx, T, J, bool(jacobian)) >= 0:
+        J = np.empty((n, 6, self.n_params)) if jacobian else compiled.NO_J
+        if self._run_kernel(compiled, q, compiled.NO_DX if dx is None else dx, T, J, bool(jacobian)) >= 0:
             self.check_joints(q)  # a joint out of its limits or not finite: raises, naming it
         return T, (ErrorJacobian(J, self.param_names, self.param_units) if jacobian else None)
 

@@ -33,8 +33,10 @@ class DHChain(CompiledChain):
     each joint's direction (+1 or -1) and zero offset (rad or m) as its controller reports it: the joints
     ``q`` of every call are the controller's, and the model turns them into ``direction * q + offset``
     (limits are the controller's too).
-    ``fk_and_jacobian`` runs the compiled kernel (``kernels.dh_chain``) unless ``backend`` is 'numpy'.
+    ``fk_and_jacobian`` runs the compiled kernel (``chain_kernels.dh_chain``) unless ``backend`` is 'numpy'.
     """
+
+    kernel_family = "dh"
 
     def __init__(self, name, a, alpha, d, theta, joint_types=None, joint_limits=None, joint_names=None,
                  convention="standard", base=None, tool=None, direction=None, offset=None):

@@ -1,796 +1,86 @@
-"""Compiled (numba) kernels: batched forward kinematics and parameter-error Jacobians of serial chains.
+"""The compiled (numba) kernels and which of them this process calls: one registry, no numba imported here.
 
-The numpy code of ``dh.py`` and ``urdf.py`` is the reference; these kernels compute the same poses and
-columns pose by pose in one compiled loop. Shared arguments:
+Kernel families, each in a module of its own concern (all compiled with ``jit.njit``):
 
-- ``q`` (n, dof) float64 joints (rad or m); ``nominal`` (p,) parameters; ``dx`` (m, p) parameter errors
-  with m = 0 (none), 1 (shared by all poses) or n (one row per pose), SI;
-- ``T`` (n, 4, 4) and ``J`` (n, 6, p) float64 outputs, filled in place (``J`` is ignored unless
-  ``jacobian``); J's rows 0-2 are position (m per unit), rows 3-5 a small rotation in the base frame;
-- the return value is -1, or the flat index of the first non-finite joint value (nothing computed then).
+- ``dh`` and ``urdf``: ``chain_kernels.dh_chain`` and ``urdf_chain``, the batched forward kinematics and
+  parameter-error Jacobians of serial chains (the numpy code of ``dh.py`` and ``urdf.py`` is the reference);
+  ``urdf`` also chooses its Jacobian writer for this machine (``jacobian_writers``);
+- ``zonotope``: ``zonotope_kernel.zonotope_max``, the exact worst case of ``errors.worst_case_bound``;
+- ``pups``: ``pups_kernels``, the 3-PUPS platform (``pups.py`` is the reference).
 
-``dh_chain`` writes J column by column, in place (21 cache lines a pose; it gained nothing from other
-writers). ``urdf_chain`` has three writers (its ``writer`` argument): 0 columns in place; 1 rows in memory
-order; 2 rows in memory order with non-temporal (streaming) stores, which save the read of each cache line
-before its write (a quarter of a 10,000-pose Panda Jacobian's time on a 2-core AMD EPYC VM) but made the
-same call 30x slower on an Intel Xeon (Sapphire Rapids class, under KVM). Which is fastest depends on the
-CPU, so none is assumed: ``writer_for(nbytes)`` gives the writer measured fastest on this machine for an
-answer of that size (``choose_writers``: each candidate timed at warm-up on a J of ``SIZES`` bytes, the
-choice remembered beside the kernel cache with the CPU it was made on). Streaming is fast only while
-nothing flushes the partly written cache lines: no atomic instruction (numba's reference counting of an
-array passed to a helper) between the stores of one pose, and the stores in memory order; variants that
-broke either were 1.5x and 20x slower.
-
-``zonotope_max`` is the exact worst case of ``errors.worst_case_bound``, one pose at a time (the numpy
-version there, batched over poses, is the reference). ``base64_triples`` and ``base64_quads`` are the
-bulk of ``jsonio.b64encode`` and ``b64decode`` (the compact arrays of large answers).
-
-Compiled code is cached on disk: in ``NUMBA_CACHE_DIR`` when set, else beside this file when its
-directory is writable, else in numba's per-user cache directory (``~/.cache/numba``). When none of these
-is writable (numba then refuses to cache), a private directory ``<tmp>/tolerance_ros-numba-<uid>`` is
-used, and without one the kernels compile in every process. The first call in a process imports numba
-and compiles (5-10 s on a 2-core machine) or loads from the cache (about 1 s, most of it importing numba);
-``warm_up()`` does it up front, so that a long-running node does not stall on its first request.
+``get(family)`` gives a family's module, or None: without numba, or while ``warmup`` prepares the kernels in
+the background and that family is not ready yet (its callers then take their numpy path). A family becomes
+ready on its own (``mark_ready``) as soon as the background has it, so that a running job switches to it
+between two calls. Outside a background preparation, the first call of a family imports numba and compiles
+it in the caller, or loads it from the on-disk cache (about 1 s, most of it importing numba).
 """
 from __future__ import annotations
 
-import math
-import os
-import stat
-import tempfile
+import importlib
 import time
 
-import numba
-import numpy as np
-from llvmlite import ir
-from numba import types
-from numba.extending import intrinsic
+FAMILIES = ("dh", "zonotope", "urdf", "pups")  # in the order the background compiles what no job asked first
+_MODULES = {"dh": "chain_kernels", "urdf": "chain_kernels", "zonotope": "zonotope_kernel", "pups": "pups_kernels"}
+_ready = {}             # family -> its module, callable in this process
+_pending = False        # a background preparation runs: only the families in _ready are served
+_unavailable = False    # numba cannot be imported (or is built for another numpy): the numpy paths always
 
 
-def _private_cache_dir():
-    """``<tmp>/tolerance_ros-numba-<uid>``, created 0700; None unless it is a directory only we can write."""
-    path = os.path.join(tempfile.gettempdir(), f"tolerance_ros-numba-{os.getuid()}")
+def get(family: str):
+    """The module of ``family`` when its compiled kernels may be called now, else None (see the docstring)."""
+    if _unavailable:
+        return None
+    module = _ready.get(family)
+    if module is not None or _pending:
+        return module
     try:
-        os.makedirs(path, mode=0o700, exist_ok=True)
-        st = os.lstat(path)
-    except OSError:
-        return None
-    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or stat.S_IMODE(st.st_mode) & 0o022:
-        return None
-    return path
+        module = importlib.import_module(f".{_MODULES[family]}", __package__)
+    except ImportError:  # numba missing, or built for another numpy
+        return mark_unavailable()
+    _ready[family] = module
+    return module
 
 
-def njit(fn=None, **options):
-    """``numba.njit(cache=True)``, with the fallbacks of the module docstring when no cache directory is writable.
-    Every helper is inlined where it is called (numba IR inlining: the small tuple-returning helpers are
-    otherwise real calls, about 10 % of a chain's time). ``njit(**options)`` passes more options to numba
-    (``fastmath`` for zonotope_max; ``pups_kernels``: ``error_model='numpy'``)."""
-    if fn is None:
-        return lambda f: njit(f, **options)
-    options = {"inline": "always", **options}
-    try:
-        return numba.njit(cache=True, **options)(fn)
-    except RuntimeError:  # "cannot cache function ...: no locator available"
-        path = _private_cache_dir()
-        if path is None:
-            return numba.njit(**options)(fn)
-        numba.config.CACHE_DIR = path
-        return numba.njit(cache=True, **options)(fn)
+def available() -> bool:
+    """Whether numba can be used at all (False once an import of it failed)."""
+    return not _unavailable
 
 
-NO_DX = np.empty((0, 0))  # dx argument when there are no parameter errors
-NO_J = np.empty((0, 0, 0))  # J argument when only the poses are wanted
-BLOCK = 64  # poses per block: their joint angles' sines and cosines are computed together (SIMD)
-WRITERS = ("columns", "rows", "stream")  # urdf_chain's writers, by code 0, 1, 2 (module docstring)
-
-# sin and cos: reduction by pi/2 in three parts (Cody-Waite) and the fdlibm kernels' polynomials on
-# [-pi/4, pi/4]; within 1 ulp of libm for |x| <= SINCOS_LIMIT, libm beyond.
-SINCOS_LIMIT = 1e5
-_INV_PIO2 = 6.36619772367581382433e-01
-_PIO2_1 = 1.57079632673412561417e+00
-_PIO2_2 = 6.07710050630396597660e-11
-_PIO2_3 = 2.02226624871116645580e-21
-_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
-_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
-_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
-_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+def mark_unavailable():
+    """numba cannot be used: every family takes its numpy path from now on (returns None)."""
+    global _unavailable
+    _unavailable = True
+    _ready.clear()
+    return None
 
 
-@njit
-def sincos(x, s, c, m):
-    """s[:m], c[:m] = sin(x[:m]), cos(x[:m]) (rad); a branch-free loop that the compiler vectorises."""
-    for i in range(m):
-        k = math.floor(x[i] * _INV_PIO2 + 0.5)
-        r = ((x[i] - k * _PIO2_1) - k * _PIO2_2) - k * _PIO2_3
-        z = r * r
-        sr = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
-        cr = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
-        quadrant = int(k) & 3
-        sv = cr if quadrant & 1 else sr
-        cv = sr if quadrant & 1 else cr
-        s[i] = -sv if quadrant & 2 else sv
-        c[i] = -cv if (quadrant + 1) & 2 else cv
-    for i in range(m):
-        if abs(x[i]) > SINCOS_LIMIT:
-            s[i] = math.sin(x[i])
-            c[i] = math.cos(x[i])
+def mark_ready(family: str, module) -> None:
+    """The background has ``family`` compiled and loaded: callers switch to it from their next call."""
+    _ready[family] = module
 
 
-@intrinsic
-def _stream(typingctx, flat, i, value):
-    """flat[i] = value as a non-temporal store (a hint: a plain store where the target has none); ``flat`` a
-    C-contiguous float64 array, ``i`` not checked."""
-    if not (isinstance(flat, types.Array) and flat.layout == "C" and flat.dtype == types.float64):
-        return None
-
-    def codegen(context, builder, sig, args):
-        ary = context.make_array(sig.args[0])(context, builder, args[0])
-        bits = builder.bitcast(context.cast(builder, args[2], sig.args[2], types.float64), ir.IntType(64))
-        store = builder.store(bits, builder.bitcast(builder.gep(ary.data, [args[1]]), ir.IntType(64).as_pointer()))
-        store.set_metadata("nontemporal", builder.module.add_metadata([ir.Constant(ir.IntType(32), 1)]))
-        return context.get_dummy_value()
-    return types.void(flat, types.intp, value), codegen
+def set_pending(pending: bool) -> None:
+    """A background preparation starts (only ready families are served) or ends (the others load on use)."""
+    global _pending
+    _pending = bool(pending)
 
 
-@intrinsic
-def _fence(typingctx):
-    """A sequentially consistent fence: every store before it, streaming ones included, is visible after it."""
-    def codegen(context, builder, sig, args):
-        builder.fence("seq_cst")
-        return context.get_dummy_value()
-    return types.void(), codegen
+def pending() -> bool:
+    return _pending
 
 
-@njit
-def _first_nonfinite(q):
-    n, dof = q.shape
-    for k in range(n):
-        for i in range(dof):
-            if not math.isfinite(q[k, i]):
-                return k * dof + i
-    return -1
-
-
-@njit
-def _param(nominal, dx, row, j):
-    if dx.shape[0] == 0:
-        return nominal[j]
-    return nominal[j] + dx[row, j]
-
-
-@njit
-def _angle_column(J, k, c, u0, u1, u2, r0, r1, r2):
-    """Column c of pose k for a turn about unit (u0, u1, u2) through a point at -r from the tool point."""
-    J[k, 0, c] = u1 * r2 - u2 * r1
-    J[k, 1, c] = u2 * r0 - u0 * r2
-    J[k, 2, c] = u0 * r1 - u1 * r0
-    J[k, 3, c] = u0
-    J[k, 4, c] = u1
-    J[k, 5, c] = u2
-
-
-@njit
-def _length_column(J, k, c, u0, u1, u2):
-    """Column c of pose k for a shift along unit (u0, u1, u2)."""
-    J[k, 0, c] = u0
-    J[k, 1, c] = u1
-    J[k, 2, c] = u2
-    J[k, 3, c] = 0.0
-    J[k, 4, c] = 0.0
-    J[k, 5, c] = 0.0
-
-
-@njit
-def _store_pose(T, k, x0, x1, x2, y0, y1, y2, z0, z1, z2, o0, o1, o2, tool):
-    """T[k] = [x y z o; 0 0 0 1] (frame axes and origin, base frame) times the tool; returns the tool point."""
-    for c in range(3):
-        T[k, 0, c] = x0 * tool[0, c] + y0 * tool[1, c] + z0 * tool[2, c]
-        T[k, 1, c] = x1 * tool[0, c] + y1 * tool[1, c] + z1 * tool[2, c]
-        T[k, 2, c] = x2 * tool[0, c] + y2 * tool[1, c] + z2 * tool[2, c]
-    p0 = o0 + x0 * tool[0, 3] + y0 * tool[1, 3] + z0 * tool[2, 3]
-    p1 = o1 + x1 * tool[0, 3] + y1 * tool[1, 3] + z1 * tool[2, 3]
-    p2 = o2 + x2 * tool[0, 3] + y2 * tool[1, 3] + z2 * tool[2, 3]
-    T[k, 0, 3] = p0
-    T[k, 1, 3] = p1
-    T[k, 2, 3] = p2
-    T[k, 3, 0] = 0.0
-    T[k, 3, 1] = 0.0
-    T[k, 3, 2] = 0.0
-    T[k, 3, 3] = 1.0
-    return p0, p1, p2
-
-
-@njit
-def dh_chain(q, nominal, dx, revolute, standard, base, tool, T, J, jacobian):
-    """D-H chain (see dh.py): parameters a1..an, d1..dn, alpha1..alphan, theta1..thetan (m, rad)."""
-    bad = _first_nonfinite(q)
-    if bad >= 0:
-        return bad
-    n, dof = q.shape
-    per_pose = dx.shape[0] > 1
-    ca = np.empty(dof)          # cos and sin of the twists when they are the same for every pose
-    sa = np.empty(dof)
-    for i in range(dof):
-        ca[i] = math.cos(_param(nominal, dx, 0, 2 * dof + i))
-        sa[i] = math.sin(_param(nominal, dx, 0, 2 * dof + i))
-    width = 2 * dof if per_pose else dof   # angles per pose: theta_i (+ alpha_i when per pose)
-    ang = np.empty(BLOCK * width)
-    sn = np.empty(BLOCK * width)
-    cs = np.empty(BLOCK * width)
-    ax = np.empty((dof, 6))     # line of a_i and alpha_i: unit vector, point (base frame)
-    az = np.empty((dof, 6))     # line of d_i and theta_i: unit vector, point (base frame)
-    for k0 in range(0, n, BLOCK):
-        m = min(BLOCK, n - k0)
-        for b in range(m):
-            k = k0 + b
-            row = k if per_pose else 0
-            for i in range(dof):
-                th = _param(nominal, dx, row, 3 * dof + i)
-                ang[b * width + i] = q[k, i] + th if revolute[i] else th
-                if per_pose:
-                    ang[b * width + dof + i] = _param(nominal, dx, row, 2 * dof + i)
-        sincos(ang, sn, cs, m * width)
-        for b in range(m):
-            k = k0 + b
-            row = k if per_pose else 0
-            x0, x1, x2 = base[0, 0], base[1, 0], base[2, 0]
-            y0, y1, y2 = base[0, 1], base[1, 1], base[2, 1]
-            z0, z1, z2 = base[0, 2], base[1, 2], base[2, 2]
-            o0, o1, o2 = base[0, 3], base[1, 3], base[2, 3]
-            for i in range(dof):
-                ct, st = cs[b * width + i], sn[b * width + i]
-                if per_pose:
-                    c, s = cs[b * width + dof + i], sn[b * width + dof + i]
-                else:
-                    c, s = ca[i], sa[i]
-                ai = _param(nominal, dx, row, i)
-                di = _param(nominal, dx, row, dof + i)
-                if not revolute[i]:
-                    di = q[k, i] + di
-                if standard:
-                    az[i, 0], az[i, 1], az[i, 2], az[i, 3], az[i, 4], az[i, 5] = z0, z1, z2, o0, o1, o2
-                    xn0, xn1, xn2 = ct * x0 + st * y0, ct * x1 + st * y1, ct * x2 + st * y2
-                    yr0, yr1, yr2 = ct * y0 - st * x0, ct * y1 - st * x1, ct * y2 - st * x2
-                    o0, o1, o2 = o0 + di * z0 + ai * xn0, o1 + di * z1 + ai * xn1, o2 + di * z2 + ai * xn2
-                    x0, x1, x2 = xn0, xn1, xn2
-                    y0, y1, y2 = c * yr0 + s * z0, c * yr1 + s * z1, c * yr2 + s * z2
-                    z0, z1, z2 = c * z0 - s * yr0, c * z1 - s * yr1, c * z2 - s * yr2
-                    ax[i, 0], ax[i, 1], ax[i, 2], ax[i, 3], ax[i, 4], ax[i, 5] = x0, x1, x2, o0, o1, o2
-                else:
-                    ax[i, 0], ax[i, 1], ax[i, 2], ax[i, 3], ax[i, 4], ax[i, 5] = x0, x1, x2, o0, o1, o2
-                    y10, y11, y12 = c * y0 + s * z0, c * y1 + s * z1, c * y2 + s * z2
-                    z0, z1, z2 = c * z0 - s * y0, c * z1 - s * y1, c * z2 - s * y2
-                    o0, o1, o2 = o0 + ai * x0, o1 + ai * x1, o2 + ai * x2
-                    xn0, xn1, xn2 = ct * x0 + st * y10, ct * x1 + st * y11, ct * x2 + st * y12
-                    y0, y1, y2 = ct * y10 - st * x0, ct * y11 - st * x1, ct * y12 - st * x2
-                    x0, x1, x2 = xn0, xn1, xn2
-                    o0, o1, o2 = o0 + di * z0, o1 + di * z1, o2 + di * z2
-                    az[i, 0], az[i, 1], az[i, 2], az[i, 3], az[i, 4], az[i, 5] = z0, z1, z2, o0, o1, o2
-            p0, p1, p2 = _store_pose(T, k, x0, x1, x2, y0, y1, y2, z0, z1, z2, o0, o1, o2, tool)
-            if not jacobian:
-                continue
-            for i in range(dof):
-                _length_column(J, k, i, ax[i, 0], ax[i, 1], ax[i, 2])
-                _length_column(J, k, dof + i, az[i, 0], az[i, 1], az[i, 2])
-                _angle_column(J, k, 2 * dof + i, ax[i, 0], ax[i, 1], ax[i, 2],
-                              p0 - ax[i, 3], p1 - ax[i, 4], p2 - ax[i, 5])
-                _angle_column(J, k, 3 * dof + i, az[i, 0], az[i, 1], az[i, 2],
-                              p0 - az[i, 3], p1 - az[i, 4], p2 - az[i, 5])
-    return -1
-
-
-@njit
-def _rpy_of(R, j, cr, sr, cp, sp, cy, sy):
-    """R[j] = Rz(yaw) Ry(pitch) Rx(roll) from the cosines and sines of roll, pitch, yaw."""
-    R[j, 0, 0] = cy * cp
-    R[j, 0, 1] = cy * sp * sr - sy * cr
-    R[j, 0, 2] = cy * sp * cr + sy * sr
-    R[j, 1, 0] = sy * cp
-    R[j, 1, 1] = sy * sp * sr + cy * cr
-    R[j, 1, 2] = sy * sp * cr - cy * sr
-    R[j, 2, 0] = -sp
-    R[j, 2, 1] = cp * sr
-    R[j, 2, 2] = cp * cr
-
-
-@njit
-def _rpy(R, j, roll, pitch, yaw):
-    """R[j] = Rz(yaw) Ry(pitch) Rx(roll), rad."""
-    _rpy_of(R, j, math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw))
-
-
-@njit
-def _origin_turn(rot, axes_in, j, rnom, ca, sa, cb, sb, cc, sc):
-    """rot[j] = rnom[j] Rx(a) Ry(b) Rz(c) (the origin's nominal rotation, then its errors about its own x, y, z
-    axes) from the cosines and sines of a, b, c; axes_in[j, 0], axes_in[j, 1] = the x and y error axes
-    rnom[j] e_x, rnom[j] Rx(a) e_y in the frame before the origin rotation (the z one is the turned frame's z)."""
-    e00, e01, e02 = cb * cc, -cb * sc, sb
-    e10, e11, e12 = ca * sc + sa * sb * cc, ca * cc - sa * sb * sc, -sa * cb
-    e20, e21, e22 = sa * sc - ca * sb * cc, sa * cc + ca * sb * sc, ca * cb
-    for r in range(3):
-        n0, n1, n2 = rnom[j, r, 0], rnom[j, r, 1], rnom[j, r, 2]
-        rot[j, r, 0] = n0 * e00 + n1 * e10 + n2 * e20
-        rot[j, r, 1] = n0 * e01 + n1 * e11 + n2 * e21
-        rot[j, r, 2] = n0 * e02 + n1 * e12 + n2 * e22
-        axes_in[j, 0, r] = n0
-        axes_in[j, 1, r] = n1 * ca + n2 * sa
-
-
-@njit
-def urdf_chain(q, nominal, dx, revolute, fixed, origin_rpy, axes, tool, T, J, jacobian, writer):
-    """URDF chain (see urdf.py): per joint j the fixed transform ``fixed[j]`` (4x4, m), the origin
-    parameters x y z (m), the origin's nominal rotation ``origin_rpy[j]`` (roll, pitch, yaw, rad) turned by
-    the parameters rx ry rz (rad, about its own axes in that order) and the offset (rad or m), about or
-    along ``axes[j]``; J written by ``writer`` (a code of WRITERS)."""
-    bad = _first_nonfinite(q)
-    if bad >= 0:
-        return bad
-    n, dof = q.shape
-    per_pose = dx.shape[0] > 1
-    rnom = np.empty((dof, 3, 3))     # nominal origin rotation of each joint
-    rot = np.empty((dof, 3, 3))      # origin rotation of each joint, errors included
-    axes_in = np.empty((dof, 2, 3))  # the rx and ry error axes before the origin rotation
-    lines = np.empty((dof, 24))  # x, y, z axes before the origin rotation, rx, ry, joint axes; origin; rz axis
-    plain = np.empty(dof, np.bool_)  # fixed[j] is exactly the identity
-    along = np.empty(dof, np.int64)  # the joint axis is exactly +-x, +-y or +-z (0, 1, 2), else -1
-    for j in range(dof):
-        plain[j] = True
-        for r in range(4):
-            for c in range(4):
-                if fixed[j, r, c] != (1.0 if r == c else 0.0):
-                    plain[j] = False
-        along[j] = -1
-        for e in range(3):
-            if abs(axes[j, e]) == 1.0 and axes[j, (e + 1) % 3] == 0.0 and axes[j, (e + 2) % 3] == 0.0:
-                along[j] = e
-        _rpy(rnom, j, origin_rpy[j, 0], origin_rpy[j, 1], origin_rpy[j, 2])
-    width = 4 * dof if per_pose else dof   # angles per pose: joint angle (+ rx, ry, rz when per pose)
-    ang = np.empty(BLOCK * width)
-    sn = np.empty(BLOCK * width)
-    cs = np.empty(BLOCK * width)
-    # origin rotation of each joint: -2 none (roll = pitch = yaw = 0, no error), 0, 1, 2 about x, y or z alone
-    # (cosine and sine in turn_cs), -1 any (``rot``, and always when the parameters vary per pose)
-    turn = np.full(dof, -1, np.int64)
-    turn_cs = np.empty((dof, 2))
-    flat = J.reshape(-1)
-    by_rows = jacobian and writer != 0
-    stream = writer == 2
-    if not per_pose:
-        for j in range(dof):
-            a, b, c = (_param(nominal, dx, 0, 7 * j + 3), _param(nominal, dx, 0, 7 * j + 4),
-                       _param(nominal, dx, 0, 7 * j + 5))
-            _origin_turn(rot, axes_in, j, rnom, math.cos(a), math.sin(a), math.cos(b), math.sin(b), math.cos(c),
-                         math.sin(c))
-            if a != 0.0 or b != 0.0 or c != 0.0:
-                continue
-            roll, pitch, yaw = origin_rpy[j, 0], origin_rpy[j, 1], origin_rpy[j, 2]
-            if pitch == 0.0 and yaw == 0.0:
-                turn[j] = -2 if roll == 0.0 else 0
-                turn_cs[j, 0], turn_cs[j, 1] = math.cos(roll), math.sin(roll)
-            elif roll == 0.0 and yaw == 0.0:
-                turn[j] = 1
-                turn_cs[j, 0], turn_cs[j, 1] = math.cos(pitch), math.sin(pitch)
-            elif roll == 0.0 and pitch == 0.0:
-                turn[j] = 2
-                turn_cs[j, 0], turn_cs[j, 1] = math.cos(yaw), math.sin(yaw)
-    for k0 in range(0, n, BLOCK):
-        m = min(BLOCK, n - k0)
-        for b in range(m):
-            k = k0 + b
-            row = k if per_pose else 0
-            for j in range(dof):
-                ang[b * width + j] = q[k, j] + _param(nominal, dx, row, 7 * j + 6)
-                if per_pose:
-                    for e in range(3):
-                        ang[b * width + dof + 3 * j + e] = _param(nominal, dx, row, 7 * j + 3 + e)
-        sincos(ang, sn, cs, m * width)
-        for b in range(m):
-            k = k0 + b
-            row = k if per_pose else 0
-            if per_pose:
-                for j in range(dof):
-                    e = b * width + dof + 3 * j
-                    _origin_turn(rot, axes_in, j, rnom, cs[e], sn[e], cs[e + 1], sn[e + 1], cs[e + 2], sn[e + 2])
-            _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, jacobian and not by_rows, k, row,
-                       b * width, sn, cs, rot, axes_in, plain, turn, turn_cs, along, lines)
-            if by_rows:
-                _urdf_rows(flat, k, dof, lines, revolute, stream)
-    if by_rows and stream:
-        _fence()
-    return -1
-
-
-@njit
-def _mul3(a00, a01, a02, a10, a11, a12, a20, a21, a22, B, j):
-    """The 3x3 product A B[j], A given by its entries (row-major), B a stack of 3x3 (or 4x4) blocks."""
-    return (a00 * B[j, 0, 0] + a01 * B[j, 1, 0] + a02 * B[j, 2, 0],
-            a00 * B[j, 0, 1] + a01 * B[j, 1, 1] + a02 * B[j, 2, 1],
-            a00 * B[j, 0, 2] + a01 * B[j, 1, 2] + a02 * B[j, 2, 2],
-            a10 * B[j, 0, 0] + a11 * B[j, 1, 0] + a12 * B[j, 2, 0],
-            a10 * B[j, 0, 1] + a11 * B[j, 1, 1] + a12 * B[j, 2, 1],
-            a10 * B[j, 0, 2] + a11 * B[j, 1, 2] + a12 * B[j, 2, 2],
-            a20 * B[j, 0, 0] + a21 * B[j, 1, 0] + a22 * B[j, 2, 0],
-            a20 * B[j, 0, 1] + a21 * B[j, 1, 1] + a22 * B[j, 2, 1],
-            a20 * B[j, 0, 2] + a21 * B[j, 1, 2] + a22 * B[j, 2, 2])
-
-
-@njit
-def _turn(a, c, s, g00, g01, g02, g10, g11, g12, g20, g21, g22):
-    """G Rot(axis a, angle) for a base axis a = 0 (x), 1 (y), 2 (z) given the angle's cosine and sine: two
-    columns of G turn in their plane. Entries row-major, as ``_mul3``."""
-    if a == 0:
-        return (g00, c * g01 + s * g02, c * g02 - s * g01,
-                g10, c * g11 + s * g12, c * g12 - s * g11,
-                g20, c * g21 + s * g22, c * g22 - s * g21)
-    if a == 1:
-        return (c * g00 - s * g02, g01, c * g02 + s * g00,
-                c * g10 - s * g12, g11, c * g12 + s * g10,
-                c * g20 - s * g22, g21, c * g22 + s * g20)
-    return (c * g00 + s * g01, c * g01 - s * g00, g02,
-            c * g10 + s * g11, c * g11 - s * g10, g12,
-            c * g20 + s * g21, c * g21 - s * g20, g22)
-
-
-@njit
-def _urdf_pose(q, nominal, dx, revolute, fixed, axes, tool, T, J, columns, k, row, at, sn, cs,
-               rot, axes_in, plain, turn, turn_cs, along, lines):
-    """Pose k of urdf_chain: walks the chain, stores T[k], its lines (with the tool point minus the origins)
-    and, when ``columns``, J[k]; joint angles' sin/cos at sn, cs[at:]."""
-    dof = q.shape[1]
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
-    o0, o1, o2 = 0.0, 0.0, 0.0
-    for j in range(dof):
-        # frame W = R F before the origin rotation, then the joint frame G = W rot at o + W xyz
-        if plain[j]:
-            w00, w01, w02, w10, w11, w12, w20, w21, w22 = r00, r01, r02, r10, r11, r12, r20, r21, r22
-        else:
-            o0 += r00 * fixed[j, 0, 3] + r01 * fixed[j, 1, 3] + r02 * fixed[j, 2, 3]
-            o1 += r10 * fixed[j, 0, 3] + r11 * fixed[j, 1, 3] + r12 * fixed[j, 2, 3]
-            o2 += r20 * fixed[j, 0, 3] + r21 * fixed[j, 1, 3] + r22 * fixed[j, 2, 3]
-            w00, w01, w02, w10, w11, w12, w20, w21, w22 = _mul3(r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                                                fixed, j)
-        t = turn[j]
-        if t == -1:
-            g00, g01, g02, g10, g11, g12, g20, g21, g22 = _mul3(w00, w01, w02, w10, w11, w12, w20, w21, w22, rot, j)
-        elif t == -2:
-            g00, g01, g02, g10, g11, g12, g20, g21, g22 = w00, w01, w02, w10, w11, w12, w20, w21, w22
-        else:
-            g00, g01, g02, g10, g11, g12, g20, g21, g22 = _turn(t, turn_cs[j, 0], turn_cs[j, 1], w00, w01, w02,
-                                                                w10, w11, w12, w20, w21, w22)
-        sx, sy, sz = _param(nominal, dx, row, 7 * j), _param(nominal, dx, row, 7 * j + 1), \
-            _param(nominal, dx, row, 7 * j + 2)
-        o0 += w00 * sx + w01 * sy + w02 * sz
-        o1 += w10 * sx + w11 * sy + w12 * sz
-        o2 += w20 * sx + w21 * sy + w22 * sz
-        u0, u1, u2 = axes[j, 0], axes[j, 1], axes[j, 2]
-        a = along[j]
-        if a == 0:
-            v0, v1, v2 = g00 * u0, g10 * u0, g20 * u0
-        elif a == 1:
-            v0, v1, v2 = g01 * u1, g11 * u1, g21 * u1
-        elif a == 2:
-            v0, v1, v2 = g02 * u2, g12 * u2, g22 * u2
-        else:
-            v0 = g00 * u0 + g01 * u1 + g02 * u2
-            v1 = g10 * u0 + g11 * u1 + g12 * u2
-            v2 = g20 * u0 + g21 * u1 + g22 * u2
-        x0, x1, x2 = axes_in[j, 0, 0], axes_in[j, 0, 1], axes_in[j, 0, 2]
-        y0, y1, y2 = axes_in[j, 1, 0], axes_in[j, 1, 1], axes_in[j, 1, 2]
-        lines[j, 0], lines[j, 1], lines[j, 2] = w00, w10, w20
-        lines[j, 3], lines[j, 4], lines[j, 5] = w01, w11, w21
-        lines[j, 6], lines[j, 7], lines[j, 8] = w02, w12, w22
-        lines[j, 9] = w00 * x0 + w01 * x1 + w02 * x2
-        lines[j, 10] = w10 * x0 + w11 * x1 + w12 * x2
-        lines[j, 11] = w20 * x0 + w21 * x1 + w22 * x2
-        lines[j, 12] = w00 * y0 + w01 * y1 + w02 * y2
-        lines[j, 13] = w10 * y0 + w11 * y1 + w12 * y2
-        lines[j, 14] = w20 * y0 + w21 * y1 + w22 * y2
-        lines[j, 15], lines[j, 16], lines[j, 17] = v0, v1, v2
-        lines[j, 18], lines[j, 19], lines[j, 20] = o0, o1, o2
-        lines[j, 21], lines[j, 22], lines[j, 23] = g02, g12, g22
-        if not revolute[j]:
-            s = q[k, j] + _param(nominal, dx, row, 7 * j + 6)
-            r00, r01, r02, r10, r11, r12, r20, r21, r22 = g00, g01, g02, g10, g11, g12, g20, g21, g22
-            o0 += v0 * s
-            o1 += v1 * s
-            o2 += v2 * s
-            continue
-        c, s = cs[at + j], sn[at + j]
-        if a >= 0:  # about +-x, +-y or +-z
-            r00, r01, r02, r10, r11, r12, r20, r21, r22 = _turn(a, c, s * axes[j, a], g00, g01, g02, g10, g11, g12,
-                                                                g20, g21, g22)
-        else:
-            # R = G Rot(u, q + offset) (Rodrigues)
-            v = 1.0 - c
-            q00, q01, q02 = c + u0 * u0 * v, u0 * u1 * v - u2 * s, u0 * u2 * v + u1 * s
-            q10, q11, q12 = u1 * u0 * v + u2 * s, c + u1 * u1 * v, u1 * u2 * v - u0 * s
-            q20, q21, q22 = u2 * u0 * v - u1 * s, u2 * u1 * v + u0 * s, c + u2 * u2 * v
-            r00, r01, r02 = g00 * q00 + g01 * q10 + g02 * q20, g00 * q01 + g01 * q11 + g02 * q21, \
-                g00 * q02 + g01 * q12 + g02 * q22
-            r10, r11, r12 = g10 * q00 + g11 * q10 + g12 * q20, g10 * q01 + g11 * q11 + g12 * q21, \
-                g10 * q02 + g11 * q12 + g12 * q22
-            r20, r21, r22 = g20 * q00 + g21 * q10 + g22 * q20, g20 * q01 + g21 * q11 + g22 * q21, \
-                g20 * q02 + g21 * q12 + g22 * q22
-    p0, p1, p2 = _store_pose(T, k, r00, r10, r20, r01, r11, r21, r02, r12, r22, o0, o1, o2, tool)
-    for j in range(dof):  # the origins become the tool point minus the origin
-        lines[j, 18], lines[j, 19], lines[j, 20] = p0 - lines[j, 18], p1 - lines[j, 19], p2 - lines[j, 20]
-    if not columns:
-        return
-    for j in range(dof):
-        c = 7 * j
-        a0, a1, a2 = lines[j, 18], lines[j, 19], lines[j, 20]
-        _length_column(J, k, c, lines[j, 0], lines[j, 1], lines[j, 2])
-        _length_column(J, k, c + 1, lines[j, 3], lines[j, 4], lines[j, 5])
-        _length_column(J, k, c + 2, lines[j, 6], lines[j, 7], lines[j, 8])
-        _angle_column(J, k, c + 3, lines[j, 9], lines[j, 10], lines[j, 11], a0, a1, a2)
-        _angle_column(J, k, c + 4, lines[j, 12], lines[j, 13], lines[j, 14], a0, a1, a2)
-        _angle_column(J, k, c + 5, lines[j, 21], lines[j, 22], lines[j, 23], a0, a1, a2)
-        if revolute[j]:
-            _angle_column(J, k, c + 6, lines[j, 15], lines[j, 16], lines[j, 17], a0, a1, a2)
-        else:
-            _length_column(J, k, c + 6, lines[j, 15], lines[j, 16], lines[j, 17])
-
-
-@njit
-def _put(flat, i, value, stream):
-    """flat[i] = value, as a streaming store when ``stream``."""
-    if stream:
-        _stream(flat, i, value)
-    else:
-        flat[i] = value
-
-
-@njit
-def _urdf_rows(flat, k, dof, lines, revolute, stream):
-    """J[k] of urdf_chain row by row in memory order (``flat``: J flattened), streaming stores when
-    ``stream``, from the lines of ``_urdf_pose``; called by urdf_chain itself (see the module docstring:
-    called from ``_urdf_pose``, a reference count came between the poses' stores, 1.5x slower)."""
-    i = k * 42 * dof
-    for r in range(3):
-        r1, r2 = (r + 1) % 3, (r + 2) % 3
-        for j in range(dof):
-            a1, a2 = lines[j, 18 + r1], lines[j, 18 + r2]
-            _put(flat, i, lines[j, r], stream)
-            _put(flat, i + 1, lines[j, 3 + r], stream)
-            _put(flat, i + 2, lines[j, 6 + r], stream)
-            _put(flat, i + 3, lines[j, 9 + r1] * a2 - lines[j, 9 + r2] * a1, stream)
-            _put(flat, i + 4, lines[j, 12 + r1] * a2 - lines[j, 12 + r2] * a1, stream)
-            _put(flat, i + 5, lines[j, 21 + r1] * a2 - lines[j, 21 + r2] * a1, stream)
-            if revolute[j]:
-                _put(flat, i + 6, lines[j, 15 + r1] * a2 - lines[j, 15 + r2] * a1, stream)
-            else:
-                _put(flat, i + 6, lines[j, 15 + r], stream)
-            i += 7
-    for r in range(3):
-        for j in range(dof):
-            _put(flat, i, 0.0, stream)
-            _put(flat, i + 1, 0.0, stream)
-            _put(flat, i + 2, 0.0, stream)
-            _put(flat, i + 3, lines[j, 9 + r], stream)
-            _put(flat, i + 4, lines[j, 12 + r], stream)
-            _put(flat, i + 5, lines[j, 21 + r], stream)
-            _put(flat, i + 6, lines[j, 15 + r] if revolute[j] else 0.0, stream)
-            i += 7
-
-
-@njit(fastmath={"reassoc", "contract"})  # the sums over generators vectorised (their order is free)
-def zonotope_max(G, Gp, out, signs, want_signs):
-    """out[k] = max over s in {-1,+1}^m of |G[k] s| for each pose k (G (n, 3, m) generators), by the cells
-    of the arrangement around each line Gp_i x Gp_j (Gp: G perturbed, used only to choose the signs); the
-    algorithm and the candidates' order of ``errors.worst_case_bound``, one pose at a time. With
-    ``want_signs`` the maximising signs go to ``signs`` (n, m)."""
-    n, _, m = G.shape
-    for k in range(n):
-        best, bi, bj, ba, bb = -1.0, 0, 1, 1.0, 1.0
-        for i in range(m):
-            pi0, pi1, pi2 = Gp[k, 0, i], Gp[k, 1, i], Gp[k, 2, i]
-            for j in range(i + 1, m):
-                pj0, pj1, pj2 = Gp[k, 0, j], Gp[k, 1, j], Gp[k, 2, j]
-                v0, v1, v2 = pi1 * pj2 - pi2 * pj1, pi2 * pj0 - pi0 * pj2, pi0 * pj1 - pi1 * pj0
-                z0, z1, z2 = 0.0, 0.0, 0.0
-                for l in range(m):  # every generator; i and j taken out after (a branch-free loop)
-                    s = 1.0 - 2.0 * (v0 * Gp[k, 0, l] + v1 * Gp[k, 1, l] + v2 * Gp[k, 2, l] < 0.0)
-                    z0 += s * G[k, 0, l]
-                    z1 += s * G[k, 1, l]
-                    z2 += s * G[k, 2, l]
-                si = 1.0 - 2.0 * (v0 * pi0 + v1 * pi1 + v2 * pi2 < 0.0)
-                sj = 1.0 - 2.0 * (v0 * pj0 + v1 * pj1 + v2 * pj2 < 0.0)
-                z0 -= si * G[k, 0, i] + sj * G[k, 0, j]
-                z1 -= si * G[k, 1, i] + sj * G[k, 1, j]
-                z2 -= si * G[k, 2, i] + sj * G[k, 2, j]
-                for a, b in ((1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)):
-                    c0 = z0 + a * G[k, 0, i] + b * G[k, 0, j]
-                    c1 = z1 + a * G[k, 1, i] + b * G[k, 1, j]
-                    c2 = z2 + a * G[k, 2, i] + b * G[k, 2, j]
-                    norm = c0 * c0 + c1 * c1 + c2 * c2
-                    if norm > best:
-                        best, bi, bj, ba, bb = norm, i, j, a, b
-        out[k] = math.sqrt(best)
-        if want_signs:
-            pi0, pi1, pi2 = Gp[k, 0, bi], Gp[k, 1, bi], Gp[k, 2, bi]
-            pj0, pj1, pj2 = Gp[k, 0, bj], Gp[k, 1, bj], Gp[k, 2, bj]
-            v0, v1, v2 = pi1 * pj2 - pi2 * pj1, pi2 * pj0 - pi0 * pj2, pi0 * pj1 - pi1 * pj0
-            for l in range(m):
-                signs[k, l] = -1.0 if v0 * Gp[k, 0, l] + v1 * Gp[k, 1, l] + v2 * Gp[k, 2, l] < 0.0 else 1.0
-            signs[k, bi] = ba
-            signs[k, bj] = bb
-
-
-_B64 = np.frombuffer(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/", dtype=np.uint8)
-# The two base64 characters of every 12-bit value, as one native-order uint16 (their bytes in order).
-B64_PAIRS = np.stack([_B64[np.arange(4096) >> 6], _B64[np.arange(4096) & 63]], axis=1).copy().view(np.uint16)[:, 0]
-
-
-@njit
-def base64_triples(src, pairs, out):
-    """out[2i], out[2i + 1] = the base64 characters of the bytes src[3i:3i + 3], for every whole triple
-    (``out`` a uint16 array of 2 (len(src) // 3) entries; ``pairs`` is B64_PAIRS)."""
-    for i in range(src.size // 3):
-        w = (np.uint32(src[3 * i]) << 16) | (np.uint32(src[3 * i + 1]) << 8) | np.uint32(src[3 * i + 2])
-        out[2 * i] = pairs[w >> 12]
-        out[2 * i + 1] = pairs[w & 4095]
-
-
-B64_VALUES = np.full(256, 255, dtype=np.uint8)  # the 6-bit value of each base64 character, 255 for any other byte
-B64_VALUES[_B64] = np.arange(64)
-
-
-@njit
-def base64_quads(src, values, out):
-    """out[3i:3i + 3] = the bytes of the base64 characters src[4i:4i + 4], for every whole quad (``values`` is
-    B64_VALUES); returns -1, or the index of the first byte that is not a base64 character (padding included)."""
-    for i in range(src.size // 4):
-        a, b, c, d = values[src[4 * i]], values[src[4 * i + 1]], values[src[4 * i + 2]], values[src[4 * i + 3]]
-        if (a | b | c | d) & 128:
-            return 4 * i
-        w = (np.uint32(a) << 18) | (np.uint32(b) << 12) | (np.uint32(c) << 6) | np.uint32(d)
-        out[3 * i] = (w >> 16) & 255
-        out[3 * i + 1] = (w >> 8) & 255
-        out[3 * i + 2] = w & 255
-    return -1
-
-
-ALL = ("dh", "urdf", "base64", "zonotope", "pups")
-
-
-def warm_up(which=ALL) -> float:
-    """Compile, or load from the on-disk cache, the kernels named in ``which`` ('dh': dh_chain, 'urdf':
-    urdf_chain, 'base64': the base64 kernels, 'zonotope': zonotope_max, 'pups': the 3-PUPS kernel of
-    ``pups_kernels``) in every signature the models call; returns seconds."""
+def warm_up(which=FAMILIES) -> float:
+    """Compile, or load from the on-disk cache, the kernel families in ``which`` in every signature the models
+    call (for ``urdf`` also choose its writer); returns seconds. Each family is ready when it returns."""
     t0 = time.perf_counter()
-    if "zonotope" in which:
-        G = np.zeros((1, 3, 2))
-        zonotope_max(G, G, np.empty(1), np.empty((1, 2)), True)
-    if "base64" in which:
-        base64_triples(np.zeros(3, np.uint8), B64_PAIRS, np.empty(2, np.uint16))
-        base64_quads(np.frombuffer(b"AAAA", np.uint8), B64_VALUES, np.empty(3, np.uint8))
-    q = np.zeros((1, 1))
-    T = np.empty((1, 4, 4))
-    eye = np.eye(4)
-    revolute = np.ones(1, dtype=np.bool_)
-    if "dh" in which:
-        dh_chain(q, np.zeros(4), NO_DX, revolute, True, eye, eye, T, np.empty((1, 6, 4)), True)
-    if "urdf" in which:
-        urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.zeros((1, 3)),
-                   np.array([[0.0, 0.0, 1.0]]), eye, T, np.empty((1, 6, 7)), True, 0)
-        choose_writers()
-    if "pups" in which:
-        from .pups_kernels import warm_up as warm_up_pups
-        warm_up_pups()
-    if set(ALL) <= set(which):
-        from .warmup import write_marker
-        path = _choice_path()
-        write_marker(os.path.dirname(path) if path else None)
+    for family in which:
+        module = importlib.import_module(f".{_MODULES[family]}", __package__)
+        if family in ("dh", "urdf"):
+            module.warm_up((family,))
+            if family == "urdf":
+                from .jacobian_writers import choose_writers
+                choose_writers()
+        else:
+            module.warm_up()
+        mark_ready(family, module)
     return time.perf_counter() - t0
-
-
-# ------------------------------------------------------------------ the writer of urdf_chain, per machine
-
-MID_BYTES = 256 << 10    # a J below this many bytes is written in columns (it stays in the caches)
-LARGE_BYTES = 8 << 20    # a J of this many bytes or more: the writer chosen for "large", else for "mid"
-SIZES = {"mid": 2 << 20, "large": 16 << 20}  # bytes of the J that the candidates are timed on
-CHOICE_FILE = "tolerance_ros-writers.json"   # beside the kernel cache: the choice and the CPU it was made on
-WRITER_ENV = "TOLERANCE_ROS_JACOBIAN_WRITER"  # columns | rows | stream: no measurement, this writer
-_choice = None           # the choice in force: {"writers": {size class: name}, "source", "times_us", "cpu"}
-
-
-def writer_for(nbytes: int) -> int:
-    """Code of the writer of a J of ``nbytes`` bytes (columns below MID_BYTES; else this machine's choice)."""
-    if nbytes < MID_BYTES:
-        return 0
-    choice = _choice or choose_writers()
-    return WRITERS.index(choice["writers"]["large" if nbytes >= LARGE_BYTES else "mid"])
-
-
-def cpu_id() -> dict:
-    """What the choice depends on: the CPU model, its feature flags (a digest), the architecture, numba."""
-    import hashlib
-    import platform
-    model, flags = platform.processor() or platform.machine(), ""
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
-            for line in f:
-                key, _, value = line.partition(":")
-                if key.strip() == "model name" and model == (platform.processor() or platform.machine()):
-                    model = value.strip()
-                elif key.strip() in ("flags", "Features") and not flags:
-                    flags = value.strip()
-    except OSError:
-        pass
-    return {"cpu": model, "flags": hashlib.sha1(flags.encode()).hexdigest()[:12], "machine": platform.machine(),
-            "numba": numba.__version__}
-
-
-def _choice_path():
-    """The file that remembers the choice (in the kernel cache's directory), or None without a cache."""
-    cache = getattr(getattr(urdf_chain, "_cache", None), "_cache_path", None)
-    return os.path.join(cache, CHOICE_FILE) if cache else None
-
-
-def choose_writers(measure=None, path="auto", force=None) -> dict:
-    """Put in force and return the writer of each size class: ``force`` (or the WRITER_ENV variable) when
-    given; else the choice remembered in ``path`` (default beside the kernel cache) when it was made on
-    this CPU; else each candidate timed by ``measure`` (default ``time_writers``), the fastest chosen and
-    remembered."""
-    import json
-    global _choice
-    force = force or os.environ.get(WRITER_ENV) or None
-    if force is not None:
-        if force not in WRITERS:
-            raise ValueError(f"{WRITER_ENV}: expected one of {list(WRITERS)}, got {force!r}")
-        _choice = {"writers": {c: force for c in SIZES}, "source": "forced", "times_us": None, "cpu": cpu_id()}
-        return _choice
-    path = _choice_path() if path == "auto" else path
-    cpu = cpu_id()
-    if path is not None:
-        try:
-            with open(path, encoding="utf-8") as f:
-                doc = json.load(f)
-            if doc.get("cpu") == cpu and set(doc["writers"]) == set(SIZES) and \
-                    all(w in WRITERS for w in doc["writers"].values()):
-                _choice = {**doc, "source": "remembered"}
-                return _choice
-        except (OSError, ValueError, KeyError, TypeError, AttributeError):
-            pass
-    times = (measure or time_writers)()
-    doc = {"writers": {c: min(t, key=t.get) for c, t in times.items()},
-           "times_us": {c: {w: round(v * 1e6, 1) for w, v in t.items()} for c, t in times.items()}, "cpu": cpu}
-    if path is not None:
-        try:
-            tmp = f"{path}.{os.getpid()}.tmp"
-            with open(tmp, "w", encoding="utf-8") as f:
-                json.dump(doc, f)
-            os.replace(tmp, path)
-        except OSError:
-            pass
-    _choice = {**doc, "source": "measured"}
-    return _choice
-
-
-def time_writers(rounds: int = 3) -> dict:
-    """{size class: {writer: best seconds}}: urdf_chain on a 7-joint chain (generic joint frames) for a J of
-    SIZES bytes, each writer in turn, ``rounds`` times after one untimed round, each call with freshly
-    allocated T and J as the models allocate them."""
-    rng = np.random.default_rng(0)
-    dof = 7
-    fixed = np.repeat(np.eye(4)[None], dof, axis=0)
-    for j in range(dof):
-        R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
-        fixed[j, :3, :3] = R * np.sign(np.linalg.det(R))
-        fixed[j, :3, 3] = rng.uniform(-0.2, 0.2, 3)
-    axes = np.tile([0.0, 0.0, 1.0], (dof, 1))
-    revolute = np.ones(dof, np.bool_)
-    nominal, tool, origin_rpy = np.zeros(7 * dof), np.eye(4), np.zeros((dof, 3))
-    out = {}
-    for size_class, nbytes in SIZES.items():
-        q = rng.uniform(-np.pi, np.pi, (max(1, nbytes // (6 * 7 * dof * 8)), dof))
-        best = dict.fromkeys(WRITERS, math.inf)
-        for r in range(rounds + 1):  # the first round untimed (first touch of the memory, first calls)
-            for code, name in enumerate(WRITERS):
-                T, J = np.empty((len(q), 4, 4)), np.empty((len(q), 6, 7 * dof))
-                t0 = time.perf_counter()
-                urdf_chain(q, nominal, NO_DX, revolute, fixed, origin_rpy, axes, tool, T, J, True, code)
-                if r:
-                    best[name] = min(best[name], time.perf_counter() - t0)
-        out[size_class] = best
-    return out

@@ -112,6 +112,7 @@ class PUPS3(Mechanism):
     """
 
     compiled = True
+    kernel_family = "pups"
 
     def __init__(self, name, travel, platform_radius, leg_length, psi_range, theta_range,
                  slider_angles=(0.0, 2 * np.pi / 3, 4 * np.pi / 3), u_joint_axes=("x", "y"), redundancy=None,

@@ -27,7 +27,7 @@ not written unless 0). Returns the number of poses with a status other than 0 or
 
 Compiled with numpy's floating-point error model (x / 0 is inf or NaN, as in the numpy code, not
 ZeroDivisionError: joints far outside the mechanism's range give such poses, which fail with their reason)
-and cached on disk like ``kernels`` (its ``njit``).
+and cached on disk like every kernel (``jit.njit``).
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ import time
 
 import numpy as np
 
-from .kernels import NO_DX, NO_J, njit
+from .jit import NO_DX, NO_J, njit
 
 CLOSED = 1e-10  # residual norm of an assembled pose (pups._solve)
 NEWTON_TOL = 1e-14  # Newton stops below this residual norm (pups._newton)

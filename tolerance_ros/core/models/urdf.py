@@ -62,8 +62,10 @@ def _apply(R, v):
 class URDFChain(CompiledChain):
     """Serial chain from ``base_link`` to ``tip_link`` of a URDF (see the module docstring).
 
-    ``fk_and_jacobian`` runs the compiled kernel (``kernels.urdf_chain``) unless ``backend`` is 'numpy'.
+    ``fk_and_jacobian`` runs the compiled kernel (``chain_kernels.urdf_chain``) unless ``backend`` is 'numpy'.
     """
+
+    kernel_family = "urdf"
 
     def __init__(self, urdf, tip_link=None, base_link=None, name=None):
         text, source = read_urdf(urdf)
@@ -191,9 +193,10 @@ class URDFChain(CompiledChain):
         return 7 * np.arange(self.dof) + 6
 
     def _run_kernel(self, kernels, q, dx, T, J, jacobian):
+        from .jacobian_writers import writer_for
         return kernels.urdf_chain(q, self.nominal, dx, self._revolute, self._fixed, self.origin_rpy, self._axes,
                                   self._tool, T, J,
-                                  jacobian, kernels.writer_for(J.nbytes) if jacobian else 0)
+                                  jacobian, writer_for(J.nbytes) if jacobian else 0)
 
     def _fk_and_jacobian_numpy(self, q, dx=None, jacobian=True):
         """The numpy reference implementation of ``fk_and_jacobian``."""

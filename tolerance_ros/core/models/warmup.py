@@ -24,11 +24,12 @@ import threading
 import time
 from pathlib import Path
 
-from . import base
+from . import kernels
 
 MARKER = "tolerance_ros-kernels.json"
 LOCK = "tolerance_ros-kernels.lock"  # held by the process whose child fills the cache
-KERNEL_MODULES = ("kernels.py", "pups_kernels.py")  # numba modules whose compiled code the marker vouches for
+KERNEL_MODULES = ("jit.py", "chain_kernels.py", "jacobian_writers.py", "zonotope_kernel.py", "pups_kernels.py")
+"""The modules whose compiled code (and writer choice) the marker vouches for."""
 _HERE = Path(__file__).resolve().parent
 _lock = threading.Lock()
 status = {"state": "idle", "message": "", "seconds": None, "filled": False}  # state: idle | loading | compiling |
@@ -97,43 +98,57 @@ def write_marker(path: str | None) -> None:
         pass
 
 
-def start(background: bool = True, log=None) -> str:
+def start(background: bool = True, log=None, needs=(), nice: bool = True) -> str:
     """Make the compiled kernels available; returns the state: 'ready' (already, or loaded now without
     ``background``), 'loading' / 'compiling' (in the background: the numpy path answers until then),
-    'unavailable' (no numba: the numpy path always). ``log(text)`` hears what happens in the background."""
+    'unavailable' (no numba: the numpy path always). In the background the kernel families ``needs`` (of
+    ``kernels.FAMILIES``) come first, each ready for the callers as soon as it is compiled and loaded, the
+    others after; ``nice`` lowers the compiling child's priority (``BACKGROUND_NICENESS``: for nodes, whose
+    neighbours serve meanwhile; a one-shot command that waits for the answer passes False). ``log(text)``
+    hears what happens in the background."""
     with _lock:
-        if base._KERNELS not in (None, base.PENDING):
-            return "ready" if base._KERNELS else "unavailable"
-        if base._KERNELS is base.PENDING:
+        if status["state"] in ("ready", "loading", "compiling", "unavailable"):
             return status["state"]
         if importlib.util.find_spec("numba") is None:
-            base._KERNELS = False
+            kernels.mark_unavailable()
+            status.update(state="unavailable", message="numba is not installed: the numpy path serves")
             return "unavailable"
         if not background:
-            kernels = base.compiled_kernels()
-            if kernels is None:
+            try:
+                kernels.warm_up()
+            except ImportError as exc:
+                kernels.mark_unavailable()
+                status.update(state="unavailable", message=f"numba cannot be imported ({exc})")
                 return "unavailable"
-            kernels.warm_up()
+            write_marker(cache_dir())
             status.update(state="ready", message="loaded in the caller")
             return "ready"
         warm = cached()
         status.update(state="loading" if warm else "compiling", message="", seconds=None)
-        base._KERNELS = base.PENDING
-    threading.Thread(target=_prepare, args=(warm, log or (lambda text: None)), name="tolerance_ros-kernels",
-                     daemon=True).start()
+        kernels.set_pending(True)
+    order = [f for f in needs if f in kernels.FAMILIES] + [f for f in kernels.FAMILIES if f not in needs]
+    first = len([f for f in needs if f in kernels.FAMILIES]) or None
+    threading.Thread(target=_prepare, args=(warm, order, log or (lambda text: None), nice, first),
+                     name="tolerance_ros-kernels", daemon=True).start()
     return status["state"]
 
 
-def _prepare(warm: bool, log):
-    """Background thread of ``start``: fill the cache in a child process when it is cold, then load. One
-    process at a time fills a cache (a lock beside it): the nodes of a launch started together on a cold
-    cache compile once, the others wait for it."""
+def _load(family):
+    """Load a compiled family in this process (from the cache) and put it in force."""
+    kernels.warm_up((family,))
+
+
+def _prepare(warm: bool, order, log, nice=True, first=None):
+    """Background thread of ``start``: fill the cache in a child process when it is cold, each family loaded
+    here and put in force as soon as the child has compiled it (in ``order``); a warm cache loads family by
+    family. One process at a time fills a cache (a lock beside it): the nodes of a launch started together on
+    a cold cache compile once, the others wait for it."""
     t0 = time.perf_counter()
     lock = None if warm else _lock_cache()
     try:
         if not warm and not cached():
             status["filled"] = True
-            failed = _fill_in_child()
+            failed = _fill_in_child(order, nice, first)
             if failed:
                 _give_up(f"compiling the kernels failed ({failed}); the numpy path serves", log)
                 return
@@ -141,14 +156,14 @@ def _prepare(warm: bool, log):
         if lock is not None:
             lock.close()
     try:
-        from . import kernels
-        kernels.warm_up()
+        for family in order:
+            _load(family)
     except Exception as exc:  # numba broken in this environment: stay on the numpy path
         _give_up(f"loading the compiled kernels failed ({type(exc).__name__}: {exc}); the numpy path serves", log)
         return
     seconds = time.perf_counter() - t0
     with _lock:
-        base._KERNELS = kernels
+        kernels.set_pending(False)
         status.update(state="ready", seconds=seconds,
                       message=f"compiled kernels {'loaded' if warm else 'compiled and loaded'} in {seconds:.1f} s")
     log(status["message"])
@@ -173,22 +188,35 @@ def _lock_cache():
     return f
 
 
-def _fill_in_child():
-    """Run ``fill_cache`` in a child process; None on success, else the reason."""
+def _fill_in_child(order, nice=True, first=None):
+    """Run ``fill_cache`` in a child process; each family it reports ready is loaded here at once. None on
+    success, else the reason."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(_HERE.parents[2])] + [p for p in [env.get("PYTHONPATH")] if p])
+    args = [sys.executable, "-m", "tolerance_ros.core.models.warmup"] + (["--nice"] if nice else []) + list(order)
+    if first is not None:
+        args.append(f"--first={first}")
     try:
-        child = subprocess.run([sys.executable, "-m", "tolerance_ros.core.models.warmup"], env=env,
-                               stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               text=True, start_new_session=True)
+        child = subprocess.Popen(args, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True, start_new_session=True)
     except OSError as exc:
         return str(exc)
-    return None if child.returncode == 0 else (child.stderr.strip().splitlines() or ["no message"])[-1]
+    for line in child.stdout:
+        word, _, family = line.strip().partition(" ")
+        if word == "ready" and family in kernels.FAMILIES:
+            try:
+                _load(family)
+            except Exception:  # the family stays on the numpy path; the end of the child says why
+                pass
+    err = child.stderr.read()
+    child.wait()
+    return None if child.returncode == 0 else (err.strip().splitlines() or ["no message"])[-1]
 
 
 def _give_up(message, log):
     with _lock:
-        base._KERNELS = False
+        kernels.mark_unavailable()
+        kernels.set_pending(False)
         status.update(state="failed", message=message)
     log(message)
 
@@ -196,9 +224,9 @@ def _give_up(message, log):
 def wait(timeout: float | None = None) -> str:
     """Block until a background ``start`` has finished (or ``timeout`` s); returns the state."""
     deadline = None if timeout is None else time.monotonic() + timeout
-    while base._KERNELS is base.PENDING and (deadline is None or time.monotonic() < deadline):
+    while kernels.pending() and (deadline is None or time.monotonic() < deadline):
         time.sleep(0.05)
-    return status["state"] if base._KERNELS is base.PENDING else ("ready" if base._KERNELS else status["state"])
+    return status["state"]
 
 
 BACKGROUND_NICENESS = 10
@@ -206,17 +234,37 @@ BACKGROUND_NICENESS = 10
 the numpy path meanwhile (the nodes of a launch, a robot's own stack) keep the CPU."""
 
 
-def fill_cache() -> int:
-    """The child process: compile every kernel into the cache (and choose the writers) at a lower priority
-    (``BACKGROUND_NICENESS``); 0 on success."""
+def _lower_priority(by):
     try:
-        os.nice(BACKGROUND_NICENESS)
+        os.nice(by)
     except (AttributeError, OSError):  # no nice on this platform: compile at the parent's priority
         pass
-    from . import kernels
-    kernels.warm_up()
+
+
+def fill_cache(order=kernels.FAMILIES, nice=True, first=None) -> int:
+    """The child process: compile every kernel family into the cache, ``order`` first, saying "ready <family>"
+    on stdout after each (and choose the Jacobian writer), at a lower priority with ``nice``
+    (``BACKGROUND_NICENESS``); after the ``first`` families (those a waiting command needs), at the lowest
+    priority, so that the rest never slows the command down; 0 on success."""
+    if nice:
+        _lower_priority(BACKGROUND_NICENESS)
+    order = list(order) + [f for f in kernels.FAMILIES if f not in order]
+    listening = True
+    for k, family in enumerate(order):
+        if first is not None and k == first:
+            _lower_priority(19)
+        kernels.warm_up((family,))
+        if listening:
+            try:
+                print(f"ready {family}", flush=True)
+            except OSError:  # the parent has ended (a one-shot command): finish the cache for the next run
+                listening = False
+                sys.stdout = open(os.devnull, "w")
+    write_marker(cache_dir())
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(fill_cache())
+    _args = sys.argv[1:]
+    _first = next((int(a.split("=", 1)[1]) for a in _args if a.startswith("--first=")), None)
+    sys.exit(fill_cache([a for a in _args if a in kernels.FAMILIES], "--nice" in _args, _first))

@@ -130,6 +130,7 @@ class Allocation:
 
 
 SOLVE_SHARE = 0.8  # of an allocation's progress: the solve; the rest is the verification
+SEARCH_SHARE = 0.9  # of a verification's progress: the supremum searches; the rest is the Monte Carlo
 
 
 def supremum(problem: SynthesisProblem, delta, criterion=None, rows="position", n_samples=20000, n_starts=12,
@@ -148,13 +149,13 @@ def supremum(problem: SynthesisProblem, delta, criterion=None, rows="position", 
 
 
 def verify_allocation(problem: SynthesisProblem, delta, n_mc=10000, seed=0, n_samples=20000, n_starts=12,
-                      correlation_threshold=0.7, distribution=None) -> dict:
+                      correlation_threshold=0.7, distribution=None, progress=None) -> dict:
     """Independent checks of a tolerance set: supremum under every criterion, Monte Carlo, sign control.
 
     The Monte Carlo is ``analysis.monte_carlo(n=n_mc, seed=seed)``, poses and errors: what ``tolerance-ros verify
     --samples n_mc --seed seed --errors <distribution>`` computes for the same tolerances.
     """
-    return _verify(problem, delta, n_mc, seed, n_samples, n_starts, correlation_threshold, distribution)[0]
+    return _verify(problem, delta, n_mc, seed, n_samples, n_starts, correlation_threshold, distribution, progress)[0]
 
 
 def _verify(problem, delta, n_mc, seed, n_samples=20000, n_starts=12, correlation_threshold=0.7, distribution=None,
@@ -169,14 +170,18 @@ def _verify(problem, delta, n_mc, seed, n_samples=20000, n_starts=12, correlatio
         sup[crit] = {}
         for r, (rows, lim) in enumerate(problem.rows):
             k = c * len(problem.rows) + r
-            tick = None if progress is None else (lambda done, total, k=k: progress((k + done / total) / searches))
+            tick = None if progress is None else \
+                (lambda done, total, k=k: progress(SEARCH_SHARE * (k + done / total) / searches))
             s = supremum(problem, d, crit, rows, n_samples, n_starts, seed, tick)
             s["limit"] = lim
             s["pass"] = bool(s["value"] <= lim)
             sup[crit][rows] = s
     dist = distribution or MC_DISTRIBUTION[problem.criterion]
+    searched = SEARCH_SHARE if progress is not None else 1.0
     mc = analysis.monte_carlo(model, d, n=n_mc, distribution=dist, seed=seed, limit_position=problem.limit,
-                              limit_orientation=problem.orientation_limit)
+                              limit_orientation=problem.orientation_limit, chunk=max(1000, n_mc // 10),
+                              progress=None if progress is None else
+                              (lambda done, total: progress(searched + (1 - searched) * done / total)))
     q = mc.q
     J = model.error_jacobian(model.sample_joints(2000, np.random.default_rng(seed + 3))).position
     pairs = analysis.correlated_pairs(analysis.correlation(J), model.param_names, correlation_threshold)

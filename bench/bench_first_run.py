@@ -1,0 +1,95 @@
+"""Benchmark: a user's first run against the second, for the README's main job and an allocation.
+
+Each job runs as a user runs it (``python -m tolerance_ros.cli ...``, a fresh process): first on an empty
+kernel cache (``NUMBA_CACHE_DIR`` a new folder: the kernels compile in a background child while the job
+starts on the numpy path and switches to each kernel family as it is ready), then, once that child has
+filled the cache, again on the warm cache. Printed side by side: the seconds of each, their ratio, and the
+longest time the progress on stderr stood still in each run. Target: the first run within 1.3x of the
+second, and the progress never still for more than 2 s; exits 1 when a job misses either.
+
+    python bench/bench_first_run.py [--jobs paper,allocate]
+"""
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from machine import load_average, machine  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+JOBS = {"paper": ["paper", "gao2023"],
+        "allocate": ["allocate", "--robot", "gao2023_7dof", "--limit", "2mm"]}
+RATIO, STILL_S = 1.3, 2.0
+
+
+def run(argv, cache):
+    """(seconds, longest gap between progress lines on stderr, exit code) of one command in a fresh process."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache),
+               PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-m", "tolerance_ros.cli", *argv], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    stamps = []
+
+    def read():
+        for line in proc.stderr:
+            if "%" in line:
+                stamps.append(time.perf_counter())
+    reader = threading.Thread(target=read)
+    reader.start()
+    code = proc.wait()
+    reader.join()
+    end = time.perf_counter()
+    marks = [t0] + stamps + [end]
+    return end - t0, max(b - a for a, b in zip(marks, marks[1:])), code
+
+
+def wait_filled(cache, timeout=600):
+    """Wait until the background child of the first run has filled ``cache`` (its marker is current)."""
+    code = "from tolerance_ros.core.models import warmup; import sys; sys.exit(0 if warmup.cached() else 1)"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache),
+               PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < timeout:
+        if subprocess.run([sys.executable, "-c", code], env=env).returncode == 0:
+            return True
+        time.sleep(2.0)
+    return False
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--jobs", default=",".join(JOBS), help=f"comma-separated, of {list(JOBS)}")
+    args = ap.parse_args()
+    print(f"machine: {machine()}, {load_average()}")
+    rows, missed = [], []
+    for name in args.jobs.split(","):
+        with tempfile.TemporaryDirectory() as cache:
+            cold, cold_still, c1 = run(JOBS[name], cache)
+            if not wait_filled(cache):
+                raise SystemExit("the background child did not fill the cache")
+            warm, warm_still, c2 = run(JOBS[name], cache)
+        ratio = cold / warm
+        rows.append((" ".join(JOBS[name]), cold, warm, ratio, cold_still, warm_still, c1, c2))
+        if ratio > RATIO:
+            missed.append(f"{name}: first run {ratio:.2f}x the second (target {RATIO}x)")
+        if max(cold_still, warm_still) > STILL_S:
+            missed.append(f"{name}: the progress stood still for {max(cold_still, warm_still):.1f} s (target {STILL_S} s)")
+    print("| job | first run s (empty cache) | second run s | ratio | progress still, first / second s | exit |")
+    print("|---|---|---|---|---|---|")
+    for job, cold, warm, ratio, cs, ws, c1, c2 in rows:
+        print(f"| tolerance-ros {job} | {cold:.1f} | {warm:.1f} | {ratio:.2f} | {cs:.1f} / {ws:.1f} | {c1} / {c2} |")
+    print(f"\nafter: {load_average()}")
+    for m in missed:
+        print(f"MISSED: {m}")
+    print("verdict: " + ("MISSED" if missed else "ok"))
+    return 1 if missed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
