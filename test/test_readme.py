@@ -107,6 +107,6 @@ def test_the_readme_walkthrough_runs_as_written_from_a_fresh_folder(tmp_path):
     for i, (kind, text, expected) in enumerate(walkthrough_steps()):
         assert int(codes[str(i)]) == expected, f"step {i} ({text[:90]!r}) exited {codes[str(i)]}:\n{proc.stderr[-3000:]}"
     for f in ("out/budget.yaml", "out/salience.png", "out/planned.yaml", "out/measurements.csv",
-              "out/cal/calibration.yaml", "out/iso_compensated.yaml", "out/tiago/cal/calibration.yaml",
-              "out/cal_py/calibration.yaml"):
+              "out/measurements.truth.yaml", "out/report/report.md", "out/cal/calibration.yaml",
+              "out/iso_compensated.yaml", "out/tiago/cal/calibration.yaml"):
         assert (tmp_path / f).is_file(), f
