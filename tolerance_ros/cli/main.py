@@ -12,13 +12,13 @@ from ..core.resources import ConfigNotFound
 from ..core.synthesis.problem import InfeasibleError
 from ..core.threads import limited
 from . import (allocate, calibrate, compensate, import_table, jacobian, paper, plan_campaign, report, robots,
-               sensitivity, validate, verify)
+               sensitivity, signing_key, validate, verify)
 from .common import (CAPS, CHECKED_BY_COMMAND, EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError,
                      Parser, UsageError, check_cap, check_outputs, common_arguments, os_error_message,
                      output_kinds)
 
 COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, calibrate, validate, compensate, plan_campaign,
-            import_table, paper)
+            import_table, paper, signing_key)
 
 
 def build_parser() -> argparse.ArgumentParser:
