@@ -99,3 +99,11 @@ def test_without_an_envelope_or_keys_the_gate_lets_everything_in(gao, texts):
     gate = CalibrationGate()
     assert gate.admit(calibration_from_text(texts[2], gao), gao) is None
     assert describe(None) == "none"
+
+
+def test_a_calibration_refused_before_the_gate_is_recorded_for_the_diagnostics():
+    gate = CalibrationGate(Envelope(), clock=Clock())
+    gate.record("tolerance_calibration: robot 'ur5' is not served (['gao2023_7dof'])", None, "tolerance_calibration")
+    assert gate.refused == 1 and gate.diagnostic_values()["last_refused_sha256"] == "none"
+    assert gate.refusal_message() == ("calibration none refused, the one in force stays: tolerance_calibration: robot "
+                                      "'ur5' is not served (['gao2023_7dof'])")

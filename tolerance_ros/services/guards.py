@@ -74,9 +74,14 @@ class CalibrationGate:
         return check
 
     def _refuse(self, reason, cal, source):
-        self.refused += 1
-        self.last_refusal = {"reason": reason, "sha256": cal.content_sha256, "source": source, "time": self.clock()}
+        self.record(reason, cal.content_sha256, source)
         raise CalibrationRefused(reason)
+
+    def record(self, reason: str, sha256=None, source: str = ""):
+        """Count a refusal and keep it for the diagnostics (also one made before the gate: a calibration that
+        cannot be read, is for another robot, or whose content no longer matches its hash)."""
+        self.refused += 1
+        self.last_refusal = {"reason": str(reason), "sha256": sha256, "source": source, "time": self.clock()}
 
     def swap(self, cal, source: str = "", check=None) -> str:
         """Record ``cal`` as the calibration in force; returns the log line 'old -> new'."""
