@@ -16,7 +16,7 @@ data_files = [
     (f"share/{PACKAGE}", ["package.xml"]),
 ]
 for subdir, pattern in (("config", "*.yaml"), ("config", "*.rviz"), ("config/robots", "*.*"), ("config/budgets", "*.*"),
-                        ("config/campaigns", "*.*"), ("config/data", "*.*"), ("launch", "*.py"),
+                        ("config/campaigns", "*.*"), ("config/data", "*.*"), ("config/security", "*.xml"), ("launch", "*.py"),
                         ("schemas", "*.json")):
     entry = share(subdir, pattern)
     if entry:
@@ -31,7 +31,7 @@ setup(
     # the floors: .ci/floors.txt, installed and tested by .ci/run on Python 3.12 (test/test_floors.py)
     install_requires=["numpy>=1.26.0", "scipy>=1.11.2", "PyYAML>=6.0.1", "matplotlib>=3.7.3", "pin>=2.7.0",
                       "rosbags>=0.10.10", "orjson>=3.10.0", "threadpoolctl>=3.1.0", "numba>=0.59.0",
-                      "llvmlite>=0.42.0", "pybase64>=1.3.1"],
+                      "llvmlite>=0.42.0", "pybase64>=1.3.1", "cryptography>=3.1"],
     extras_require={"test": ["pytest>=7.0.1", "pytest-xdist>=3.0.2", "hypothesis>=6.11.0", "jsonschema>=4.0.1",
                              "example-robot-data>=4.0.5"]},
     zip_safe=False,

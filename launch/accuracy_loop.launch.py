@@ -4,10 +4,13 @@ the simulated tracker measures the robot, the accuracy monitor logs and reports,
 Calibrate from the monitor's log, and the compensator, the monitor and the error model switch to the
 calibration; the monitor's report then carries the errors before beside the errors after:
 
-    ros2 launch tolerance_ros accuracy_loop.launch.py [campaign:=gao2023_iso_cube] [namespace:=arm]
+    ros2 launch tolerance_ros accuracy_loop.launch.py [campaign:=gao2023_iso_cube] [namespace:=arm] [keystore:=<dir>]
     ros2 topic pub --once tolerance/calibrate/request std_msgs/msg/String \\
         "{data: '{\\"id\\": \\"k1\\", \\"log\\": \\"current\\", \\"registration\\": \\"base\\"}'}"
     ros2 topic echo tolerance/accuracy_report std_msgs/msg/String
+
+``keystore:=<dir>`` runs every node in its own SROS2 enclave with security enforced (docs/security.md); the
+calibrate request then comes from the operator's enclave (``ROS_SECURITY_ENCLAVE_OVERRIDE=/<ns>/tolerance_operator``).
 """
 import os
 
@@ -16,6 +19,8 @@ from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+
+from tolerance_ros.nodes.launch_security import enclave_env, keystore_argument, security_actions
 
 TRACKER_TO_BASE = [1.5, 0.2, 0.0, 0.0, 0.0, 0.5]
 
@@ -26,12 +31,13 @@ def generate_launch_description():
 
     def node(exe, name, **overrides):
         return Node(package="tolerance_ros", executable=exe, name=name, namespace=ns, output="screen",
-                    parameters=[params, overrides])
+                    parameters=[params, overrides], additional_env=enclave_env(ns, name))
 
     return LaunchDescription([
         DeclareLaunchArgument("namespace", default_value="", description="namespace of the loop (one robot)"),
         DeclareLaunchArgument("campaign", default_value="gao2023_calibration_30",
                               description="campaign the joint-state source plays (shipped name or file)"),
+        keystore_argument(), *security_actions(ns),
         node("joint_state_source", "tolerance_joint_state_source", mode="campaign", campaign=campaign, dwell=0.25,
              loop=True, compensated=True),
         node("trajectory_compensator", "tolerance_trajectory_compensator"),

@@ -3,7 +3,10 @@ accuracy monitor and (optionally) the simulated tracker, with config/accuracy_su
 is relative, so ``namespace:=arm_left`` puts the whole suite under /arm_left.
 
     ros2 launch tolerance_ros accuracy_suite.launch.py [namespace:=arm_left] [sim_tracker:=false]
-        [joint_source:=false] [params_file:=my.yaml]
+        [joint_source:=false] [params_file:=my.yaml] [keystore:=<dir>]
+
+``keystore:=<dir>`` (a keystore from ``tolerance-ros keystore --namespace <namespace>``) runs every node in its
+own SROS2 enclave with security enforced (docs/security.md).
 """
 import os
 
@@ -13,6 +16,8 @@ from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+
+from tolerance_ros.nodes.launch_security import enclave_env, keystore_argument, security_actions
 
 NODES = (("joint_state_source", "tolerance_joint_state_source", "joint_source"),
          ("error_model_server", "tolerance_error_model", None),
@@ -25,7 +30,8 @@ def generate_launch_description():
     default_params = os.path.join(get_package_share_directory("tolerance_ros"), "config", "accuracy_suite.yaml")
     params, namespace = LaunchConfiguration("params_file"), LaunchConfiguration("namespace")
     nodes = [Node(package="tolerance_ros", executable=exe, name=name, namespace=namespace, parameters=[params],
-                  output="screen", condition=IfCondition(LaunchConfiguration(switch)) if switch else None)
+                  output="screen", condition=IfCondition(LaunchConfiguration(switch)) if switch else None,
+                  additional_env=enclave_env(namespace, name))
              for exe, name, switch in NODES]
     return LaunchDescription([
         DeclareLaunchArgument("namespace", default_value="", description="namespace of the whole suite (one robot)"),
@@ -33,4 +39,4 @@ def generate_launch_description():
         DeclareLaunchArgument("sim_tracker", default_value="true", description="start the simulated tracker"),
         DeclareLaunchArgument("joint_source", default_value="true",
                               description="start the joint-state source (false when the robot publishes joint_states)"),
-        *nodes])
+        keystore_argument(), *security_actions(namespace), *nodes])

@@ -3,7 +3,10 @@ drives them: each is configured at start (robots, kernels, files loaded), then a
 inactive (serving). ``ros2 lifecycle set /tolerance_error_model deactivate`` stops one without losing its
 state; ``activate`` resumes it.
 
-    ros2 launch tolerance_ros managed_suite.launch.py [namespace:=arm_left] [autostart:=false]
+    ros2 launch tolerance_ros managed_suite.launch.py [namespace:=arm_left] [autostart:=false] [keystore:=<dir>]
+
+``keystore:=<dir>`` runs every node in its own SROS2 enclave with security enforced, and this launch (which
+drives their lifecycles) in ``/<namespace>/tolerance_launch`` (docs/security.md).
 """
 import os
 
@@ -18,6 +21,8 @@ from launch_ros.event_handlers import OnStateTransition
 from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
+from tolerance_ros.nodes.launch_security import enclave_env, keystore_argument, security_actions
+
 NODES = (("joint_state_source", "tolerance_joint_state_source"), ("error_model_server", "tolerance_error_model"),
          ("tolerance_allocator", "tolerance_allocator"), ("accuracy_monitor", "tolerance_accuracy_monitor"),
          ("simulated_tracker", "tolerance_simulated_tracker"), ("trajectory_compensator",
@@ -31,7 +36,8 @@ def generate_launch_description():
     actions = []
     for exe, name in NODES:
         node = LifecycleNode(package="tolerance_ros", executable=exe, name=name, namespace=namespace,
-                             parameters=[params], arguments=["--managed"], output="screen")
+                             parameters=[params], arguments=["--managed"], output="screen",
+                             additional_env=enclave_env(namespace, name))
         actions += [
             node,
             EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(node),
@@ -46,4 +52,4 @@ def generate_launch_description():
         DeclareLaunchArgument("params_file", default_value=default_params, description="node parameters (YAML)"),
         DeclareLaunchArgument("autostart", default_value="true",
                               description="configure and activate every node at start (false: drive them by hand)"),
-        *actions])
+        keystore_argument(), *security_actions(namespace), *actions])

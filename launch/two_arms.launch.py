@@ -2,7 +2,9 @@
 parameters (config/two_arms.yaml: the same arm model, different budgets). Nothing crosses between the
 namespaces; /diagnostics is shared, with the namespace in each status name.
 
-    ros2 launch tolerance_ros two_arms.launch.py
+    ros2 launch tolerance_ros two_arms.launch.py [keystore:=<dir>]
+
+``keystore:=<dir>``: a keystore made with ``tolerance-ros keystore --namespace /arm_left --namespace /arm_right``.
 """
 import os
 
@@ -10,12 +12,17 @@ from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import IncludeLaunchDescription
 from launch.launch_description_sources import PythonLaunchDescriptionSource
+from launch.substitutions import LaunchConfiguration
+
+from tolerance_ros.nodes.launch_security import keystore_argument
 
 
 def generate_launch_description():
     share = get_package_share_directory("tolerance_ros")
     suite = os.path.join(share, "launch", "accuracy_suite.launch.py")
     params = os.path.join(share, "config", "two_arms.yaml")
-    return LaunchDescription([IncludeLaunchDescription(PythonLaunchDescriptionSource(suite),  # one source per include
-                                                       launch_arguments={"namespace": ns, "params_file": params}.items())
-                              for ns in ("arm_left", "arm_right")])
+    keystore = LaunchConfiguration("keystore")
+    return LaunchDescription([keystore_argument()] + [
+        IncludeLaunchDescription(PythonLaunchDescriptionSource(suite),  # one source per include
+                                 launch_arguments={"namespace": ns, "params_file": params, "keystore": keystore}.items())
+        for ns in ("arm_left", "arm_right")])

@@ -483,9 +483,17 @@ def test_plan_calibrate_compensate_closes_the_loop(capsys, tmp_path, gao):
                  "validation.png", "parameters.png"):
         assert (tmp_path / "cal" / name).exists(), name
     assert load_robot(tmp_path / "cal" / "gao2023_7dof_calibrated.yaml").name == "gao2023_7dof"
+    from tolerance_ros.core.calibration.provenance import file_sha256, generate_key_pair
+    from tolerance_ros.core.calibration.writers import load_calibration
+    made = load_calibration(tmp_path / "cal" / "calibration.yaml", gao)
+    assert made.provenance["made_by"] == "tolerance-ros calibrate" and made.signature is None
+    assert made.provenance["log_sha256"] == file_sha256(csv_path) and made.provenance["log"] == str(csv_path.resolve())
+    key_id = generate_key_pair(tmp_path / "k.key", tmp_path / "k.pub")
     code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", str(csv_path),
-                         "--campaign", str(planned), "--out", str(tmp_path / "cal_text"))
+                         "--campaign", str(planned), "--out", str(tmp_path / "cal_text"), "--signing-key",
+                         str(tmp_path / "k.key"))
     assert code == 0 and "position error RMS (3-D, every measurement) reduced by" in out and "held at nominal" in out
+    assert load_calibration(tmp_path / "cal_text" / "calibration.yaml", gao).signature["key_id"] == key_id
     assert "alpha6" in out and "converged in" in out and "in-sample position RMS (3-D)" in out
     compensated = tmp_path / "iso_compensated.yaml"
     code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration",
@@ -740,3 +748,22 @@ def test_plan_campaign_says_when_fewer_candidates_pass_than_asked_for(capsys, ur
     assert 10 <= kept < 100 and text.splitlines()[1].startswith(f"kept {kept} of 1,000 candidates drawn: ")
     assert f"only {kept} of the 100 candidates asked for passed in 1,000 draws" in text
     assert f"over {kept} candidates" in text
+
+
+def test_signing_key_writes_a_pair_and_never_overwrites_it(capsys, tmp_path):
+    import os
+    from tolerance_ros.core.calibration.provenance import load_public_keys, load_signing_key
+    assert main(["signing-key", "--out", str(tmp_path / "keys"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert oct(os.stat(doc["private_key"]).st_mode & 0o777) == "0o600"
+    assert list(load_public_keys([doc["public_key"]])) == [doc["key_id"]]
+    load_signing_key(doc["private_key"])
+    assert main(["signing-key", "--out", str(tmp_path / "keys")]) == 2
+    assert "exists; a key is never overwritten" in capsys.readouterr().err
+
+
+def test_keystore_without_ros2_says_what_to_source(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path))
+    assert main(["keystore", "--out", str(tmp_path / "ks")]) == 2
+    assert "`ros2` is not on PATH; source ROS 2 Jazzy with sros2 first" in capsys.readouterr().err
+    assert not (tmp_path / "ks").exists()

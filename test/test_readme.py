@@ -1,5 +1,6 @@
-"""The README's commands: the two main commands, CI's test command, every documented command line, and the
-walkthrough of its blocks that need no ROS, run as written."""
+"""The README's commands: the two main commands, CI's test command, every documented command line (of the
+README and of the pages in docs/ it links), and the walkthrough of its blocks that need no ROS, run as
+written."""
 import os
 import re
 import shlex
@@ -14,6 +15,8 @@ from tolerance_ros.cli import build_parser
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
 BLOCKS = re.findall(r"```bash\n(.*?)\n```", README, re.S)
+DOC_BLOCKS = [b for page in sorted((ROOT / "docs").glob("*.md"))
+              for b in re.findall(r"```bash\n(.*?)\n```", page.read_text(), re.S)]
 
 
 def test_ci_runs_the_readme_test_command():
@@ -30,7 +33,7 @@ def test_the_two_commands_come_first_main_job_then_tests():
 
 def _documented_command_lines():
     lines = []
-    for block in BLOCKS:
+    for block in BLOCKS + DOC_BLOCKS:
         for cmd in block.replace("\\\n", " ").splitlines():
             cmd = cmd.split(" #")[0].strip()
             m = re.search(r"(?:^|&& )(?:\.venv/bin/)?tolerance-ros (.*)$", cmd)

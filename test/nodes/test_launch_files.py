@@ -35,3 +35,21 @@ def test_the_two_arm_parameters_give_each_arm_its_own_budget():
     right = doc["/arm_right/tolerance_accuracy_monitor"]["ros__parameters"]
     assert (left["budget"], right["budget"]) == ("gao2023_delta1", "gao2023_delta2")
     assert {k.split("/")[1] for k in doc} == {"arm_left", "arm_right"}
+
+
+def test_every_launch_file_takes_a_keystore_and_starts_each_node_in_its_enclave():
+    """keystore:= in every launch file; every Node / LifecycleNode of the suite gets its enclave (security on only
+    with a keystore: ``nodes/launch_security.py``)."""
+    for path in sorted((ROOT / "launch").glob("*.launch.py")):
+        text = path.read_text()
+        tree = ast.parse(text)
+        assert "keystore_argument()" in text, path.name
+        calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") in
+                 ("Node", "LifecycleNode")]
+        for call in calls:
+            env = [k for k in call.keywords if k.arg == "additional_env"]
+            assert env and "enclave_env" in ast.unparse(env[0].value), (path.name, ast.unparse(call)[:120])
+        if calls:
+            assert "security_actions(" in text, path.name
+        else:
+            assert '"keystore": keystore' in text, path.name              # passed on to the suites it includes

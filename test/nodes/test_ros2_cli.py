@@ -1,6 +1,7 @@
 """The package in a ROS 2 workspace: colcon build, ros2 launch, ros2 topic pub/echo, ros2 param
 (skipped unless ROS 2 Jazzy is sourced and colcon is installed)."""
 import contextlib
+import json
 import os
 import shutil
 import signal
@@ -162,9 +163,51 @@ def test_the_managed_launch_configures_and_activates_and_ros2_lifecycle_drives_t
         assert sh(src + "ros2 lifecycle get /tolerance_error_model", workspace).stdout.startswith("active")
 
 
-def test_the_loop_launch_calibrates_from_the_command_line(workspace):
-    """accuracy_loop.launch.py, then the calibrate request of its docstring with ros2 topic pub: the monitor's
-    report says the calibration is in force and keeps the statistics before it."""
+ROGUE = r"""
+import json, sys, time, rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+rclpy.init()
+node = rclpy.create_node("not_of_the_suite")
+latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+node.create_publisher(String, "/tolerance_calibration", latched).publish(String(data=open(sys.argv[1]).read()))
+said = {}
+def on_diagnostics(msg):
+    for s in msg.status:
+        values = {kv.key: kv.value for kv in s.values}
+        if "last_refusal" in values:
+            said[s.name] = {"message": s.message, "level": s.level[0], **values}
+node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+deadline = time.monotonic() + 40
+while time.monotonic() < deadline and len(said) < 3:
+    rclpy.spin_once(node, timeout_sec=0.1)
+print(json.dumps(said))
+"""
+
+
+def rogue_calibration(path):
+    """A calibration made elsewhere, of a robot built within gao2023_delta2 with 50 mrad more on joint 2 (SI text)."""
+    from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.calibration.calibrate import calibrate
+    from tolerance_ros.core.calibration.writers import SI, calibration_text
+    from tolerance_ros.core.models import load_robot
+    gao = load_robot("gao2023_7dof")
+    q = gao.sample_joints(30, 6)
+    cal = calibrate(gao, q, measure(gao, q, as_built_errors(load_budget("gao2023_delta2", gao).vector_for(gao), 1),
+                                    1e-5, 0.0, None, seed=2), folds=3)
+    cal.dx = cal.dx.copy()
+    cal.dx[list(gao.param_names).index("theta2")] += 0.05
+    path.write_text(calibration_text(cal, SI))
+    return path
+
+
+def test_the_loop_launch_refuses_a_foreign_50_mrad_calibration_and_calibrates_from_the_command_line(workspace, tmp_path):
+    """accuracy_loop.launch.py without security: a node outside the suite publishes a calibration with a 50 mrad
+    joint error on tolerance_calibration; the compensator, the error model and the monitor refuse it (the
+    envelope) and say why on /diagnostics. Then the calibrate request of the launch file's docstring with ros2
+    topic pub: the monitor's report says the calibration is in force and keeps the statistics before it."""
     src = "source $WS/install/setup.bash && "
 
     def report():
@@ -172,11 +215,20 @@ def test_the_loop_launch_calibrates_from_the_command_line(workspace):
                        "std_msgs/msg/String", workspace, check=False).stdout
         return out.replace(" ", "")
 
+    rogue = rogue_calibration(tmp_path / "rogue.yaml")
     with launched(workspace, "accuracy_loop.launch.py"):
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline and '"paired":' not in report():
             time.sleep(2)
-        time.sleep(20)  # the 30 poses of the campaign measured (0.25 s each), more than once
+        said = subprocess.run(["bash", "-c", src + 'exec python3 -c "$0" "$1"', ROGUE, str(rogue)], env=workspace,
+                              capture_output=True, text=True, timeout=90)
+        refusals = json.loads(said.stdout.strip().splitlines()[-1])
+        assert set(refusals) == {f"/tolerance_ros: {n}" for n in ("trajectory compensator", "error model",
+                                                                  "accuracy monitor")}, said.stdout + said.stderr
+        for status in refusals.values():
+            assert status["calibration_sha256"] == "none" and "correction outside the envelope" in status["last_refusal"]
+            assert "joint2 by up to 5" in status["last_refusal"] and status["calibrations_refused"] == "1"
+        time.sleep(10)  # the 30 poses of the campaign measured (0.25 s each), more than once
         req = '{data: \'{"id": "k1", "log": "current", "registration": "base"}\'}'
         pub = subprocess.run(["bash", "-c", src + 'exec ros2 topic pub --once -w 1 /tolerance/calibrate/request '
                               'std_msgs/msg/String "$0"', req], env=workspace, capture_output=True, text=True,
@@ -186,7 +238,44 @@ def test_the_loop_launch_calibrates_from_the_command_line(workspace):
         text = ""
         while time.monotonic() < deadline:
             text = report()
-            if '"calibration":{"source":"tolerance_calibration"' in text:
+            if '"calibration":{"id":"' in text and '"source":"tolerance_calibration"' in text:
                 break
             time.sleep(2)
-        assert '"calibration":{"source":"tolerance_calibration"' in text and '"before":{' in text, text[:3000]
+        assert '"calibration":{"id":"' in text and '"made_by":"/tolerance_accuracy_monitor"' in text, text[:3000]
+        assert '"source":"tolerance_calibration"' in text and '"before":{' in text, text[:3000]
+
+
+def test_the_launch_files_take_a_keystore_and_run_every_node_in_its_enclave(workspace, tmp_path):
+    """`tolerance-ros keystore` for a namespace, then managed_suite.launch.py with keystore:=: the launch (in its
+    own enclave) configures and activates the six nodes, each in its enclave with security enforced; the
+    operator's enclave sees and drives them, a tool without security sees nothing."""
+    import importlib.util
+    plugins = any(os.path.exists(os.path.join(d, "libdds_security_ac.so"))
+                  for d in os.environ.get("LD_LIBRARY_PATH", "").split(os.pathsep) if d)
+    if not (plugins and importlib.util.find_spec("sros2")):
+        pytest.skip("sros2 (ros2 security) or Cyclone DDS's security plugins (libdds_security_ac.so) are not installed")
+    src = "source $WS/install/setup.bash && "
+    ks = tmp_path / "keystore"
+    sh(src + f"python3 -m tolerance_ros.cli keystore --out {ks} --namespace /sec --domain-id "
+             f"{workspace['ROS_DOMAIN_ID']} --quiet", workspace, timeout=180)
+    operator = dict(workspace, ROS_SECURITY_KEYSTORE=str(ks), ROS_SECURITY_ENABLE="true",
+                    ROS_SECURITY_STRATEGY="Enforce", ROS_SECURITY_ENCLAVE_OVERRIDE="/sec/tolerance_operator")
+    with launched(workspace, f"managed_suite.launch.py namespace:=sec keystore:={ks}"):
+        state = ""
+        deadline = time.monotonic() + 90
+        while time.monotonic() < deadline:
+            state = sh(src + "ros2 lifecycle get --no-daemon --spin-time 3 /sec/tolerance_trajectory_compensator",
+                       operator, check=False).stdout
+            if state.startswith("active"):
+                break
+            time.sleep(2)
+        assert state.startswith("active"), state
+        nodes = sh(src + "ros2 node list --no-daemon --spin-time 3", operator).stdout
+        for name in ("tolerance_error_model", "tolerance_allocator", "tolerance_accuracy_monitor",
+                     "tolerance_simulated_tracker", "tolerance_joint_state_source", "tolerance_trajectory_compensator"):
+            assert f"/sec/{name}" in nodes, nodes
+        plain = sh(src + "ros2 node list --no-daemon --spin-time 3", workspace, check=False).stdout
+        assert "/sec/" not in plain, plain
+        echo = sh(src + "timeout 20 ros2 topic echo --once --no-daemon /sec/tolerance/accuracy_report "
+                        "std_msgs/msg/String", operator, check=False).stdout
+        assert '"robot":"gao2023_7dof"' in echo.replace(" ", ""), echo

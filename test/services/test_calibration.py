@@ -127,3 +127,64 @@ def test_a_calibration_the_checks_refuse_is_answered_not_put_in_force(gao, tmp_p
         assert not [d for kind, d in out.items if kind == "calibration"]
     finally:
         svc.close()
+
+
+def test_only_logs_under_log_dir_are_read(campaign, tmp_path):
+    import os
+    logs = tmp_path / "campaigns"
+    logs.mkdir()
+    (logs / "ok.csv").write_bytes(campaign.read_bytes())
+    os.symlink(campaign, logs / "link.csv")                          # inside by name, outside in fact
+    out = Recorder()
+    svc = CalibrationService(RobotSet(["gao2023_7dof"], "gao2023_7dof"), out, log_dir=logs)
+    try:
+        for rid, log in (("o1", str(campaign)), ("o2", "../" + campaign.name), ("o3", "link.csv"), ("o4", "/etc/passwd")):
+            svc.handle(json.dumps({"id": rid, "log": log}))
+            doc = [d for _, d in out.items if d.get("id") == rid][0]
+            assert doc["error"]["code"] == "invalid_request" and "is outside this node's log_dir" in doc["error"]["message"]
+        svc.handle(json.dumps({"id": "i1", "log": "ok.csv", "folds": 3}))   # relative: from log_dir
+        assert [d for _, d in out.items if d.get("id") == "i1"][0]["status"] == "accepted"
+        assert wait(out, "i1")["ok"]
+    finally:
+        svc.close()
+
+
+def test_the_calibration_carries_its_provenance_and_the_hash_of_the_log_it_was_fitted_to(gao, campaign, tmp_path):
+    from tolerance_ros.core.calibration.provenance import (file_sha256, generate_key_pair, load_public_keys,
+                                                          load_signing_key, verify_signature)
+    kid = generate_key_pair(tmp_path / "k.key", tmp_path / "k.pub")
+    out = Recorder()
+    svc = CalibrationService(RobotSet(["gao2023_7dof"], "gao2023_7dof"), out, current_log=lambda: str(campaign),
+                             save_dir=tmp_path / "cals", made_by="/arm/tolerance_accuracy_monitor",
+                             signing_key=load_signing_key(tmp_path / "k.key"))
+    try:
+        svc.handle(json.dumps({"id": "../p 1", "log": "current", "folds": 3}))
+        resp = wait(out, "../p 1")
+        folder = tmp_path / "cals" / "___p_1"                          # the id as a folder name, no '..' or '/'
+        p = resp["provenance"]
+        assert resp["success"] and p["made_by"] == "/arm/tolerance_accuracy_monitor" and p["request_id"] == "../p 1"
+        assert p["log"] == str(folder / "measurements.csv") and p["log_sha256"] == file_sha256(campaign)
+        assert (folder / "measurements.csv").read_bytes() == campaign.read_bytes()
+        text = [d for kind, d in out.items if kind == "calibration"][0]["text"]
+        assert (folder / "calibration.yaml").read_text() == text and resp["calibration_file"] == str(folder / "calibration.yaml")
+        cal = calibration_from_text(text, gao)
+        assert cal.content_sha256 == p["content_sha256"] and resp["signed_by"] == kid
+        assert verify_signature(cal.content_sha256, cal.signature, load_public_keys([tmp_path / "k.pub"])) == kid
+    finally:
+        svc.close()
+
+
+def test_a_calibration_outside_the_envelope_is_answered_not_put_in_force(campaign, tmp_path):
+    from tolerance_ros.core.calibration.envelope import Envelope
+    out = Recorder()
+    svc = CalibrationService(RobotSet(["gao2023_7dof"], "gao2023_7dof"), out, current_log=lambda: str(campaign),
+                             save_dir=tmp_path, envelope=Envelope(max_joint=1e-4, max_tool=1e-5))
+    try:
+        svc.handle(json.dumps({"id": "e1", "log": "current", "folds": 3}))
+        resp = wait(out, "e1")
+        assert resp["ok"] and resp["plausibility"]["ok"] and resp["success"] is False
+        assert not resp["envelope"]["ok"] and "max_tool_correction 0.01 mm" in resp["envelope"]["reason"]
+        assert not [d for kind, d in out.items if kind == "calibration"]
+        assert (tmp_path / "e1" / "calibration.refused.yaml").exists() and not (tmp_path / "e1" / "calibration.yaml").exists()
+    finally:
+        svc.close()

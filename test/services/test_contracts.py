@@ -146,3 +146,12 @@ def test_the_depth_of_any_text_is_the_depth_counted_by_hand(parts, nest):
     text = "[" * nest + "".join(parts) + "]" * nest
     depth, by_hand = nesting_depth(text), _depth_by_hand(text)
     assert depth == by_hand if by_hand > MAX_DEPTH else by_hand <= depth <= MAX_DEPTH
+
+
+def test_request_ids_are_uuid4_not_the_process_id():
+    import os
+    import re
+    from tolerance_ros.services.contracts import request_id, valid_id
+    ids = {request_id() for _ in range(1000)}
+    assert len(ids) == 1000 and all(re.fullmatch(r"[0-9a-f]{32}", i) and i[12] == "4" for i in ids)
+    assert all(str(os.getpid()) not in i.split("-")[0] for i in ids) and all(valid_id(i) for i in ids)

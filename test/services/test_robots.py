@@ -69,3 +69,25 @@ def test_a_description_the_node_cannot_use_is_refused_and_the_previous_robot_sta
     with pytest.raises(BudgetError, match="not 'panda'"):
         robots.on_description(example_urdf("panda.urdf").read_text(), check)
     assert robots.select()[0] == "ur5" and sorted(robots.models) == ["ur5"] and robots.version == 1
+
+
+def test_a_new_description_is_named_by_its_text_and_chain_hashes_and_a_changed_chain_is_said():
+    import re
+    from tolerance_ros.services.robots import chain_sha256
+    text = example_urdf("ur5_robot.urdf").read_text()
+    robots = RobotSet(["robot_description"], "robot_description", tip_link="tool0")
+    first = robots.on_description(text)
+    text_sha, chain = robots.description_hashes
+    assert re.fullmatch(r"[0-9a-f]{64}", chain) and f"chain sha256 {chain[:12]}, text sha256 {text_sha[:12]}" in first
+    assert robots.chain_changed is None and "CHAIN CHANGED" not in first
+    same = robots.on_description(text + "\n<!-- a comment -->\n")     # another text, the same chain
+    assert robots.description_hashes[1] == chain and robots.description_hashes[0] != text_sha
+    assert robots.chain_changed is None and same.endswith("(the same chain as before)")
+    moved = re.sub(r'(<joint name="shoulder_lift_joint".*?<origin[^>]*xyz=")([^"]*)"',
+                   lambda m: m.group(1) + "0.0 0.13585 0.001" + '"', text, count=1, flags=re.S)
+    assert moved != text
+    said = robots.on_description(moved)
+    new = robots.description_hashes[1]
+    assert robots.chain_changed == (chain, new) and new != chain
+    assert f"THE CHAIN CHANGED: {chain[:12]} -> {new[:12]}" in said
+    assert chain_sha256(robots.single()) == new

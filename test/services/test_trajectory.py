@@ -167,3 +167,21 @@ def test_a_serialized_trajectory_with_ragged_positions_is_refused_naming_the_poi
     bad = next(i for i, k in enumerate(sizes) if k != 7)
     with pytest.raises(TrajectoryError, match=rf"points\[{bad}\].positions: expected 7 numbers"):
         TrajectoryLogic(gao, calibration).compensate_raw(bytes(TS.serialize_cdr(msg, "trajectory_msgs/msg/JointTrajectory")))
+
+
+def test_a_point_whose_joint_change_exceeds_the_envelope_is_flagged_and_never_sent_corrected(gao, calibration):
+    from tolerance_ros.core.calibration.envelope import Envelope
+    q = gao.sample_joints(4, 11) * 0.6
+    free = TrajectoryLogic(gao, calibration)
+    change = np.abs(free.compensate(gao.joint_names, q)["positions"] - q).max(axis=1)
+    tight = Envelope(max_joint=float(np.sort(change)[1]) * 1.0001)  # the two points of largest change exceed it
+    over = sorted(np.argsort(change)[2:].tolist())
+    logic = TrajectoryLogic(gao, calibration, envelope=tight)
+    res = logic.compensate(gao.joint_names, q)
+    assert not res["ok"] and res["flagged"] == over and logic.counts["points_over_envelope"] == 2
+    assert "exceeds max_joint_correction" in res["reasons"][over[0]] and res["message"].startswith("trajectory rejected")
+    sent = TrajectoryLogic(gao, calibration, on_flag="nominal", envelope=tight).compensate(gao.joint_names, q)
+    assert sent["ok"] and np.array_equal(sent["positions"][over], q[over])       # sent as planned, uncorrected
+    kept = [i for i in range(4) if i not in over]
+    assert np.abs(sent["positions"][kept] - q[kept]).max() > 0
+    assert TrajectoryLogic(gao, calibration, envelope=Envelope()).compensate(gao.joint_names, q)["flagged"] == []

@@ -41,6 +41,9 @@ def add_arguments(p):
     p.add_argument("--folds", type=int, default=10, help="k of the k-fold validation by test pose (default 10)")
     p.add_argument("--seed", type=int, default=0, help="seed of the split into folds")
     p.add_argument("--skip-bad", action="store_true", help="skip malformed rows (they are listed), instead of failing")
+    p.add_argument("--signing-key", metavar="PEM",
+                   help="sign calibration.yaml with this Ed25519 private key (`tolerance-ros signing-key` makes one), "
+                        "for nodes that trust only signed calibrations (parameter trusted_calibration_keys)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="write the calibrated robot file, calibration.yaml, calibration.md/.json and plots into DIR "
                         "(a calibration that is refused goes to calibration.refused.yaml, and no robot file)")
@@ -71,12 +74,17 @@ def payload_option(text):
 def run(args):
     from ..core.accuracy.io import read_measurements
     from ..core.calibration.calibrate import FitOptions, calibrate_measurements
+    from ..core.calibration.provenance import ProvenanceError, file_sha256, load_signing_key, new_provenance
     from ..core.calibration.writers import save_calibration, write_calibrated_robot
     from ..core.campaign import load_campaign
     from ..render.calibration_report import write_calibration_report
     model = load_model(args)
     if args.folds < 2:
         raise CLIError("--folds: must be >= 2")
+    try:
+        key = load_signing_key(args.signing_key) if args.signing_key else None
+    except ProvenanceError as exc:
+        raise CLIError(f"--signing-key: {exc}") from None
     opts = FitOptions(registration=args.registration, sigma_position=quantity(args.noise, "length", "--noise"),
                       sigma_orientation=quantity(args.orientation_noise, "angle", "--orientation-noise"),
                       robust=not args.no_robust, prior=prior_option(args.prior),
@@ -84,6 +92,7 @@ def run(args):
                       folds=args.folds, seed=args.seed, payload=payload_option(args.payload))
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
+    log_sha256 = file_sha256(args.measurements)
     prog = Progress("calibrate (cross-validating the candidates)", not args.quiet)
     cal = calibrate_measurements(model, meas, campaign, opts, parameters=args.parameters, progress=prog)
     out = Path(args.out)
@@ -94,11 +103,13 @@ def run(args):
                                      and Path(args.campaign).is_file() else args.campaign)})
     if hasattr(model, "tip_link"):  # a URDF chain: the links that choose it, to load the same chain again
         cal.sources.update(tip_link=model.tip_link, base_link=model.base_link)
+    cal.provenance = new_provenance("tolerance-ros calibrate", log=str(Path(args.measurements).resolve()),
+                                    log_sha256=log_sha256)
     files = {}
     if cal.plausibility["ok"]:
         files = write_calibrated_robot(model, cal, out)
         cal.sources["calibrated_robot"] = Path(files["robot"]).name
-        files["calibration"] = str(save_calibration(cal, out / "calibration.yaml"))
+        files["calibration"] = str(save_calibration(cal, out / "calibration.yaml", signing_key=key))
     else:
         files["refused"] = str(save_calibration(cal, out / "calibration.refused.yaml"))
         for problem in reversed(cal.plausibility["problems"]):  # the first, most basic reason on the last line

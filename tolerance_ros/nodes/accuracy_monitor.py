@@ -6,7 +6,13 @@ publishes /diagnostics (DiagnosticArray, the namespace in the status name), a JS
 measurement to a campaign log as it arrives. Several targets (parameter ``targets: "A,B,C"``) each have
 their own topic, ``measured_pose/A`` ... (relative, so a namespace moves them). The registration and the
 targets' offsets come from parameters or from a calibration file. The robot may come from
-``robot_description``."""
+``robot_description``.
+
+The calibrate service (``services.calibration``) reads only logs under ``log_dir``, stamps each calibration
+with its provenance (made by this node, from a log of known SHA-256), signs it with ``signing_key`` when one
+is set, and puts in force only one within the node's correction envelope. A calibration on
+``tolerance_calibration`` (this node's own or another's) is compared with only when the node's gate admits it
+(``services.guards``); the one in force and the last refusal are on /diagnostics and in the report."""
 from __future__ import annotations
 
 import time
@@ -21,6 +27,7 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.budget import load_budget
+from ..core.calibration.provenance import load_signing_key
 from ..core.calibration.writers import load_calibration
 from ..core.campaign import load_campaign
 from ..core.geometry import transform
@@ -30,8 +37,8 @@ from ..services.calibration import CalibrationService
 from ..services.jobs import Outbox
 from ..services.monitor import WARN, MonitorLogic, monitor_targets, tracker_frame
 from .common import (BUDGET_QOS, CALIBRATE_TOPIC, CALIBRATION_TOPIC, LATCHED_QOS, MEASUREMENT_QOS, PREFIX,
-                     SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, calibration_in_force, declare,
-                     follow_robot, guarded, robot_set, run, status_name)
+                     SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, calibration_gate, calibration_in_force,
+                     declare, follow_robot, guarded, require_packages, robot_set, run, status_name)
 
 MARKER_TYPES = {"sphere": Marker.SPHERE, "arrow": Marker.ARROW, "text": Marker.TEXT_VIEW_FACING}
 
@@ -45,12 +52,14 @@ class AccuracyMonitor(Node):
 
     def setup(self):
         """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
+        require_packages(self, ["scipy", "rosbags"])
         robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
         self.budget_spec = declare(self, "budget", "", "budget file or shipped name; empty waits for tolerance_budget")
         self.campaign_spec = declare(self, "campaign", "", "campaign config for per-test-pose ISO 9283 statistics")
         self.slop = declare(self, "slop", 0.02, "largest |stamp difference| between a measurement and its joint "
-                                                "state, s")
-        self.max_wait = declare(self, "max_wait", 1.0, "seconds a measurement waits for a later joint state")
+                                                "state, s", (0.0, 60.0))
+        self.max_wait = declare(self, "max_wait", 1.0, "seconds a measurement waits for a later joint state",
+                                (0.0, 600.0))
         base = declare(self, "tracker_to_base", [0.0] * 6,
                        "registration: pose of the robot base in the tracker frame, [x y z roll pitch yaw] (m, rad)")
         self.measurement = declare(self, "measurement", "pose", "what the tracker measures: pose (PoseStamped on "
@@ -62,11 +71,16 @@ class AccuracyMonitor(Node):
         self.calibration = declare(self, "calibration", "", "calibration file: its registration and targets replace "
                                                             "tracker_to_base, targets and target_offsets")
         self.log_dir = Path(declare(self, "log_dir", str(Path.home() / ".ros" / "tolerance_ros" / "campaigns"),
-                                    "directory of the campaign log (one JSON Lines file per run)")).expanduser()
-        period = declare(self, "report_period", 1.0, "seconds between diagnostics and reports")
-        self.pose_tolerance = declare(self, "pose_tolerance", 1e-3, "joint distance (rad or m) to label a test pose")
-        marker_period = declare(self, "marker_period", 0.2, "seconds between RViz marker updates")
-        self.marker_scale = declare(self, "marker_scale", 100.0, "RViz: error lengths drawn this many times enlarged")
+                                    "directory of the campaign log (one JSON Lines file per run) and of the "
+                                    "calibrations; the calibrate service reads only logs under it")).expanduser()
+        signing_key = declare(self, "signing_key", "", "Ed25519 private key (PEM file) that signs the calibrations this "
+                                                       "node publishes; empty: unsigned")
+        period = declare(self, "report_period", 1.0, "seconds between diagnostics and reports", (0.01, 3600.0))
+        self.pose_tolerance = declare(self, "pose_tolerance", 1e-3, "joint distance (rad or m) to label a test pose",
+                                      (0.0, 10.0))
+        marker_period = declare(self, "marker_period", 0.2, "seconds between RViz marker updates", (0.01, 3600.0))
+        self.marker_scale = declare(self, "marker_scale", 100.0, "RViz: error lengths drawn this many times enlarged",
+                                    (1e-3, 1e6))
         self.marker_frame = declare(self, "marker_frame", "", "RViz: frame of the markers (empty: the URDF's base "
                                                               "link, or base_link)")
         self.tf_base = declare(self, "tf_base_frame", "", "/tf_static: the robot's base frame (empty: the URDF's base "
@@ -75,6 +89,10 @@ class AccuracyMonitor(Node):
                                                                        "to the base")
         self.T_tracker_base = transform(base[:3], base[3:])
         self.targets = monitor_targets(self.measurement, names, offsets)
+        self.gate = calibration_gate(self)
+        if signing_key:
+            require_packages(self, ["cryptography"])
+        self.signing_key = load_signing_key(signing_key) if signing_key else None
         self.robots = robot_set(self, [robot], robot)
         self.logic = None
         self.budget_text = None   # the latest tolerance_budget message, applied once the robot is known
@@ -93,7 +111,9 @@ class AccuracyMonitor(Node):
         self.create_timer(marker_period, guarded(self, self.publish_markers))
         self.calibrate_outbox = Outbox()
         self.calibrator = CalibrationService(self.robots, self.calibrate_outbox, self.current_log,
-                                             save_dir=self.log_dir / "calibrations")
+                                             save_dir=self.log_dir / "calibrations", log_dir=self.log_dir,
+                                             made_by=self.get_fully_qualified_name(), envelope=self.gate.envelope,
+                                             signing_key=self.signing_key)
         self.calibrate_pubs = {"response": self.create_publisher(String, f"{CALIBRATE_TOPIC}/response",
                                                                  SERVICE_RESPONSE_QOS),
                                "progress": self.create_publisher(String, f"{CALIBRATE_TOPIC}/progress",
@@ -125,6 +145,8 @@ class AccuracyMonitor(Node):
         T_tracker_base, targets = self.T_tracker_base, self.targets
         if self.calibration:
             cal = load_calibration(self.calibration, model)
+            check = self.gate.admit(cal, model, self.calibration)   # refused: the node does not start
+            self.get_logger().info(self.gate.swap(cal, self.calibration, check) + " (registration and targets)")
             T_tracker_base, targets = cal.T_tracker_base, cal.targets
             missing = sorted(set(self.targets.names) - set(targets.names))
             if missing:
@@ -187,11 +209,17 @@ class AccuracyMonitor(Node):
     def diagnostic(self) -> dict:
         if self.logic is not None:
             self.logic.resolve()
-            return self.logic.diagnostic()
-        return {"level": WARN, "name": status_name(self, "accuracy monitor"), "hardware_id": "",
-                "message": f"waiting for robot_description ({self.waiting['measurements']} measurements and "
-                           f"{self.waiting['joint_states']} joint states could not be used yet)",
-                "values": {k: str(v) for k, v in self.waiting.items()}}
+            d = self.logic.diagnostic()
+        else:
+            d = {"level": WARN, "name": status_name(self, "accuracy monitor"), "hardware_id": "",
+                 "message": f"waiting for robot_description ({self.waiting['measurements']} measurements and "
+                            f"{self.waiting['joint_states']} joint states could not be used yet)",
+                 "values": {k: str(v) for k, v in self.waiting.items()}}
+        refused = self.gate.refusal_message()
+        if refused is not None and d["level"] == 0:
+            d["level"], d["message"] = WARN, refused
+        d["values"].update(self.gate.diagnostic_values())
+        return d
 
     def publish_status(self):
         d = self.diagnostic()
@@ -249,8 +277,8 @@ class AccuracyMonitor(Node):
         if cal is None:
             return
         self.publish_tracker_frame(cal.T_tracker_base)
-        self.get_logger().info(f"calibration in force: {cal.model.get('label', 'identified')}; measurements are "
-                               f"compared with the calibrated robot from now on")
+        self.get_logger().info(f"measurements are compared with the calibrated robot ({cal.model.get('label', 'identified')}) "
+                               f"from now on")
 
     def close(self):
         self.calibrator.close()

@@ -8,19 +8,21 @@ id, time out. Hides rclpy like nav2's BasicNavigator does::
         print(resp["poses"][0], resp["parameters"][:3])
 
 Answers with ``"arrays": "base64"`` come back with numpy arrays in place of the compact array objects.
+Request ids default to ``services.contracts.request_id()``, a uuid4: unique across processes and hosts (in containers every
+process may be PID 1, and two clients with PID-based ids took each other's answers).
 """
 from __future__ import annotations
 
-import itertools
-import os
 import threading
 import time
+import uuid
 
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import String
 
 from ..core.jsonio import decode_arrays, dumps_fast, loads_strict
+from ..services.contracts import request_id
 from .common import PREFIX, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS
 
 SERVICES = ("compute_error_jacobian", "allocate_tolerances")
@@ -49,7 +51,7 @@ class ToleranceClient:
             if not rclpy.ok():
                 rclpy.init()
                 self._initialised = True
-            node = rclpy.create_node(f"tolerance_client_{os.getpid()}")
+            node = rclpy.create_node(f"tolerance_client_{uuid.uuid4().hex[:12]}")
             self._executor = SingleThreadedExecutor()
             self._executor.add_node(node)
             self._thread = threading.Thread(target=self._executor.spin, daemon=True)
@@ -59,7 +61,6 @@ class ToleranceClient:
         self._responses = {}
         self._events = {}
         self._progress = {}
-        self._ids = itertools.count(1)
         self._pubs, self._topics = {}, {}
         ns = (namespace or "").strip("/")
         prefix = PREFIX if namespace is None else (f"/{ns}/{PREFIX}" if ns else f"/{PREFIX}")
@@ -110,7 +111,7 @@ class ToleranceClient:
         Raises TimeoutError, or ServiceError when the response has ok: false.
         """
         payload = dict(payload)
-        rid = payload.setdefault("id", f"{os.getpid()}-{next(self._ids)}")
+        rid = payload.setdefault("id", request_id())
         ev = threading.Event()
         with self._lock:
             self._events[rid] = ev
@@ -141,7 +142,7 @@ class ToleranceClient:
     def allocate_tolerances(self, limit, timeout=300.0, progress=None, **fields) -> dict:
         """Allocate tolerances for a position limit (m); waits for the finished budget."""
         payload = {"limit": limit, **fields}
-        payload.setdefault("id", f"{os.getpid()}-{next(self._ids)}")
+        payload.setdefault("id", request_id())
         if progress:
             self._progress[payload["id"]] = progress
         try:

@@ -9,12 +9,17 @@ one by one: the subscription (``joint_states``, resolved with this node's namesp
 the last 1) belongs to a helper node, ``<name>_joint_states``, that no executor spins, and the timer takes
 the latest state from it, still serialized, and decodes only that one. A 1 kHz stream thus costs the
 middleware's receipt of each message and ``bound_rate`` bounds a second, not one Python callback per state.
+
+A calibration (the ``calibration`` file, or the latched ``tolerance_calibration`` topic) is put in force only
+when the node's gate admits it (``services.guards``: correction envelope, trusted signatures); the one in
+force (its content hash, old -> new in the log) and the last refusal are on /diagnostics.
 """
 from __future__ import annotations
 
 import math
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message
@@ -24,11 +29,13 @@ from std_msgs.msg import String
 from ..core.errors import CRITERIA
 from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, Limits, budget_from_message
-from ..services.compensation import calibration_from_graph, load_calibrations
+from ..core.calibration.writers import calibration_robot_name, load_calibration
+from ..services.compensation import calibration_from_graph
 from ..services.error_model import ErrorModelService
+from ..services.guards import CalibrationRefused
 from .common import (BUDGET_QOS, CALIBRATION_TOPIC, JACOBIAN_TOPIC, LATCHED_QOS, MEASUREMENT_QOS, PREFIX,
-                     SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, declare, follow_robot_description, guarded,
-                     robot_set, run)
+                     SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, calibration_gate, declare,
+                     follow_robot_description, guarded, require_packages, robot_set, run, status_name, take_latest)
 
 
 class ErrorModelServer(Node):
@@ -40,25 +47,29 @@ class ErrorModelServer(Node):
 
     def setup(self):
         """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
+        require_packages(self, ["scipy"])
         specs = declare(self, "robots", ["gao2023_7dof"], "robots served: shipped names, robot files, or "
                                                           "robot_description (the URDF on that topic)")
         default = declare(self, "default_robot", "gao2023_7dof", "robot used when a request names none")
-        max_bytes = declare(self, "max_request_bytes", 1_000_000, "size cap of a request, bytes")
-        max_poses = declare(self, "max_poses", 10_000, "size cap of a request, configurations")
+        max_bytes = declare(self, "max_request_bytes", 1_000_000, "size cap of a request, bytes", (1, 1 << 30))
+        max_poses = declare(self, "max_poses", 10_000, "size cap of a request, configurations", (1, 10_000_000))
         max_worst = declare(self, "max_worst_case_poses", 1_000, "configurations per request with the 'worst-case' "
-                                                                 "criterion (O(p^3) work per configuration)")
+                                                                 "criterion (O(p^3) work per configuration)",
+                            (1, 10_000_000))
         max_comp_joints = declare(self, "max_compensate_joints", 1_000, "targets of a compensate request given as "
-                                                                        "joints")
+                                                                        "joints", (1, 10_000_000))
         max_comp_poses = declare(self, "max_compensate_poses", 100, "targets of a compensate request given as tool "
-                                                                    "poses (each solved from 9 starts)")
+                                                                    "poses (each solved from 9 starts)", (1, 1_000_000))
         self.criterion = declare(self, "bound_criterion", "", "criterion of the predicted bound on joint states "
                                  "(paper | worst-case | rss); empty takes the budget's")
         self.calibration = declare(self, "calibration", "", "calibration file (tolerance-ros calibrate) of a served robot: "
                                    "requests with \"model\": \"calibrated\" and \"command\": \"compensate\" use it")
         rate = declare(self, "bound_rate", 20.0, "predicted bound: computed and published at most this many times "
-                                                 "a second (Hz), from the latest joint state")
+                                                 "a second (Hz), from the latest joint state", (1e-3, 10_000.0))
+        period = declare(self, "report_period", 1.0, "seconds between diagnostics", (0.01, 3600.0))
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and 0.0 < rate <= 10_000.0):
             raise ValueError(f"bound_rate: expected a rate in (0, 10000] Hz, got {rate!r}")
+        self.gate = calibration_gate(self)
         if self.criterion and self.criterion not in CRITERIA:
             raise ValueError(f"bound_criterion: expected one of {list(CRITERIA)} or empty, got {self.criterion!r}")
         limits = Limits(max_bytes, max_poses, max_worst, max_comp_joints, max_comp_poses)
@@ -77,22 +88,29 @@ class ErrorModelServer(Node):
         self.create_timer(1.0 / rate, guarded(self, self.publish_bound))
         self.create_subscription(String, "tolerance_budget", guarded(self, self.on_budget), BUDGET_QOS)
         self.create_subscription(String, CALIBRATION_TOPIC, guarded(self, self.on_calibration), LATCHED_QOS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(period, guarded(self, self.publish_status))
         follow_robot_description(self, self.service.robots, self.on_robots_changed)
         self.get_logger().info(f"serving {sorted(self.service.models) or 'robot_description'} on "
                                f"{self.resolve_topic_name(JACOBIAN_TOPIC + '/request')}")
 
     def load_calibration(self):
-        """Load the calibration file for its robot once that robot is served (robot_description may come later)."""
+        """Load the calibration file for its robot once that robot is served (robot_description may come later);
+        the gate must admit it (ValueError naming why: the node does not start)."""
         if not self.calibration:
             return
-        try:
-            self.service.calibrations = load_calibrations([self.calibration], self.service.models)
-        except ValueError as exc:
+        robot = calibration_robot_name(self.calibration)
+        if robot not in self.service.models:
+            message = f"calibration {self.calibration}: robot {robot!r} is not served ({sorted(self.service.models)})"
             if not self.service.robots.waiting:
-                raise
-            self.get_logger().info(f"calibration waits for its robot: {exc}")
+                raise ValueError(message)
+            self.get_logger().info(f"calibration waits for its robot: {message}")
             return
-        self.get_logger().info(f"calibrated model of {sorted(self.service.calibrations)} from {self.calibration}")
+        model = self.service.models[robot]
+        cal = load_calibration(self.calibration, model)
+        check = self.gate.admit(cal, model, self.calibration)
+        self.service.calibrations = {robot: cal.mechanism(model)}
+        self.get_logger().info(self.gate.swap(cal, self.calibration, check) + f" (calibrated model of {robot})")
 
     def on_robots_changed(self):
         """robot_description brought a robot: load the calibration for it; one that no longer fits the robots
@@ -102,6 +120,7 @@ class ErrorModelServer(Node):
         except ValueError as exc:
             self.service.calibrations = {}
             self.get_logger().error(f"calibration dropped, it does not fit the robots served now: {exc}")
+            self.get_logger().info(self.gate.clear("it does not fit the robots served now"))
 
     def on_request(self, msg):
         self.responses.publish(String(data=self.service.handle_text(msg.data)))
@@ -111,12 +130,31 @@ class ErrorModelServer(Node):
         compensate, and the predicted bound, which then comes from the calibrated robot)."""
         try:
             robot, cal = calibration_from_graph(msg.data, self.service.models)
-            calibrated = cal.mechanism(self.service.models[robot])
-        except ValueError as exc:
-            self.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused: {exc}")
+            model = self.service.models[robot]
+            check = self.gate.admit(cal, model, CALIBRATION_TOPIC)
+            calibrated = cal.mechanism(model)
+        except ValueError as exc:  # CalibrationError and CalibrationRefused included
+            if not isinstance(exc, CalibrationRefused):  # refused while reading it: said on /diagnostics too
+                self.gate.record(str(exc)[:400], None, CALIBRATION_TOPIC)
+            self.get_logger().error(f"calibration on {CALIBRATION_TOPIC} refused, the one in force stays: {exc}")
             return
         self.service.calibrations[robot] = calibrated
-        self.get_logger().info(f"calibrated model of {robot} from {CALIBRATION_TOPIC}")
+        self.get_logger().info(self.gate.swap(cal, CALIBRATION_TOPIC, check) + f" (calibrated model of {robot})")
+
+    def publish_status(self):
+        """/diagnostics: the calibration in force (its content hash) and the last calibration refused."""
+        refused = self.gate.refusal_message()
+        served = sorted(self.service.models) or ["waiting for robot_description"]
+        message = refused or (f"serving {', '.join(served)}; calibrated model: "
+                              f"{', '.join(sorted(self.service.calibrations)) or 'none'}")
+        values = {"robots": ", ".join(served), "calibrated": ", ".join(sorted(self.service.calibrations)) or "none",
+                  **self.gate.diagnostic_values()}
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status = [DiagnosticStatus(level=bytes([1 if refused else 0]), name=status_name(self, "error model"),
+                                       message=message, hardware_id=", ".join(served),
+                                       values=[KeyValue(key=k, value=v) for k, v in values.items()])]
+        self.diag_pub.publish(arr)
 
     def on_budget(self, msg):
         try:
@@ -126,12 +164,7 @@ class ErrorModelServer(Node):
 
     def latest_joint_state(self):
         """The newest joint state waiting on the helper node's subscription (serialized), or None."""
-        raw = None
-        sub = self.joint_states
-        with sub.handle:
-            while (taken := sub.handle.take_message(sub.msg_type, True)) is not None:
-                raw = taken[0]
-        return raw
+        return take_latest(self.joint_states)
 
     def publish_bound(self):
         """The predicted bound at the latest joint state, when one came since the last bound."""

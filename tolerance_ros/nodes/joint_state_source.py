@@ -29,10 +29,11 @@ class JointStateSource(Node):
         robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
         self.mode = declare(self, "mode", "random", "campaign | random | selected (highest pose-selection index F)")
         self.campaign = declare(self, "campaign", "", "campaign config (mode 'campaign'): shipped name or path")
-        self.count = declare(self, "count", 100, "configurations for modes random and selected")
-        self.seed = declare(self, "seed", 0, "seed of the random and selected modes")
-        self.dwell = declare(self, "dwell", 0.0, "seconds at each configuration; 0 takes the campaign's dwell (or 2 s)")
-        rate = declare(self, "rate", 50.0, "publishing rate, Hz")
+        self.count = declare(self, "count", 100, "configurations for modes random and selected", (1, 1_000_000))
+        self.seed = declare(self, "seed", 0, "seed of the random and selected modes", (0, 2 ** 31 - 1))
+        self.dwell = declare(self, "dwell", 0.0, "seconds at each configuration; 0 takes the campaign's dwell (or 2 s)",
+                             (0.0, 86_400.0))
+        rate = declare(self, "rate", 50.0, "publishing rate, Hz", (1e-3, 10_000.0))
         self.loop = declare(self, "loop", False, "repeat the sequence instead of holding the last configuration")
         self.compensated = declare(self, "compensated", False, "send each configuration through the trajectory "
                                                                "compensator and publish what comes back")

@@ -3,10 +3,12 @@
 driven by the lifecycle state machine instead of starting at once.
 
 - configure: ``setup()`` runs: parameters, robots, compiled kernels, files, publishers, subscriptions and
-  timers are made; nothing is served yet;
-- activate: callbacks and timers take effect: the node serves;
-- deactivate: they stop taking effect (messages are ignored, timers idle); the state, budgets, logs and
-  statistics are kept, and activate resumes where it stopped;
+  timers are made (the timers cancelled); nothing is served yet; a package the node needs that is missing
+  fails the transition, naming it (``services.dependencies``);
+- activate: callbacks take effect and the timers are reset (they start counting their period): the node serves;
+- deactivate: callbacks stop taking effect (messages are ignored) and the timers are cancelled, so that an
+  inactive node does not wake the executor; the state, budgets, logs and statistics are kept, and activate
+  resumes where it stopped;
 - cleanup / shutdown: what setup made is destroyed (``close()`` first), and configure may run again.
 
 Plain nodes stay the default; ``ros2 run tolerance_ros <node> --managed`` (or ``managed:=true`` in the
@@ -64,18 +66,29 @@ def managed(cls):
                 self.get_logger().error(f"configure failed: {type(exc).__name__}: {exc}")
                 self._destroy()
                 return TransitionCallbackReturn.FAILURE
+            self._timers_on(False)
             self.get_logger().info("configured: robots, kernels and files loaded; activate to serve")
             return TransitionCallbackReturn.SUCCESS
 
         def on_activate(self, state):
             self._active = True
+            self._timers_on(True)
             self.get_logger().info("active: serving")
             return super().on_activate(state)
 
         def on_deactivate(self, state):
             self._active = False
-            self.get_logger().info("inactive: not serving, state kept")
+            self._timers_on(False)
+            self.get_logger().info("inactive: not serving, timers cancelled, state kept")
             return super().on_deactivate(state)
+
+        def made_timers(self) -> list:
+            """The timers setup() made (cancelled while the node is not active)."""
+            return [entity for kind, entity in self._made or [] if kind == "timer"]
+
+        def _timers_on(self, on: bool):
+            for timer in self.made_timers():
+                timer.reset() if on else timer.cancel()
 
         def on_cleanup(self, state):
             self._destroy()

@@ -27,13 +27,13 @@ class SimulatedTrackerNode(Node):
         robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
         self.budget_spec = declare(self, "budget", "gao2023_delta2", "budget within which the as-built errors are "
                                                                      "drawn")
-        self.seed = declare(self, "seed", 0, "seed of the as-built robot and of the noise")
-        self.noise = (declare(self, "noise_position", 1e-5, "tracker position noise (1 sigma), m"),
-                      declare(self, "noise_orientation", 1e-5, "tracker orientation noise (1 sigma), rad"))
+        self.seed = declare(self, "seed", 0, "seed of the as-built robot and of the noise", (0, 2 ** 31 - 1))
+        self.noise = (declare(self, "noise_position", 1e-5, "tracker position noise (1 sigma), m", (0.0, 1.0)),
+                      declare(self, "noise_orientation", 1e-5, "tracker orientation noise (1 sigma), rad", (0.0, 1.0)))
         base = declare(self, "tracker_to_base", [0.0] * 6,
                        "pose of the robot base in the tracker frame, [x y z roll pitch yaw] (m, rad)")
         self.frame_id = declare(self, "frame_id", "tracker", "frame_id of the measured poses")
-        self.every = max(1, declare(self, "measure_every", 1, "measure every n-th joint state"))
+        self.every = declare(self, "measure_every", 1, "measure every n-th joint state", (1, 1_000_000))
         self.T_tracker_base = transform(base[:3], base[3:])
         self.robots = robot_set(self, [robot], robot)
         self.sim = None

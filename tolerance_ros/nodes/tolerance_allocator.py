@@ -17,7 +17,7 @@ from ..services.allocation import MAX_TIME_LIMIT_S, AllocatorService
 from ..services.jobs import Outbox
 from ..services.contracts import Limits
 from .common import (ALLOCATE_TOPIC, BUDGET_QOS, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, declare,
-                     follow_robot_description, guarded, robot_set, run)
+                     follow_robot_description, guarded, require_packages, robot_set, run)
 
 
 class ToleranceAllocator(Node):
@@ -29,15 +29,18 @@ class ToleranceAllocator(Node):
 
     def setup(self):
         """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
+        require_packages(self, ["scipy"])
         specs = declare(self, "robots", ["gao2023_7dof"], "robots served: shipped names, robot files, or "
                                                           "robot_description (the URDF on that topic)")
         default = declare(self, "default_robot", "gao2023_7dof", "robot used when a request names none")
         self.budget_dir = Path(declare(self, "budget_dir", str(Path.home() / ".ros" / "tolerance_ros" / "budgets"),
                                        "directory where finished budgets are saved (YAML, mm and rad)")).expanduser()
-        max_queue = declare(self, "max_queue", 4, "allocation requests that may wait behind the running one")
-        max_bytes = declare(self, "max_request_bytes", 100_000, "size cap of a request, bytes")
+        max_queue = declare(self, "max_queue", 4, "allocation requests that may wait behind the running one",
+                            (0, 1000))
+        max_bytes = declare(self, "max_request_bytes", 100_000, "size cap of a request, bytes", (1, 1 << 30))
         max_time = declare(self, "max_time_limit", MAX_TIME_LIMIT_S, "largest wall-clock limit a request may ask "
-                                                                     "for, s (also the default limit when below 300 s)")
+                                                                     "for, s (also the default limit when below 300 s)",
+                           (0.1, 86_400.0))
         self.outbox = Outbox()
         self.service = AllocatorService(robot_set(self, specs, default), self.outbox, Limits(max_bytes, 10_000),
                                         max_queue, self.save, float(max_time))

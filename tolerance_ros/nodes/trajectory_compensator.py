@@ -4,7 +4,10 @@ onto a ros2_control JointTrajectoryController's ``~/joint_trajectory``); both re
 moves them. The calibration comes from the ``calibration`` file parameter or from the latched
 ``tolerance_calibration`` topic (the calibration file's content, SI), and can be swapped without a restart;
 without one, trajectories pass through and the node says so. Flagged points follow ``on_flag``; every
-refusal is logged and reported on /diagnostics. The logic is ``services.trajectory``."""
+refusal is logged and reported on /diagnostics. A calibration is put in force only when the node's gate
+admits it (``services.guards``: its correction within ``max_joint_correction`` / ``max_tool_correction``,
+signed by a trusted key when ``trusted_calibration_keys`` is set), and a point whose compensation would
+change a joint by more than the envelope is flagged. The logic is ``services.trajectory``."""
 from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -14,8 +17,8 @@ from trajectory_msgs.msg import JointTrajectory
 
 from ..core.calibration.writers import load_calibration
 from ..services.trajectory import ON_FLAG, TrajectoryError, TrajectoryLogic
-from .common import (CALIBRATION_TOPIC, LATCHED_QOS, STATUS_QOS, calibration_in_force, declare, follow_robot, guarded,
-                     robot_set, run, status_name)
+from .common import (CALIBRATION_TOPIC, LATCHED_QOS, STATUS_QOS, calibration_gate, calibration_in_force, declare,
+                     follow_robot, guarded, robot_set, run, status_name)
 
 
 class TrajectoryCompensator(Node):
@@ -38,7 +41,8 @@ class TrajectoryCompensator(Node):
             raise ValueError(f"on_flag: expected one of {list(ON_FLAG)}, got {self.on_flag!r}")
         if self.match not in ("pose", "position"):
             raise ValueError(f"match: expected pose or position, got {self.match!r}")
-        period = declare(self, "report_period", 1.0, "seconds between diagnostics")
+        period = declare(self, "report_period", 1.0, "seconds between diagnostics", (0.01, 3600.0))
+        self.gate = calibration_gate(self)
         self.robots = robot_set(self, [robot], robot)
         self.logic = None
         self.calibration_text = None
@@ -51,23 +55,24 @@ class TrajectoryCompensator(Node):
         follow_robot(self, self.robots, self.start)
 
     def start(self, model):
-        self.logic = TrajectoryLogic(model, on_flag=self.on_flag, match=self.match)
+        self.logic = TrajectoryLogic(model, on_flag=self.on_flag, match=self.match, envelope=self.gate.envelope)
         if self.calibration_file:
-            self.logic.set_calibration(load_calibration(self.calibration_file, model), self.calibration_file)
+            cal = load_calibration(self.calibration_file, model)
+            check = self.gate.admit(cal, model, self.calibration_file)   # refused: the node does not start
+            self.logic.set_calibration(cal, self.calibration_file)
+            self.get_logger().info(self.gate.swap(cal, self.calibration_file, check))
         if self.calibration_text is not None:
             self.on_calibration(String(data=self.calibration_text))
         self.get_logger().info(f"compensating trajectories of {model.name}: "
                                + (self.logic.source or "no calibration yet, passing them through"))
 
     def on_calibration(self, msg):
-        """A calibration from the graph replaces the current one; one that does not fit the robot is refused."""
+        """A calibration from the graph replaces the current one; one that does not fit the robot, or that the
+        gate refuses, is refused (logged, and said on /diagnostics) and the current one stays."""
         self.calibration_text = msg.data
         if self.logic is None:
             return
-        cal = calibration_in_force(self, self.logic, msg.data, "the current one stays")
-        if cal is None:
-            return
-        self.get_logger().info(f"calibration from {CALIBRATION_TOPIC}: {cal.model.get('label', 'identified')}")
+        calibration_in_force(self, self.logic, msg.data, "the current one stays")
 
     def on_trajectory(self, raw):
         """A serialized JointTrajectory in, its compensation out (both as bytes: ``services.trajectory_cdr``)."""
@@ -91,6 +96,10 @@ class TrajectoryCompensator(Node):
     def publish_status(self):
         d = self.logic.diagnostic() if self.logic is not None else \
             {"level": 1, "message": "waiting for robot_description", "values": {}}
+        refused = self.gate.refusal_message()
+        if refused is not None:
+            d["level"], d["message"] = max(d["level"], 1), refused
+        d["values"].update(self.gate.diagnostic_values())
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [DiagnosticStatus(level=bytes([d["level"]]), name=status_name(self, "trajectory compensator"),

@@ -2,7 +2,7 @@
 
 Request (on ``tolerance/calibrate/request``, std_msgs/String JSON; the shape of ``allocate_tolerances``)::
 
-    {"id": "k1", "log": "current",        # the monitor's own campaign log, or a path to a log, CSV or rosbag2
+    {"id": "k1", "log": "current",        # the monitor's own campaign log, or a log, CSV or rosbag2 under log_dir
      "window": [t0, t1],                  # optional: only measurements stamped in [t0, t1] (s)
      "registration": "base",              # or "base+tool"
      "parameters": "auto",                # registration | joint-offsets | full | full+elastic
@@ -18,9 +18,20 @@ accept goes out as ``calibration`` (the calibration file's text, SI), which the 
 ``tolerance_calibration``; one they refuse is answered (``success: false`` with the reasons) and not put in
 force. Errors carry the services' codes (``invalid_request`` naming the field, ``unknown_robot``, ``busy``,
 ``cancelled``, ``timeout``; ``infeasible`` for a log that cannot be calibrated, with the reason).
+
+What the service trusts: it reads only logs under its ``log_dir`` (a relative path is taken from there; a path
+elsewhere, also through a symbolic link, is refused), so a request cannot fit a calibration to any file the
+node can read. Each calibration carries its provenance (``core.calibration.provenance``): an id, the time, the
+request's id, the node that made it (``made_by``) and the SHA-256 of the log it was fitted to; a log file is
+first copied into the calibration's folder (``log_dir/calibrations/<id>/``, beside ``calibration.yaml``), so
+that the hash names exactly the bytes fitted, though the monitor's own log keeps growing. With a signing key
+the calibration is signed. A calibration whose correction leaves the node's envelope
+(``core.calibration.envelope``) is answered ``success: false`` with the reason in ``envelope`` and not put in
+force, as one the plausibility checks refuse. The file saved is exactly the text published.
 """
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,8 +39,11 @@ import numpy as np
 
 from ..core.accuracy.io import MeasurementError, read_measurements
 from ..core.calibration.calibrate import MODELS, PRIOR, FitOptions, calibrate_measurements
-from ..core.calibration.writers import SI, calibration_text, save_calibration
+from ..core.calibration.envelope import Envelope
+from ..core.calibration.provenance import file_sha256, new_provenance
+from ..core.calibration.writers import SI, calibration_text
 from ..core.models.base import Mechanism
+from ..core.yamlio import loads_yaml
 from .allocation import DEFAULT_TIME_LIMIT_S, MAX_TIME_LIMIT_S, MIN_TIME_LIMIT_S
 from .contracts import ContractError, Limits, number, parse_request
 from .jobs import JobService, command_of
@@ -62,9 +76,26 @@ class CalibrationJob:
     time_limit_s: float = DEFAULT_TIME_LIMIT_S
 
 
-def parse_calibrate_request(text, robots, limits: Limits, current_log=None, max_time_limit_s=MAX_TIME_LIMIT_S):
+def log_path(log: str, log_dir) -> str:
+    """The path of a requested log: under ``log_dir`` (a relative one from there), symbolic links resolved;
+    ContractError for a path elsewhere or one that does not exist. ``log_dir`` None: any path."""
+    if log_dir is None:
+        path = Path(log)
+    else:
+        base = Path(log_dir).expanduser().resolve()
+        path = (base / log).resolve()
+        if not path.is_relative_to(base):
+            raise ContractError("invalid_request", f"log: {log[:200]!r} is outside this node's log_dir ({base}); "
+                                                   f"the calibrate service reads only logs under it")
+    if not path.exists():
+        raise ContractError("invalid_request", f"log: no such file {log[:200]!r}")
+    return str(path)
+
+
+def parse_calibrate_request(text, robots, limits: Limits, current_log=None, max_time_limit_s=MAX_TIME_LIMIT_S,
+                            log_dir=None):
     """A CalibrationJob or a Command; raises ContractError naming the field. ``current_log`` is the monitor's
-    own log (what ``"log": "current"`` means)."""
+    own log (what ``"log": "current"`` means); other logs must lie under ``log_dir`` (when given)."""
     req = parse_request(text, FIELDS, limits)
     command = command_of(req, "calibrate")
     if command is not None:
@@ -75,8 +106,7 @@ def parse_calibrate_request(text, robots, limits: Limits, current_log=None, max_
         if not current_log:
             raise ContractError("invalid_request", "log: this node keeps no campaign log; give a file")
         log = str(current_log)
-    if not Path(log).exists():
-        raise ContractError("invalid_request", f"log: no such file {log[:200]!r}")
+    log = log_path(log, log_dir)
     window = req.get("window")
     if window is not None:
         if len(window) != 2:
@@ -107,9 +137,16 @@ def parse_calibrate_request(text, robots, limits: Limits, current_log=None, max_
                           bool(req.get("robust", True)), time_limit)
 
 
-def run_calibration(job: CalibrationJob, progress=None):
-    """(response dict, Calibration) of a job; MeasurementError / ValueError for data that cannot be calibrated."""
-    meas = read_measurements(job.log, joint_names=job.mechanism.joint_names, skip_bad=True)
+def run_calibration(job: CalibrationJob, progress=None, made_by="tolerance_ros calibrate service", snapshot=None):
+    """(response dict, Calibration) of a job; MeasurementError / ValueError for data that cannot be calibrated.
+    The log is fitted from ``snapshot`` (a path: the log file is copied there first) when given; the
+    calibration's provenance names ``made_by`` and the SHA-256 of the bytes fitted."""
+    log = job.log
+    if snapshot is not None and Path(log).is_file():
+        Path(snapshot).parent.mkdir(parents=True, exist_ok=True)
+        log = str(shutil.copyfile(log, snapshot))
+    log_sha256 = file_sha256(log)
+    meas = read_measurements(log, joint_names=job.mechanism.joint_names, skip_bad=True)
     if job.window is not None:
         keep = (meas.stamps >= job.window[0]) & (meas.stamps <= job.window[1])
         if not keep.any():
@@ -120,52 +157,85 @@ def run_calibration(job: CalibrationJob, progress=None):
                       robust=job.robust, prior=job.prior, folds=job.folds, seed=job.seed)
     cal = calibrate_measurements(job.mechanism, meas, None, opts, parameters=job.parameters, progress=progress)
     cal.sources.update(measurements=job.log)
+    cal.provenance = new_provenance(made_by, log=log, log_sha256=log_sha256, request_id=job.id)
     v = cal.validation
     resp = {"id": job.id, "ok": True, "status": "done", "success": bool(cal.plausibility["ok"]), "robot": job.robot,
             "measurements": cal.measurements, "skipped": len(meas.skipped), "model": cal.model,
             "validation": {k: v[k] for k in ("method", "folds", "poses", "before", "after", "improvement",
                                              "before_kept", "after_kept", "kept_measurements") if k in v},
             "fit": cal.fit_dict(), "plausibility": cal.plausibility, "rejected": cal.rejected,
-            "suspect": cal.suspect, "warnings": cal.warnings, "repeatability": cal.repeatability}
+            "suspect": cal.suspect, "warnings": cal.warnings, "repeatability": cal.repeatability,
+            "provenance": dict(cal.provenance)}
     return resp, cal
+
+
+def folder_name(rid) -> str:
+    """A request id as a folder name: letters, digits, '-' and '_' kept, anything else '_' (no '/' or '..')."""
+    safe = "".join(c if c.isascii() and (c.isalnum() or c in "-_") else "_" for c in str(rid))[:80]
+    return safe or "_"
 
 
 class CalibrationService(JobService):
     """Queue, worker and answers of the calibration service (see the module docstring and
     ``jobs.JobService``); ROS-free. ``current_log()`` gives the node's campaign log path; ``save_dir`` (or
-    None) keeps each finished calibration's file."""
+    None) keeps each finished calibration's file and the log it was fitted to; ``log_dir`` (or None) is where
+    requested logs must lie; ``made_by`` names the node in the provenance; ``envelope`` bounds the correction
+    of a calibration put in force; ``signing_key`` (an Ed25519 private key, or None) signs it."""
 
     KIND = "calibration"
 
     def __init__(self, robots, emit, current_log=None, limits: Limits | None = None, max_queue: int = 2,
-                 save_dir=None, max_time_limit_s: float = MAX_TIME_LIMIT_S):
+                 save_dir=None, max_time_limit_s: float = MAX_TIME_LIMIT_S, log_dir=None,
+                 made_by="tolerance_ros calibrate service", envelope: Envelope | None = None, signing_key=None):
         self.robots, self.current_log, self.save_dir = robots, current_log, save_dir
         self.limits = limits or Limits(max_bytes=100_000)
         self.max_time_limit_s = max_time_limit_s
+        self.log_dir, self.made_by, self.envelope, self.signing_key = log_dir, made_by, envelope, signing_key
         super().__init__(emit, max_queue)
 
     def parse(self, text):
         return parse_calibrate_request(text, self.robots, self.limits,
-                                       self.current_log() if self.current_log else None, self.max_time_limit_s)
+                                       self.current_log() if self.current_log else None, self.max_time_limit_s,
+                                       self.log_dir)
+
+    def folder(self, job) -> Path | None:
+        """The folder of a job's files (``save_dir/<id>``), or None without ``save_dir``."""
+        return None if self.save_dir is None else Path(self.save_dir) / folder_name(job.id)
 
     def run(self, job, progress) -> dict:
         """The answer of one job; a log that cannot be calibrated (too few poses, unreadable, out of the
         window) answers ``infeasible`` with the reason."""
+        folder = self.folder(job)
+        snapshot = None if folder is None else folder / f"measurements{Path(job.log).suffix}"
         try:
-            resp, cal = run_calibration(job, progress)
+            resp, cal = run_calibration(job, progress, self.made_by, snapshot)
         except (MeasurementError, ValueError) as exc:
             raise ContractError("infeasible", f"the log cannot be calibrated: {exc}") from None
-        resp["_calibration"] = cal  # taken out by deliver, before the answer goes out
+        except OSError as exc:
+            raise ContractError("infeasible", f"the log cannot be read or copied: {exc}") from None
+        if self.envelope is not None:
+            resp["envelope"] = self.envelope.check(cal, job.mechanism)
+            if not resp["envelope"]["ok"]:
+                resp["success"] = False
+        text = calibration_text(cal, SI, self.signing_key)
+        doc = loads_yaml(text, "calibration", ValueError)
+        resp["provenance"] = doc["provenance"]
+        resp["signed_by"] = (doc.get("signature") or {}).get("key_id")
+        resp["_text"] = text  # taken out by deliver, before the answer goes out
         return resp
 
     def deliver(self, job, resp):
-        """Save the calibration; put it in force (``calibration``) when the plausibility checks accept it."""
-        cal = resp.pop("_calibration")
-        if self.save_dir is not None:
+        """Save the calibration (the text that is published); put it in force (``calibration``) when the
+        plausibility checks and the envelope accept it."""
+        text = resp.pop("_text")
+        folder = self.folder(job)
+        if folder is not None:
             name = "calibration.yaml" if resp["success"] else "calibration.refused.yaml"
             try:
-                resp["calibration_file"] = str(save_calibration(cal, Path(self.save_dir) / str(job.id) / name))
+                folder.mkdir(parents=True, exist_ok=True)
+                (folder / name).write_text(text)
+                resp["calibration_file"] = str(folder / name)
             except OSError as exc:
                 resp.setdefault("warnings", []).append(f"the calibration could not be saved: {exc}")
         if resp["success"]:
-            self.emit("calibration", {"id": job.id, "robot": job.robot, "text": calibration_text(cal, SI)})
+            self.emit("calibration", {"id": job.id, "robot": job.robot, "text": text})

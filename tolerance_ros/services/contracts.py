@@ -27,6 +27,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import uuid
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -94,6 +95,12 @@ def error_response(request_id, exc) -> dict:
     if len(message) > MAX_MESSAGE_CHARS:
         message = message[:MAX_MESSAGE_CHARS] + "..."
     return {"id": request_id if valid_id(request_id) else None, "ok": False, "error": {"code": code, "message": message}}
+
+
+def request_id() -> str:
+    """A fresh request id for a client: a uuid4 in hex, unique across processes and hosts (not the process id:
+    in containers every process may be PID 1, and two clients would take each other's answers)."""
+    return uuid.uuid4().hex
 
 
 def valid_id(rid) -> bool:

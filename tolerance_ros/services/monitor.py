@@ -25,6 +25,7 @@ from ..core.accuracy.accumulator import AccuracyAccumulator
 from ..core.accuracy.checks import StreamCheck
 from ..core.accuracy.targets import Targets
 from .contracts import check_budget
+from .guards import summary
 
 OK, WARN, ERROR = 0, 1, 2
 MAX_FRAME_CHARS = 100  # of a measurement's frame_id in the campaign log
@@ -90,7 +91,8 @@ class MonitorLogic:
     def set_calibration(self, calibration, source=""):
         """Compare measurements with the calibrated robot from now on (its registration and targets too):
         with compensated motion that is the pose the controller was asked for; without, what the calibration
-        predicts. The statistics so far are kept as ``before`` in the report and restart."""
+        predicts. The statistics so far are kept as ``before`` in the report and restart; the report's
+        ``calibration`` names the one in force (``guards.summary``: id, content hash, maker, time, log hash)."""
         names = [n for n in self.targets.names if n not in calibration.targets.names]
         if names:
             raise ValueError(f"calibration: no target(s) {names} (it has {list(calibration.targets.names)})")
@@ -98,11 +100,12 @@ class MonitorLogic:
         self.reference = calibration.calibrated_chain(self.model)
         self.T_tracker_base, self.targets = calibration.T_tracker_base, calibration.targets
         self._target_index = {n: k for k, n in enumerate(self.targets.names)}
-        self.calibration = {"source": source, "model": calibration.model.get("label"),
+        self.calibration = {**summary(calibration, source), "model": calibration.model.get("label"),
                             "held_out_rms_m": (calibration.validation or {}).get("after", {}).get("position_rms_m")}
         self.set_budget(self.budget)
         if self.log:
-            self._write({"event": "calibration", "source": source})
+            self._write({"event": "calibration", "source": source, "id": self.calibration["id"],
+                         "sha256": self.calibration["sha256"]})
 
     def _write(self, rec):
         """Append one event to the campaign log (strict JSON: non-finite numbers become null)."""

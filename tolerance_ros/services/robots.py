@@ -6,15 +6,34 @@ A node configured with ``robot_description`` (as its robot, or among its robots)
 under the URDF's ``<robot name>`` once the text has arrived; the chain runs from ``base_link`` to
 ``tip_link`` (default: the one leaf link the joints move; a branching URDF needs ``tip_link``). A new
 description replaces the model; a malformed one raises ModelError and the previous model stays. The
-message is URDF text: a path in it is not read.
+message is URDF text: a path in it is not read. Each description is named by two SHA-256 hashes: of its
+text, and of the chain the node takes from it (``chain_sha256``: joints, limits, nominal parameters and the
+tool frame at fixed configurations), so that a new description whose chain differs from the one in force
+is said (and logged) with both chains' hashes, and one that changes only what the chain does not use
+(meshes, colours) is told apart.
 """
 from __future__ import annotations
 
+import hashlib
+
+import numpy as np
+
+from ..core.calibration.provenance import canonical
 from ..core.models import ModelError, URDFChain, load_robot
 from ..core.models.urdf import read_urdf
 from .contracts import ContractError
 
 DESCRIPTION = "robot_description"
+
+
+def chain_sha256(model) -> str:
+    """SHA-256 (hex) of a robot's chain: its description (joints, types, limits, parameters and their nominal
+    values) and its tool frames (rounded to 1e-12) at the zero configuration and three seeded ones."""
+    lim = np.where(np.isfinite(model.joint_limits), model.joint_limits, np.array([-np.pi, np.pi]))
+    q = np.vstack([np.clip(np.zeros(model.dof), lim[:, 0], lim[:, 1]),
+                   lim[:, 0] + (lim[:, 1] - lim[:, 0]) * np.random.default_rng(0).random((3, model.dof))])
+    T = np.round(np.asarray(model.fk(q), float), 12) + 0.0  # + 0.0: no negative zeros
+    return hashlib.sha256(canonical(model.describe()) + T.astype("<f8").tobytes()).hexdigest()
 
 
 class RobotSet:
@@ -25,6 +44,8 @@ class RobotSet:
         self.tip_link, self.base_link = tip_link or None, base_link or None
         self.from_description = DESCRIPTION in list(specs) or default == DESCRIPTION
         self.description_name = None
+        self.description_hashes = None  # (text sha256, chain sha256) of the description in force
+        self.chain_changed = None       # (old chain sha256, new) when the last description changed the chain
         self.version = 0  # increases whenever a model is added or replaced
         names = {}
         for spec in dict.fromkeys([s for s in list(specs) + [default] if s != DESCRIPTION]):
@@ -60,15 +81,24 @@ class RobotSet:
         model = URDFChain(text, tip_link=self.tip_link, base_link=self.base_link)
         if check is not None:
             check(model)
-        previous = self.description_name
+        hashes = (hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest(), chain_sha256(model))
+        previous, old = self.description_name, self.description_hashes
         if previous is not None and previous != model.name:
             del self.models[previous]
         self.models[model.name] = model
         self.description_name = model.name
+        self.description_hashes = hashes
+        self.chain_changed = (old[1], hashes[1]) if old is not None and old[1] != hashes[1] else None
         self.version += 1
         tip = f"tip {model.tip_link!r}" + (" (the only moving leaf)" if model.tip_chosen else "")
-        return (f"robot_description: {'replaced the' if previous else 'loaded'} robot {model.name!r}: "
-                f"{model.dof} joints from {model.base_link!r}, {tip}")
+        said = (f"robot_description: {'replaced the' if previous else 'loaded'} robot {model.name!r}: "
+                f"{model.dof} joints from {model.base_link!r}, {tip}; chain sha256 {hashes[1][:12]}, text "
+                f"sha256 {hashes[0][:12]}")
+        if self.chain_changed is not None:
+            said += f"; THE CHAIN CHANGED: {old[1][:12]} -> {hashes[1][:12]} (text {old[0][:12]} -> {hashes[0][:12]})"
+        elif old is not None:
+            said += " (the same chain as before)"
+        return said
 
     def select(self, name=None):
         """(name, model) of the named robot, or of the default; ContractError 'unknown_robot' otherwise."""

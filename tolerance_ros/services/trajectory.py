@@ -4,9 +4,11 @@ A trajectory in, the compensated trajectory out: each point's positions are the 
 calibrated robot's tool where the nominal model puts it, its velocities and accelerations mapped so that
 the tool moves as planned (``core.calibration.trajectory``). Joint names come in any order; joints the
 robot model does not have pass through untouched; time stamps and efforts are kept. A point out of
-reach, near a singularity or out of the joint limits is never sent silently: ``on_flag`` 'reject' refuses
-the whole trajectory, 'nominal' sends that point as planned; either way the reasons are reported. Without
-a calibration trajectories pass through, and the report says so. SI: rad, m, s.
+reach, near a singularity, out of the joint limits, or whose compensation would change a joint by more than
+the ``envelope`` allows (``core.calibration.envelope``: ``max_joint_correction`` rad, ``max_tool_correction`` m
+for a prismatic joint) is never sent silently: ``on_flag`` 'reject' refuses the whole trajectory, 'nominal'
+sends that point as planned; either way the reasons are reported. Without a calibration trajectories pass
+through, and the report says so. SI: rad, m, s.
 """
 from __future__ import annotations
 
@@ -28,11 +30,13 @@ class TrajectoryError(ValueError):
 class TrajectoryLogic:
     """See the module docstring. ``model`` is the nominal robot; ``calibration`` a Calibration or None."""
 
-    def __init__(self, model, calibration=None, on_flag="reject", match="pose", target=None):
+    def __init__(self, model, calibration=None, on_flag="reject", match="pose", target=None, envelope=None):
         if on_flag not in ON_FLAG:
             raise ValueError(f"on_flag: expected one of {list(ON_FLAG)}, got {on_flag!r}")
         self.model, self.on_flag, self.match, self.target = model, on_flag, match, target
-        self.counts = {"received": 0, "compensated": 0, "passed_through": 0, "rejected": 0, "flagged_points": 0}
+        self.envelope = envelope
+        self.counts = {"received": 0, "compensated": 0, "passed_through": 0, "rejected": 0, "flagged_points": 0,
+                       "points_over_envelope": 0}
         self.last = None
         self.set_calibration(calibration)
 
@@ -72,14 +76,21 @@ class TrajectoryLogic:
                                        None if A is None else A[:, cols], self.match)
         except ModelError as exc:
             raise TrajectoryError(str(exc)) from None
-        keep = tr.flagged
+        keep = tr.flagged.copy()
+        reasons = dict(tr.reasons)
+        if self.envelope is not None:
+            over = self.envelope.point_changes(self.model, tr.compensation.correction)
+            for i, why in over.items():
+                keep[i] = True
+                reasons[i] = f"{reasons[i]}; {why}" if i in reasons else why
+            self.counts["points_over_envelope"] += len(over)
         out["positions"][:, cols] = np.where(keep[:, None], P[:, cols], tr.positions)
         if V is not None:
             out["velocities"][:, cols] = np.where(keep[:, None], V[:, cols], tr.velocities)
         if A is not None:
             out["accelerations"][:, cols] = np.where(keep[:, None], A[:, cols], tr.accelerations)
         out["flagged"] = [int(i) for i in np.flatnonzero(keep)]
-        out["reasons"] = {int(i): r for i, r in tr.reasons.items()}
+        out["reasons"] = {int(i): r for i, r in sorted(reasons.items())}
         out["correction_max"] = float(np.abs(tr.compensation.correction).max()) if len(P) else 0.0
         self.counts["flagged_points"] += len(out["flagged"])
         if out["flagged"] and self.on_flag == "reject":

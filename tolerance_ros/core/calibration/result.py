@@ -34,7 +34,9 @@ class Calibration:
     beyond the rejection threshold that were kept because their removal would change what is identifiable.
     position_rms, position_max : the final fit's 3-D position residual RMS and max over the kept
     measurements, m (``residual_rms_before`` and ``residual_rms_after`` are per axis).  warnings : what the
-    user should know that is not a refusal (a fit stopped by its iteration cap among them).
+    user should know that is not a refusal (a fit stopped by its iteration cap among them).  provenance : id,
+    time, measurement log and its SHA-256, who made it, and (as read back) ``content_sha256``, the hash of the
+    document (``provenance.py``).  signature : the Ed25519 signature block of a signed calibration, or None.
     """
 
     robot: str
@@ -79,11 +81,18 @@ class Calibration:
     position_rms: float | None = None
     position_max: float | None = None
     warnings: list = field(default_factory=list)
+    provenance: dict | None = None
+    signature: dict | None = None
 
     def __post_init__(self):
         if self.targets is None:
             self.targets = (Targets.from_offsets([""], [self.tool_offset]) if self.tool_offset is not None
                             else Targets.at_tool(frames=self.has_orientation))
+
+    @property
+    def content_sha256(self) -> str | None:
+        """The content hash of the document this calibration was read from (None before it is written)."""
+        return (self.provenance or {}).get("content_sha256")
 
     @property
     def B(self) -> np.ndarray:

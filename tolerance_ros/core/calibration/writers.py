@@ -8,6 +8,14 @@ Calibration file (YAML; ``units`` applies to ``parameters``, ``base_correction``
     units: {length: mm, angle: mrad}
     sources: {robot: .../gao2023_7dof.yaml, measurements: m.csv, campaign: null,
               calibrated_robot: gao2023_7dof_calibrated.yaml}     # relative to this file, or absolute
+    provenance:                                    # who made it, from what (all optional but content_sha256)
+      id: 3f0c9a...                                # a uuid4 (hex) of this calibration
+      request_id: k1                               # the calibrate request's id (calibrations made by the service)
+      time: 2026-12-01T08:15:00Z                   # when it was made (UTC), and unix_time_s: 1796199300.0
+      log: .../campaigns/gao2023_7dof_20261201_081200.jsonl   # the measurement log it was fitted to
+      log_sha256: 9d2e...                          # SHA-256 of that log's bytes (of the snapshot fitted)
+      made_by: /arm/tolerance_accuracy_monitor     # the node (full name) or `tolerance-ros calibrate`
+      content_sha256: 51b7...                      # SHA-256 of this document's content (see provenance.py)
     registration:
       method: base                                 # base | base+tool
       T_tracker_base: {xyz: [...], rpy: [...]}     # nominal base frame -> tracker frame
@@ -38,6 +46,17 @@ Calibration file (YAML; ``units`` applies to ``parameters``, ``base_correction``
     plausibility: {ok: true, problems: []}
     repeatability: {repeated_measurements: 60, scatter_m: ..., residual_rms_m: ..., unexplained_m: ...}
     training: {joint_ranges: [[lo, hi], ...], postures: [[...], ...]}   # SI: to group another campaign's poses
+    signature: {algorithm: ed25519, key_id: 0a1b2c3d4e5f6071, value: <base64>}   # optional, last
+
+``provenance.content_sha256`` is the SHA-256 of the document as read back, without itself and without
+``signature``, in canonical JSON (``provenance.canonical``): every reader computes it, refuses a document whose
+declared hash differs (its content was changed after it was made), and reports the calibration by it. The
+``signature`` (written with a signing key, ``calibration_text(..., signing_key=...)``) is Ed25519 over that
+hash; a node with trusted keys refuses a calibration without one, or with another key's, or a false one.
+The calibrate service saves exactly the text it publishes (SI), so its file and the topic's text have the
+same hash. Files without ``provenance`` (made before it existed) are read; their hash is computed. A file
+edited by hand no longer matches its hash and is refused: delete its ``content_sha256`` line (its ``signature``
+too, which the edit has made false) and the readers compute the hash of the edited content.
 
 ``tolerance_ros.calibration/1`` files (one tool offset, no targets, no elastic term) are read too.
 
@@ -66,6 +85,7 @@ from ..accuracy.targets import Targets
 from ..yamlio import loads_yaml, read_yaml
 from .elastic import Load
 from .mechanism import calibrated_mechanism, corrected_origins
+from .provenance import ProvenanceError, check_blocks, signature, stamped, verified_provenance
 from .result import Calibration
 
 FORMAT = "tolerance_ros.calibration/2"
@@ -87,11 +107,12 @@ def _name_scales(names, kinds, ls, as_) -> dict:
     return out
 
 
-def save_calibration(cal: Calibration, path, units=None) -> Path:
-    """Write the calibration file (format in the module docstring); lengths and angles in ``units``."""
+def save_calibration(cal: Calibration, path, units=None, signing_key=None) -> Path:
+    """Write the calibration file (format in the module docstring); lengths and angles in ``units``; signed
+    with ``signing_key`` when given."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(calibration_text(cal, units))
+    path.write_text(calibration_text(cal, units, signing_key))
     return path
 
 
@@ -99,12 +120,20 @@ SI = {"length": "m", "angle": "rad"}
 MAX_TEXT = 4 << 20  # characters of a calibration received as text
 
 
-def calibration_text(cal: Calibration, units=None) -> str:
+def calibration_text(cal: Calibration, units=None, signing_key=None) -> str:
     """The calibration file's content (``units``, default mm and mrad; ``SI`` for the graph's
-    ``tolerance_calibration`` topic)."""
+    ``tolerance_calibration`` topic), its content hash stamped, signed with ``signing_key`` (an Ed25519
+    private key, ``provenance.load_signing_key``) when one is given."""
     head = (f"# Calibration of {cal.robot} by tolerance-ros calibrate; format: "
             f"tolerance_ros/core/calibration/writers.py\n")
-    return head + yaml.safe_dump(_document(cal, units), sort_keys=False, default_flow_style=None, width=110)
+    doc = stamped(_document(cal, units), lambda d: loads_yaml(_dump(d), "calibration", CalibrationError))
+    if signing_key is not None:
+        doc["signature"] = signature(doc["provenance"]["content_sha256"], signing_key)
+    return head + _dump(doc)
+
+
+def _dump(doc) -> str:
+    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=110)
 
 
 def calibration_from_text(text, model: Mechanism, source="tolerance_calibration") -> Calibration:
@@ -135,6 +164,7 @@ def _document(cal: Calibration, units=None) -> dict:
         "units": units,
         "sources": {k: ([str(x) for x in v] if isinstance(v, (list, tuple)) else str(v) if v is not None else None)
                     for k, v in cal.sources.items()},
+        "provenance": {k: v for k, v in (cal.provenance or {}).items() if k != "content_sha256"},
         "registration": {"method": cal.registration,
                          "T_tracker_base": {"xyz": _floats(T[:3, 3] / ls),
                                             "rpy": _floats(rpy_from_matrix(T[None, :3, :3])[0] / as_)},
@@ -228,7 +258,7 @@ _SECTIONS = {"units": dict, "sources": dict, "registration": dict, "base_correct
              "held": list, "unidentifiable": list, "aliases": dict, "fit": dict, "validation": dict, "targets": dict,
              "compliance": dict, "nominal_registration": dict, "model": dict, "rejected": list, "plausibility": dict,
              "repeatability": dict, "training": dict, "convergence": dict, "undetermined": dict, "suspect": list,
-             "warnings": list, "load": dict}
+             "warnings": list, "load": dict, "provenance": dict, "signature": dict}
 
 
 def _read(path):
@@ -265,6 +295,10 @@ def _check_document(doc, path):
             raise CalibrationError(f"{path}: {field}: expected a whole number, got {value!r}")
     if not isinstance(doc.get("robot"), str):
         raise CalibrationError(f"{path}: robot: expected the robot's name")
+    try:
+        check_blocks(doc, path)
+    except ProvenanceError as exc:
+        raise CalibrationError(str(exc)) from None
     return doc
 
 
@@ -380,6 +414,10 @@ def _calibration_from_dict(doc, path, model):
                       suspect=list(doc.get("suspect") or []), warnings=[str(w) for w in doc.get("warnings") or []],
                       position_rms=None if fitd.get("position_rms_m") is None else float(fitd["position_rms_m"]),
                       position_max=None if fitd.get("position_max_m") is None else float(fitd["position_max_m"]))
+    try:  # last: a document that is wrong is said so by its field first
+        cal.provenance, cal.signature = verified_provenance(doc), doc.get("signature")
+    except ProvenanceError as exc:
+        raise CalibrationError(str(exc)) from None
     if doc.get("load") is not None:
         try:
             Load.from_dict(doc["load"])
