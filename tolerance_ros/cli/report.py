@@ -78,6 +78,10 @@ def run(args):
             f"{t['name'] or 'tool point'} ({', '.join(f'{v * 1e3:.3f}' for v in t['xyz_m'])})" for t in reg["targets"]))
     for r in res.get("left_out", []):
         print(f"left out: {r['where']}: {r['reason']}")
+    for r in reg.get("left_out", []):
+        print(f"not used by the registration: {r['where']}: {r['reason']}")
+    for note in res.get("notes", []):
+        print(f"NOTE: {note}")
     for w in res.get("warnings", []):
         print(f"WARNING: {w}")
         missed(args, w)

@@ -115,6 +115,9 @@ def markdown(res, model, budget, files) -> str:
     if res.get("left_out"):
         L += ["Left out of the registration and the verdicts:", ""]
         L += [f"- {r['where']}: {r['reason']}" for r in res["left_out"]] + [""]
+    if res["registration"].get("left_out"):
+        L += ["Not used by the registration (judged as measured):", ""]
+        L += [f"- {r['where']}: {r['reason']}" for r in res["registration"]["left_out"]] + [""]
     if budget is not None:
         limits = [f"position {budget.limit_position * 1e3:g} mm" if budget.limit_position else None,
                   f"orientation {budget.limit_orientation * 1e3:g} mrad" if budget.limit_orientation else None]

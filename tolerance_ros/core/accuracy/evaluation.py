@@ -21,8 +21,9 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
                   sigma_position=1e-5, sigma_orientation=None, robust=True) -> dict:
     """Evaluate measurements (see the module docstring), after the checks of ``checks``: a length unit that
     cannot be right, a joint column out of range, the wrong campaign or a registered residual no robot
-    error explains are refused (``checks.CheckError``); rows beyond the joint limits and, with ``robust``,
-    rows the registration leaves out are listed in ``left_out`` and judged no further.
+    error explains are refused (``checks.CheckError``); rows beyond the joint limits are listed in
+    ``left_out`` and judged no further; with ``robust``, rows far off the others are left out of the
+    registration only (``registration.left_out``: one bad row moves nothing else) and judged as measured.
 
     registration : 'base' (estimate base -> tracker), 'base+tool' (and each target's offset on the
     tool), 'none' (measurements already in the base frame) or a Registration (its targets are used).
@@ -34,12 +35,13 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
         raise MeasurementError(f"{meas.source}: no measurements")
     q = measurement_joints(model, meas, campaign)
     names = meas.target_names
+    not_registered = []
     problem = checks.units_problem(model, q, meas.T[:, :3, 3])
     if problem:
         raise checks.CheckError(f"{meas.source}: {problem}")
     labels = _labels(meas)
     screened = checks.screen(model, q, meas, campaign, labels)
-    warnings = list(screened.notes)
+    warnings, notes = list(screened.notes), []
     T_tool_all = model.fk(q)
     if isinstance(registration, Registration):
         reg = registration
@@ -54,19 +56,21 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
             reg, out, thr = checks.robust_register(T_tool_all[keep], meas.T[keep], idx_all[keep], names,
                                                    registration == "base+tool", meas.has_orientation, robust)
             rows = np.flatnonzero(keep)
-            far = np.zeros(len(q), bool)
-            far[rows[out]] = True
-            resid = dict(zip(rows, reg.residuals))
-            screened.leave_out(far, lambda i: f"registered residual {resid[i] * 1e3:.4g} mm exceeds {thr * 1e3:.4g} mm "
-                               f"({checks.REJECT:g} robust standard deviations)", meas.where)
-            scatter = checks.repeat_scatter(meas.T[screened.keep, :3, 3], _groups(q, labels)[screened.keep],
-                                            idx_all[screened.keep])
-            sel = screened.keep[keep]
+            not_registered = [{"row": int(i), "where": meas.where(i),
+                               "reason": f"registered residual {r * 1e3:.4g} mm exceeds {thr * 1e3:.4g} mm "
+                                         f"({checks.REJECT:g} robust standard deviations): not used by the "
+                                         f"registration, judged as measured"}
+                              for i, r in zip(rows[out], reg.residuals[out])]
+            scatter = checks.repeat_scatter(meas.T[keep, :3, 3], _groups(q, labels)[keep], idx_all[keep])
+            sel = ~out
             refused, hints = checks.diagnose(model, q[keep], meas.T[keep], idx_all[keep], names, registration,
                                              meas.has_orientation, reg, sel, scatter)
             if refused:
                 raise checks.CheckError(f"{meas.source}: {refused}")
             warnings += hints
+            if not_registered:
+                notes.append(f"{len(not_registered)} measurement(s) far off the others were not used by the "
+                             f"registration (registration.left_out); they are judged as measured")
         else:
             reg = register_measurements(T_tool_all, meas, idx_all, names, registration)
             warnings += frame_warnings(T_tool_all, meas, idx_all, names, reg)
@@ -88,8 +92,9 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     method = registration if isinstance(registration, str) else "given"
     out = {"source": meas.source, "robot": model.name, "measurements": len(q), "skipped_rows": meas.skipped,
            "orientation_measured": bool(meas.has_orientation), "targets": list(reg.targets.names),
-           "registration": {"method": method, **reg.to_dict()}, "summary": acc.summary(sigma_position),
-           "warnings": warnings, "left_out": left_out}
+           "registration": {"method": method, **reg.to_dict(), "left_out": not_registered},
+           "summary": acc.summary(sigma_position),
+           "warnings": warnings, "notes": notes, "left_out": left_out}
     T_base = reg.to_base(meas.T)
     if campaign is not None:
         lab = labels if labels is not None else acc.label(q)
