@@ -1,7 +1,7 @@
 """Long fuzz of the services and the file readers, run as the nodes run them (a script, not a test).
 
 N generated requests per JSON service (``--requests``, default 20,000), valid ones mixed with mutations
-(``test/fuzz_corpus.py``), go through the node classes' request callbacks (ErrorModelServer,
+(``tolerance_ros/testing/fuzz_corpus.py``), go through the node classes' request callbacks (ErrorModelServer,
 ToleranceAllocator; last-resort wrapper included) when rclpy is importable, else through the services'
 ``handle_text`` / ``handle``. Each batch runs in a child process, so that a crash shows as a signal and
 a hang as a batch killed at its deadline. The allocator answers every request at once; of the
@@ -44,14 +44,14 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "test")]  # the checkout, and the fuzz corpus and schema helpers
+sys.path[:0] = [str(ROOT)]  # run from a checkout without installing
 
 from hypothesis import HealthCheck, Phase, given, seed, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from fuzz_corpus import (ENCODINGS, NESTED_ID, UNKNOWN, allocate_request, encode, expected_id,  # noqa: E402
+from tolerance_ros.testing.fuzz_corpus import (ENCODINGS, NESTED_ID, UNKNOWN, allocate_request, encode, expected_id,  # noqa: E402
                          jacobian_request)
-from schemas_helpers import validator  # noqa: E402
+from tolerance_ros.testing.schemas import validator  # noqa: E402
 from tolerance_ros.core.jsonio import dumps_fast, loads_strict  # noqa: E402
 from tolerance_ros.services.contracts import CODES  # noqa: E402
 
@@ -285,7 +285,7 @@ def entry_points():
     """name -> (strategy of inputs, make() -> handle(case) returning 'accepted' or 'refused'): every entry point
     of the services besides the two JSON requests, as the nodes call them."""
     import numpy as np
-    from fuzz_corpus import (PAYLOADS, budget_messages, joint_states, measured_poses, must_refuse, names_twice,
+    from tolerance_ros.testing.fuzz_corpus import (PAYLOADS, budget_messages, joint_states, measured_poses, must_refuse, names_twice,
                              urdf_text)
     from helpers import example_urdf
     from tolerance_ros.core.budget import load_budget
@@ -426,7 +426,7 @@ def run_cases(kind, name, n, batch_seed, conn):
     stats = {"inputs": 0, "slow": 0, "max_s": 0.0, "examples": {}, **{o: 0 for o in OUTCOMES}}
     with tempfile.TemporaryDirectory() as tmp:
         if kind == "reader":
-            from fuzz_corpus import readers
+            from tolerance_ros.testing.fuzz_corpus import readers
             reader = readers()[name]
             strategy, path = reader.files, Path(tmp) / f"input{reader.suffix}"
 
@@ -684,12 +684,12 @@ def main():
     print(f"machine: {machine()}; {load()} at the start")
     print("through: " + ("the request callbacks of ErrorModelServer and ToleranceAllocator, each node in a "
                          "private rclpy context" if use_ros else "the services' handle_text / handle (no rclpy)"))
-    print(f"corpus: test/fuzz_corpus.py, {ARGS.requests} requests per service in batches of {ARGS.batch} "
+    print(f"corpus: tolerance_ros/testing/fuzz_corpus.py, {ARGS.requests} requests per service in batches of {ARGS.batch} "
           f"(one child process each), seed {ARGS.seed}; allocator: {ARGS.solve} accepted job(s) per batch solved "
           f"with a {ARGS.time_limit:g} s limit, the others cancelled")
     results = {s: fuzz_service(s, use_ros, ctx) for s in SERVICES} if ARGS.requests else {}
     soaks = {s: soak(s, ctx) for s in SERVICES} if ARGS.soak else {}
-    from fuzz_corpus import readers
+    from tolerance_ros.testing.fuzz_corpus import readers
     files = {name: fuzz_cases("reader", name, ARGS.files // (5 if name.startswith("URDF") else 1), ARGS.batch, ctx)
              for name in readers()} if ARGS.files else {}
     entries = {name: fuzz_cases("entry", name, ARGS.entries // (5 if name.startswith("robot_desc") else 1),

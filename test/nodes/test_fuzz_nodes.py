@@ -25,11 +25,11 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
-from fuzz_corpus import (ENCODINGS, ODD_IDS, Q, allocate_request, encode, jacobian_request,  # noqa: E402
+from tolerance_ros.testing.fuzz_corpus import (ENCODINGS, ODD_IDS, Q, allocate_request, encode, jacobian_request,  # noqa: E402
                          json_values, scalars, yaml_file)
 from helpers import example_urdf  # noqa: E402
 from ros_graph import Graph, wait_for  # noqa: E402
-from schemas_helpers import validator  # noqa: E402
+from tolerance_ros.testing.schemas import validator  # noqa: E402
 from tolerance_ros.core.accuracy.io import read_log  # noqa: E402
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure  # noqa: E402
 from tolerance_ros.core.budget import load_budget  # noqa: E402

@@ -6,7 +6,7 @@ import time
 import jsonschema
 import pytest
 
-from schemas_helpers import schema
+from tolerance_ros.testing.schemas import schema
 from tolerance_ros.core.synthesis import InfeasibleError
 from tolerance_ros.services.allocation import (AllocationJob, AllocatorService, parse_allocate_request,
                                                run_allocation)

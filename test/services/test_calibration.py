@@ -3,7 +3,7 @@ import json
 
 import numpy as np
 import pytest
-from schemas_helpers import validator
+from tolerance_ros.testing.schemas import validator
 
 from tolerance_ros.core.accuracy.io import write_csv
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_targets

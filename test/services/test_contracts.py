@@ -154,4 +154,4 @@ def test_request_ids_are_uuid4_not_the_process_id():
     from tolerance_ros.services.contracts import request_id, valid_id
     ids = {request_id() for _ in range(1000)}
     assert len(ids) == 1000 and all(re.fullmatch(r"[0-9a-f]{32}", i) and i[12] == "4" for i in ids)
-    assert all(str(os.getpid()) not in i.split("-")[0] for i in ids) and all(valid_id(i) for i in ids)
+    assert not any(i.startswith(f"{os.getpid()}-") for i in ids) and all(valid_id(i) for i in ids)

@@ -6,7 +6,7 @@ import jsonschema
 import numpy as np
 import pytest
 
-from schemas_helpers import schema
+from tolerance_ros.testing.schemas import schema
 from tolerance_ros.core.jsonio import decode_arrays
 from tolerance_ros.services.contracts import Limits
 from tolerance_ros.services.error_model import ErrorModelService

@@ -11,11 +11,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fuzz_corpus import (ENCODINGS, NESTED_ID, PAYLOADS, UNKNOWN, allocate_request, budget_messages, encode,
+from tolerance_ros.testing.fuzz_corpus import (ENCODINGS, NESTED_ID, PAYLOADS, UNKNOWN, allocate_request, budget_messages, encode,
                          expected_id, jacobian_request, joint_states, measured_poses, must_refuse, names_twice,
                          readers, urdf_text)
 from helpers import example_urdf
-from schemas_helpers import validator
+from tolerance_ros.testing.schemas import validator
 from tolerance_ros.core import interrupt
 from tolerance_ros.core.jsonio import dumps_fast, loads_strict
 from tolerance_ros.core.models import ModelError, warm_up_kernels

@@ -12,7 +12,7 @@ import tracemalloc
 
 import pytest
 
-from fuzz_corpus import ENCODINGS, Q, encode
+from tolerance_ros.testing.fuzz_corpus import ENCODINGS, Q, encode
 from tolerance_ros.core.accuracy.io import read_log
 from tolerance_ros.core.geometry import matrices_to_quat
 from tolerance_ros.services.allocation import AllocatorService

@@ -1,11 +1,13 @@
-"""The shipped JSON Schemas of the services, for tests."""
+"""The shipped JSON Schemas of the services, for the tests and the benchmarks (jsonschema, a test dependency)."""
 import functools
 import json
 from pathlib import Path
 
 import jsonschema
 
-SCHEMAS = Path(__file__).resolve().parents[1] / "schemas"
+from ..core.resources import share_dirs
+
+SCHEMAS = next((d / "schemas" for d in share_dirs() if (d / "schemas").is_dir()), Path("schemas"))
 
 
 def schema(name: str) -> dict:
