@@ -80,8 +80,16 @@ def test_quaternions_both_ways():
     np.testing.assert_allclose(np.abs(G.matrices_to_quat(special.as_matrix())), np.abs(special.as_quat()), atol=1e-14)
     with pytest.raises(ValueError, match="zero"):
         G.quat_to_matrices([0.0, 0.0, 0.0, 0.0])
-    with pytest.raises(ValueError):
-        G.quat_to_matrices([np.nan, 0.0, 0.0, 1.0])
+    for bad in ([np.nan, 0.0, 0.0, 1.0], [0.0, 0.0, 0.5, np.nan], [np.inf, 0.0, 0.0, 1.0], [[0, 0, 1, np.nan]] * 2):
+        with pytest.raises(ValueError):
+            G.quat_to_matrices(bad)
+
+
+def test_one_quaternion_takes_the_same_rotation_as_a_batch():
+    q = ROT.as_quat()[:50] * RNG.uniform(1e-3, 1e3, (50, 1))
+    batch = G.quat_to_matrices(q)
+    for i in range(len(q)):
+        np.testing.assert_array_equal(G.quat_to_matrices(q[i]), batch[i:i + 1])
 
 
 @pytest.mark.parametrize("scale", [1e-5, 1e200, 1e307])

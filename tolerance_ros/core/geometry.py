@@ -10,23 +10,11 @@ they are batched over a trailing axis of poses.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
-def _quat_form() -> np.ndarray:
-    """(16, 9): the row-major entries of R(q) |q|^2 as quadratic forms of a quaternion q = (x, y, z, w),
-    acting on the flattened outer product q q^T."""
-    terms = ({(0, 0): 1, (1, 1): -1, (2, 2): -1, (3, 3): 1}, {(0, 1): 2, (2, 3): -2}, {(0, 2): 2, (1, 3): 2},
-             {(0, 1): 2, (2, 3): 2}, {(0, 0): -1, (1, 1): 1, (2, 2): -1, (3, 3): 1}, {(1, 2): 2, (0, 3): -2},
-             {(0, 2): 2, (1, 3): -2}, {(1, 2): 2, (0, 3): 2}, {(0, 0): -1, (1, 1): -1, (2, 2): 1, (3, 3): 1})
-    form = np.zeros((16, 9))
-    for entry, coefficients in enumerate(terms):
-        for (a, b), c in coefficients.items():
-            form[4 * a + b, entry] = c
-    return form
-
-
-_QUAT_FORM = _quat_form()
 # The vee map of a skew-symmetric part reads R[_VEE_I, _VEE_J] - R[_VEE_J, _VEE_I].
 _VEE_I, _VEE_J = np.array([2, 0, 1]), np.array([1, 2, 0])
 
@@ -129,12 +117,34 @@ def rotation_error(R_actual, R_nominal) -> np.ndarray:
 def quat_to_matrices(q) -> np.ndarray:
     """(n, 3, 3) rotations of (n, 4) quaternions (x, y, z, w), normalised; a zero quaternion raises ValueError."""
     q = np.asarray(q, dtype=float).reshape(-1, 4)
+    if len(q) == 1:  # one pose (a message): plain floats, a tenth of the array arithmetic's overhead
+        return _quat_to_matrix(*q[0].tolist())[None]
     m = np.abs(q).max(axis=1)
     if not (np.all(m >= 1e-9) and np.all(m < np.inf)):  # 1 <= |q| / max|q_i| <= 2
         raise ValueError("quaternion with zero (or non-finite) norm")
     q = q / m[:, None]  # scaled first, so that huge finite components do not overflow
-    outer = (q[:, :, None] * q[:, None, :]).reshape(-1, 16)
-    return (outer @ _QUAT_FORM / outer[:, ::5].sum(axis=1)[:, None]).reshape(-1, 3, 3)
+    x, y, z, w = q.T
+    s = 2.0 / (x * x + y * y + z * z + w * w)
+    xs, ys, zs = x * s, y * s, z * s
+    wx, wy, wz, xx, xy, xz, yy, yz, zz = w * xs, w * ys, w * zs, x * xs, x * ys, x * zs, y * ys, y * zs, z * zs
+    R = np.empty((len(q), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 0, 2] = 1.0 - (yy + zz), xy - wz, xz + wy
+    R[:, 1, 0], R[:, 1, 1], R[:, 1, 2] = xy + wz, 1.0 - (xx + zz), yz - wx
+    R[:, 2, 0], R[:, 2, 1], R[:, 2, 2] = xz - wy, yz + wx, 1.0 - (xx + yy)
+    return R
+
+
+def _quat_to_matrix(x, y, z, w) -> np.ndarray:
+    """(3, 3) rotation of one quaternion (x, y, z, w), normalised (see ``quat_to_matrices``)."""
+    m = max(abs(x), abs(y), abs(z), abs(w))
+    if not (1e-9 <= m and math.isfinite(x + y + z + w)):
+        raise ValueError("quaternion with zero (or non-finite) norm")
+    x, y, z, w = x / m, y / m, z / m, w / m
+    s = 2.0 / (x * x + y * y + z * z + w * w)
+    xs, ys, zs = x * s, y * s, z * s
+    wx, wy, wz, xx, xy, xz, yy, yz, zz = w * xs, w * ys, w * zs, x * xs, x * ys, x * zs, y * ys, y * zs, z * zs
+    return np.array([[1.0 - (yy + zz), xy - wz, xz + wy], [xy + wz, 1.0 - (xx + zz), yz - wx],
+                     [xz - wy, yz + wx, 1.0 - (xx + yy)]])
 
 
 def matrices_to_quat(R) -> np.ndarray:
