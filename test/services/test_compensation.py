@@ -93,6 +93,8 @@ EYE = np.eye(4).tolist()
     ({"command": "compensate", "poses": [[[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]]},
      "invalid_request", "poses[0]: not a rigid transform"),
     ({"command": "compensate", "poses": [[1, 2, 3]]}, "invalid_request", "poses: expected (n, 4, 4)"),
+    ({"command": "compensate", "poses": [[]]}, "invalid_request", "poses: expected (n, 4, 4)"),
+    ({"command": "compensate", "poses": [[[]]]}, "invalid_request", "poses: expected (n, 4, 4)"),
     ({"command": "compensate", "poses": [[0, 0, 0, 0, 0, 0, 0]]}, "invalid_request", "zero norm"),
     ({"command": "compensate", "poses": [EYE] * 21}, "too_large", "cap of 20"),
     ({"command": "compensate", "joints": [[4.0] + Q[1:]]}, "out_of_limits", "joints[0][0]"),

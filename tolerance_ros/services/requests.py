@@ -124,14 +124,16 @@ def parse_poses(value, limits: Limits) -> np.ndarray:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
         raise ContractError("invalid_request", "poses: every pose must be numbers of one shape, 4x4 or 7") from None
+    if not ((arr.ndim == 2 and arr.shape[1] == 7) or (arr.ndim == 3 and arr.shape[1:] == (4, 4))):
+        raise ContractError("invalid_request", f"poses: expected (n, 4, 4) matrices or (n, 7) position + "
+                                               f"quaternion, got shape {list(arr.shape)}")
     if not np.all(np.isfinite(arr)):
         raise ContractError("invalid_request", f"poses[{int(np.argwhere(~np.isfinite(arr))[0][0])}]: not finite")
-    position = arr[:, :3] if arr.ndim == 2 else arr[:, :3, 3] if arr.ndim == 3 and arr.shape[1:] == (4, 4) else None
-    if position is not None:
-        far = np.flatnonzero(np.abs(position).max(axis=1) > MAX_POSITION_M)
-        if far.size:
-            raise ContractError("invalid_request", f"poses[{far[0]}]: a target {np.abs(position[far[0]]).max():.3g} m "
-                                                   f"from the base is beyond {MAX_POSITION_M:g} m")
+    position = arr[:, :3] if arr.ndim == 2 else arr[:, :3, 3]
+    far = np.flatnonzero(np.abs(position).max(axis=1) > MAX_POSITION_M)
+    if far.size:
+        raise ContractError("invalid_request", f"poses[{far[0]}]: a target {np.abs(position[far[0]]).max():.3g} m "
+                                               f"from the base is beyond {MAX_POSITION_M:g} m")
     if arr.ndim == 2 and arr.shape[1] == 7:
         try:
             R = quat_to_matrices(arr[:, 3:])
@@ -140,9 +142,6 @@ def parse_poses(value, limits: Limits) -> np.ndarray:
         T = np.tile(np.eye(4), (len(arr), 1, 1))
         T[:, :3, :3], T[:, :3, 3] = R, arr[:, :3]
         return T
-    if arr.ndim != 3 or arr.shape[1:] != (4, 4):
-        raise ContractError("invalid_request", f"poses: expected (n, 4, 4) matrices or (n, 7) position + "
-                                               f"quaternion, got shape {list(arr.shape)}")
     R = arr[:, :3, :3]
     bad = np.flatnonzero((np.abs(np.einsum("nij,nkj->nik", R, R) - np.eye(3)).max(axis=(1, 2)) > 1e-6)
                          | (np.linalg.det(R) < 0) | (np.abs(arr[:, 3] - [0, 0, 0, 1]).max(axis=1) > 0))
