@@ -45,3 +45,12 @@ def test_parse_number_rejects_everything_else(text):
 def test_digit_separators_in_a_number_string_are_refused(text):
     with pytest.raises(UnitError, match=r"tolerances.a1: .*digit separators '_' are not accepted"):
         parse_number(text, "tolerances.a1")
+
+
+def test_a_yaml_date_is_not_arithmetic():
+    """YAML reads 2001-12-14 as a date; as arithmetic it would be 1975: refused, naming the field."""
+    from tolerance_ros.core.units import UnitError, parse_number
+    for text in ("2001-12-14", "2001-12-14T10:00:00", "2001-1-4 10:00"):
+        with pytest.raises(UnitError, match="limit: .* is a date"):
+            parse_number(text, "limit")
+    assert parse_number("2001 - 12 - 14", "x") == 1975.0   # spaced, it is arithmetic and reads as written

@@ -62,6 +62,9 @@ def _eval_node(node, field):
     raise UnitError(f"{field}: only numbers, 'pi' and + - * / are allowed")
 
 
+_TIMESTAMP = re.compile(r"^\d{4}-\d{1,2}-\d{1,2}([Tt ].*)?$")  # a YAML date or timestamp, not arithmetic
+
+
 def parse_number(value, field: str) -> float:
     """A finite float from a number or a small arithmetic string (at most ``MAX_EXPRESSION_CHARS``) such as
     ``'-pi/2'``; digit separators (``'1_000'``) are refused, since YAML readers disagree on them."""
@@ -79,6 +82,8 @@ def parse_number(value, field: str) -> float:
         if "_" in value:
             raise UnitError(f"{field}: {value[:40]!r}: digit separators '_' are not accepted in a number; write it "
                             f"without them")
+        if _TIMESTAMP.match(value.strip()):
+            raise UnitError(f"{field}: {value[:40]!r} is a date (YAML reads it as one), not a number")
         try:
             tree = ast.parse(value.strip(), mode="eval")
         except (SyntaxError, ValueError):
