@@ -105,3 +105,15 @@ def test_a_budget_for_another_robot_says_so_before_its_fields(gao, tmp_path):
                  "tolerances: {shoulder_pan_joint.offset: 0.1, shoulder_pan_joint.x: 0.01}\n")
     with pytest.raises(BudgetError, match=r"this budget is for robot 'ur10', not 'gao2023_7dof'$"):
         load_budget(p, gao)
+
+
+def test_a_tolerance_no_part_is_made_to_is_refused(gao, tmp_path):
+    from tolerance_ros.core.budget import BudgetError, load_budget
+    path = tmp_path / "b.yaml"
+    path.write_text("robot: gao2023_7dof\nunits: {length: m, angle: rad}\ntolerances: {a1: 1e300}\ndefault: 0\n")
+    with pytest.raises(BudgetError, match=r"tolerances.a1: 1e\+300 is beyond 1 m"):
+        load_budget(path, gao)
+    path.write_text("robot: gao2023_7dof\nunits: {length: mm, angle: rad}\nlimit: {position: 2001-12-14}\n"
+                    "tolerances: {a1: 0.05}\ndefault: 0\n")
+    with pytest.raises(BudgetError, match="is a date"):
+        load_budget(path, gao)

@@ -122,3 +122,12 @@ def test_a_campaign_is_checked_against_the_restrictions_it_was_planned_under(gao
     p.write_text(yaml.safe_dump(data))
     with pytest.raises(CampaignError, match=r"restrictions: unknown key\(s\) \['floor'\]"):
         load_campaign(p, gao)
+
+
+def test_a_campaign_of_a_trillion_cycles_or_a_dated_dwell_is_refused(gao, tmp_path):
+    from tolerance_ros.core.campaign import CampaignError, load_campaign
+    path = tmp_path / "c.yaml"
+    for extra, message in (("cycles: 1000000000000", "at most 100000"), ("dwell: 2001-12-14", "is a date")):
+        path.write_text(f"name: c\nrobot: gao2023_7dof\n{extra}\nposes:\n  - {{name: P1, joints: [0, 0, 0, 0, 0, 0, 0]}}\n")
+        with pytest.raises(CampaignError, match=message):
+            load_campaign(path, gao)

@@ -32,6 +32,9 @@ from .yamlio import read_json, read_yaml
 _KEYS = {"robot", "units", "limit", "criterion", "tolerances", "free", "default", "source", "meta"}
 
 
+MAX_TOLERANCE = {"length": 1.0, "angle": 3.141592653589793}  # m, rad: the largest tolerance a budget may give
+
+
 class BudgetError(ValueError):
     """An invalid budget file or a budget that does not fit the robot; the message names the field."""
 
@@ -143,6 +146,10 @@ def budget_from_dict(data, kinds=None, field_prefix="") -> Budget:
         if scaled_units and kind is None:
             raise BudgetError(f"{f}tolerances.{name}: cannot tell whether it is a length or an angle")
         tolerances[str(name)] = v * (as_ if kind == "angle" else ls)
+        top = MAX_TOLERANCE["angle" if kind == "angle" else "length"]
+        if tolerances[str(name)] > top:
+            raise BudgetError(f"{f}tolerances.{name}: {value!r} is beyond {top:g} {'rad' if kind == 'angle' else 'm'}; "
+                              f"no part is made that loosely (a unit mistake?)")
     limit = data.get("limit") or {}
     if not isinstance(limit, dict):
         raise BudgetError(f"{f}limit: expected a mapping like {{position: 1.4}}")

@@ -32,6 +32,7 @@ from .resources import resolve
 from .units import UnitError, angle_scale, length_scale, parse_number
 from .yamlio import read_yaml
 
+MAX_CYCLES = 100_000  # visits of each test pose: ISO 9283 asks 30; more than this is a slip
 _KEYS = {"name", "robot", "units", "cycles", "dwell", "order", "poses", "description", "source", "notes",
          "restrictions"}
 
@@ -114,6 +115,8 @@ def campaign_from_dict(data, dof=None, model=None) -> Campaign:
     cycles = data.get("cycles", 30)
     if not isinstance(cycles, int) or isinstance(cycles, bool) or cycles < 1:
         raise CampaignError(f"cycles: expected a positive integer, got {cycles!r}")
+    if cycles > MAX_CYCLES:
+        raise CampaignError(f"cycles: {cycles} visits of each pose; a campaign has at most {MAX_CYCLES}")
     dwell = data.get("dwell", 2.0)
     try:
         dwell = parse_number(dwell, "dwell")
