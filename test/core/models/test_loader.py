@@ -109,3 +109,13 @@ def test_a_kind_that_is_not_a_name_is_the_models_error(tmp_path, kind):
     p = _write(tmp_path, GOOD.replace("kind: dh", f"kind: {kind}"))
     with pytest.raises(ModelError, match=rf"^{p}: kind: expected one of \['3pups', 'dh', 'urdf'\]"):
         load_robot(p)
+
+
+def test_unknown_keys_of_a_3pups_robot_file_are_named(tmp_path):
+    import yaml
+    from tolerance_ros.core.models import ModelError, load_robot
+    doc = yaml.safe_load(open("config/robots/rong2018_3pups.yaml"))
+    doc["colour"] = "red"
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(ModelError, match=r"robot: unknown key\(s\) \['colour'\]"):
+        load_robot(tmp_path / "p.yaml")

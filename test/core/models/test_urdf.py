@@ -294,3 +294,17 @@ def test_corrected_origins_round_trip_through_the_urdf_exactly(seed, tmp_path):
     np.testing.assert_allclose(want, base_matrix(base) @ chain.fk(q, dx), atol=1e-13, rtol=0)
     np.testing.assert_allclose(pin_fk(calibrated_urdf_text(chain, text, dx, base), chain.tip_link, chain, q), want,
                                atol=1e-13, rtol=0)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t.replace('<limit lower="-3.1416" upper="3.1416" effort="1" velocity="1"/></joint>\n  <joint name="joint_2"',
+                         '<limit lower="0.5" upper="0.5" effort="1" velocity="1"/></joint>\n  <joint name="joint_2"'),
+     "joint 'joint_1'.*leave it no motion"),
+    (lambda t: t.replace('<parent link="link2"/><child link="link3"/>', '<parent link="link3"/><child link="link3"/>'),
+     "joint 'joint_3' has link 'link3' as both its parent and its child")])
+def test_a_joint_that_cannot_move_or_is_its_own_parent_is_refused(edit, message):
+    text = FANUC.read_text()
+    edited = edit(text)
+    assert edited != text
+    with pytest.raises(ModelError, match=message):
+        URDFChain(edited)

@@ -475,7 +475,7 @@ def write_calibrated_robot(model: Mechanism, cal: Calibration, out_dir) -> dict:
         urdf.write_text(calibrated_urdf_text(model, Path(model.source).read_text(), cal.dx, cal.base))
         files = {"urdf": str(urdf)}
         cfg = getattr(model, "config_path", None)
-        data = yaml.safe_load(Path(cfg).read_text()) if cfg and Path(cfg).suffix in (".yaml", ".yml") else \
+        data = read_yaml(cfg, CalibrationError) if cfg and Path(cfg).suffix in (".yaml", ".yml") else \
             {"name": model.name, "kind": "urdf"}
         data.update(urdf=urdf.name, tip_link=model.tip_link, base_link=model.base_link)
         path = out_dir / f"{model.name}_calibrated.yaml"
@@ -497,7 +497,7 @@ def calibrated_dh_yaml(model: DHChain, dx, base) -> str:
     dx = np.asarray(dx, float)
     cfg = getattr(model, "config_path", None)
     if cfg:
-        data = yaml.safe_load(Path(cfg).read_text())
+        data = read_yaml(cfg, CalibrationError)
     else:
         data = {"name": model.name, "kind": "dh", "convention": model.convention,
                 "units": {"length": "m", "angle": "rad"},

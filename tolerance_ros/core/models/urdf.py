@@ -138,6 +138,11 @@ class URDFChain(CompiledChain):
                     lim = xml.find("limit")
                     raise ModelError(f"urdf ({source}): joint {jname!r}: <limit lower=\"{lim.get('lower')}\" "
                                      f"upper=\"{lim.get('upper')}\">: the lower limit is above the upper one")
+                lim = xml.find("limit")
+                if lim is not None and lim.get("lower") is not None and lim.get("upper") is not None and lo == hi:
+                    raise ModelError(f"urdf ({source}): joint {jname!r}: <limit lower=\"{lim.get('lower')}\" "
+                                     f"upper=\"{lim.get('upper')}\">: a {jtype} joint whose limits leave it no motion; "
+                                     f"give its range, or make it a fixed joint")
                 if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
                     if jtype == "prismatic":
                         raise ModelError(f"urdf: prismatic joint {jname!r} needs finite <limit lower upper>")
@@ -356,6 +361,9 @@ def _check_tree(joints, source):
         if p is None or c is None:
             continue  # urdfdom names the joint
         child = c.get("link")
+        if child == p.get("link"):
+            raise ModelError(f"urdf ({source}): joint {j.get('name')!r} has link {child!r} as both its parent and its "
+                             f"child")
         if child in parent:
             raise ModelError(f"urdf ({source}): link {child!r} is the child of two joints, {parent[child][0]!r} "
                              f"and {j.get('name')!r}; every link has one parent joint")
