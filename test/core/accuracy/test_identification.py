@@ -246,3 +246,27 @@ def test_identify_reaches_the_optimum_scipy_finds_on_a_urdf_arm_with_targets_and
     cost = _scipy_cost(model, q[rows], Tb, ident, prior, targets, idx, g[rows], cmask)
     assert ident.convergence.cost == pytest.approx(cost, rel=1e-9)
     assert ident.compliance[2] == pytest.approx(2e-7, rel=0.2)
+
+
+@pytest.mark.parametrize("regularised", [False, True])
+def test_leverages_are_the_fits_hat_matrix(gao, truth, regularised):
+    """Each row's leverage is its share of the hat matrix: over the fitted rows (position only) they sum to the
+    effective number of unknowns; a row left out gets the leverage of its prediction, h_out, which is
+    h / (1 - h) of its leverage h in the fit of every row (Sherman-Morrison)."""
+    delta, dx, q, T = truth
+    q, T = q[:60], T[:60]
+    Tb = register(gao.fk(q), T).to_base(T)
+    delta = delta if regularised else None
+    ident = identify(gao, q, Tb, delta, 1e-5, hold="dependent", noise_from_residuals=True)
+    h = ident.row_leverage
+    assert np.all((h >= 0) & (h < 1))
+    assert 3 * h.sum() == pytest.approx(ident.effective_unknowns, rel=1e-9)
+    i = 17
+    w = np.ones(len(q))
+    w[i] = 0.0
+    out = identify(gao, q, Tb, delta, 1e-5, hold=ident.held, noise_from_residuals=True, weights=w, start=ident)
+    keep = np.flatnonzero(w > 0)
+    assert 3 * out.row_leverage[keep].sum() == pytest.approx(out.effective_unknowns, rel=1e-9)
+    # left out: h_out / (1 + h_out) is the leverage the row has in the fit of every row (Sherman-Morrison, per axis
+    # averaged; equal to first order in the small leverages of a 60-pose fit)
+    assert out.row_leverage[i] / (1 + out.row_leverage[i]) == pytest.approx(ident.row_leverage[i], rel=0.03)

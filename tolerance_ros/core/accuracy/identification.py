@@ -60,6 +60,7 @@ class Identification:
     compliance_std: np.ndarray | None = None
     compliance_held: list = field(default_factory=list)
     row_residuals: np.ndarray | None = None
+    row_leverage: np.ndarray | None = None
     weights: np.ndarray | None = None
     n_free: int = 0
     x: np.ndarray | None = None
@@ -569,10 +570,20 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
         ident.compliance_std[layout.cmask] = np.sqrt(np.maximum(np.diag(cov)[layout.c], 0.0))
         ident.compliance_held = [model.joint_names[j] for j, h in zip(np.flatnonzero(layout.cmask), held[layout.c])
                                  if h]
-    ident.row_residuals = _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity)[2]
+    J_all, _, ident.row_residuals = _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity)
+    ident.row_leverage = _leverage(J_all.reshape(n, -1, layout.n)[:, :3, free] * sf, Hinv, w)
     ident.weights = w
     ident.n_free = int(len(free))
     return ident
+
+
+def _leverage(Jp, Hinv, w) -> np.ndarray:
+    """(n,) leverage of each measurement's position rows ``Jp`` (n, 3, k) (scaled, unweighted) in the fit whose
+    inverse normal matrix is ``Hinv`` (k, k): the mean over its 3 rows of ``w j Hinv j^T``, the share of its
+    residual the fit absorbs (a fitted row's residual has variance ``(1 - h) sigma^2``); for a row left out
+    (``w`` 0) the unweighted figure, by which its residual, a prediction, is larger (``(1 + h) sigma^2``)."""
+    h = np.einsum("nik,kl,nil->n", Jp, Hinv, Jp) / 3.0
+    return np.where(w > 0, w * h, h)
 
 
 def _preference(model, layout, cols) -> np.ndarray:

@@ -10,8 +10,11 @@ residuals, fit again); the registration carries no prior unless ``FitOptions.reg
 Robust: the outliers are judged with the residuals of this fit itself, never inherited from a stiffer
 model: fit, reject the measurements whose position residual exceeds ``REJECT`` robust sigmas (the median
 residual over that of a 3-D normal error, never below the tracker's noise), fit again, until the set is
-stable (at most ``MAX_REJECTED`` of the measurements). A rejection that would change which parameters
-are identifiable is not made: those measurements are kept and listed as ``suspect``. SI throughout.
+stable. Each residual is first divided by its own spread: a fitted row's by ``sqrt(1 - h)`` (the fit absorbs
+its leverage ``h``), a row left out by ``sqrt(1 + h)`` (its residual is a prediction), so that a row is
+judged alike in or out of the fit and a good row once rejected comes back. At most ``MAX_REJECTED`` of the
+measurements are rejected; a rejection that would change which parameters are identifiable is not made:
+those measurements are kept and listed as ``suspect``. SI throughout.
 """
 from __future__ import annotations
 
@@ -126,6 +129,12 @@ class Fit:
     def converged(self) -> bool:
         return self.ident.convergence is None or self.ident.convergence.converged
 
+    @property
+    def row_thresholds(self) -> np.ndarray:
+        """(n,) each measurement's rejection threshold on its position residual (m): ``threshold`` times its
+        residual's share of the noise (``_spread``)."""
+        return self.threshold * _spread(self.ident, self.rejected)
+
 
 def estimate_sets(model: Mechanism, which: str, gravity):
     """(names of the parameters to estimate, (dof,) mask of the compliances to estimate or None)."""
@@ -153,8 +162,19 @@ def prior_vector(model: Mechanism, prior) -> np.ndarray | None:
     return delta
 
 
+def _spread(ident, rejected) -> np.ndarray:
+    """(n,) standard deviation of each measurement's residual in units of the noise: ``sqrt(1 - h)`` for a fitted
+    row (the fit absorbs its share ``h``, its leverage), ``sqrt(1 + h)`` for a row left out (its residual is a
+    prediction); ones without leverages."""
+    h = getattr(ident, "row_leverage", None)
+    if h is None:
+        return np.ones(len(rejected))
+    return np.sqrt(np.where(rejected, 1.0 + h, np.maximum(1.0 - h, 1e-6)))
+
+
 def _judge(r, rejected, sigma_position):
-    """(rows beyond the threshold (n,), threshold m) of position residuals ``r`` (n,) m."""
+    """(rows beyond the threshold (n,), threshold m) of standardised position residuals ``r`` (n,) m (each
+    divided by its ``_spread``, so that a row is judged alike whether it is in the fit or left out of it)."""
     n = len(r)
     kept = r[~rejected] if np.any(~rejected) else r
     sigma = np.median(kept) / CHI3_MEDIAN
@@ -206,7 +226,7 @@ def fit(model: Mechanism, data: FitData, which: str, prior, opts: FitOptions, an
         new_noise = max(ident.sigma, sigma) if delta is not None else noise
         new = rejected
         if opts.robust:
-            new, threshold = _judge(ident.row_residuals, rejected, sigma)
+            new, threshold = _judge(ident.row_residuals / _spread(ident, rejected), rejected, sigma)
             new &= ~suspect
         if np.array_equal(new, rejected) and abs(new_noise / noise - 1.0) < NOISE_SETTLED:
             break
