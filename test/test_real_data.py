@@ -107,7 +107,7 @@ def test_five_percent_of_the_training_rows_off_by_5_to_50_mm_barely_move_the_pre
     model = load_robot(URDF, tip_link="wrist_ft_tool_link")
     train, validation = read_csv(files["train"]), read_csv(files["validation"])
     clean = predict_measurements(load_calibration(tmp / "cal" / "calibration.yaml", model), model, validation)
-    for seed in (0, 1, 2):
+    for seed in (0, 1, 2, 3):  # seed 3: one row off by 38 mm, one by 10 mm (within the stiffest model's noise)
         rng = np.random.default_rng(seed)
         bad = train.select(np.arange(len(train)))
         rows = rng.choice(len(train), 2, replace=False)            # 5 % of 37

@@ -110,22 +110,33 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, options: FitOptions |
             fits[label] = fit(model, data, which, pr, opts, analysis=False)
         except (ValueError, np.linalg.LinAlgError):
             continue
-    # a row is left out of the comparison only when every candidate leaves it out (an outlier to every model),
-    # so that a stiff model's misfits neither leave the flexible models' best poses unscored nor favour a model
-    exclude = np.ones(n, bool) if fits else np.zeros(n, bool)
-    for f in fits.values():
-        exclude &= f.rejected
-    scores, validations = [], {}
+    scores, validations, errors = [], {}, {}
     folds = Folds(model, data, groups, opts)
     for step, (label, which, pr) in enumerate(todo):
         if progress is not None:
             progress(step, len(todo) + 1)
         try:
-            validations[label] = validate(model, data, groups, which, pr, opts, pose_names, exclude, folds)
+            validations[label] = validate(model, data, groups, which, pr, opts, pose_names, None, folds)
         except (ValueError, np.linalg.LinAlgError) as exc:
-            scores.append({"label": label, "parameters": which, "prior": pr, "error": str(exc)})
+            errors[label] = str(exc)
+    # a row is left out of the comparison only when every candidate judges it an outlier, by its fit of all the
+    # data or by its prediction of the row held out: an overfitting candidate that absorbs an outlier still
+    # predicts it badly, and a stiff model's misfits neither leave the flexible models' best poses unscored
+    # nor favour a model
+    exclude = np.zeros(n, bool)
+    if validations:
+        exclude[:] = True
+        for label, v in validations.items():
+            judged = np.zeros(n, bool)
+            judged[v["outliers"]] = True
+            if label in fits:
+                judged |= fits[label].rejected
+            exclude &= judged
+    for label, which, pr in todo:
+        if label in errors:
+            scores.append({"label": label, "parameters": which, "prior": pr, "error": errors[label]})
             continue
-        v = validations[label]
+        v = validations[label] = kept_figures(validations[label], exclude)
         scores.append({"label": label, "parameters": which, "prior": None if pr is None else list(pr),
                        "cv_position_rms_m": score(v), "cv_position_max_m": (v.get("after_kept") or v["after"])[
                            "position_max_m"], "unknowns": v["unknowns"], "not_converged_folds": v["not_converged"]})
@@ -251,13 +262,13 @@ def _row_list(fitted, mask, stamps, labels, names, idx, kind) -> list:
     """The measurements of ``mask`` with their residuals and the reason: rejected (beyond the threshold) or
     suspect (beyond it, kept: their removal would change what is identifiable)."""
     out = []
-    r = fitted.ident.row_residuals
+    r, limit = fitted.ident.row_residuals, fitted.row_thresholds
     for i in np.flatnonzero(mask):
-        reason = (f"position residual {r[i] * 1e3:.4g} mm exceeds {fitted.threshold * 1e3:.4g} mm ({REJECT:g} robust "
-                  f"standard deviations of the fit)")
+        reason = (f"position residual {r[i] * 1e3:.4g} mm exceeds {limit[i] * 1e3:.4g} mm ({REJECT:g} robust "
+                  f"standard deviations of the fit, at this row)")
         if kind == "suspect":
             reason += "; kept, because leaving it out would change which parameters are identifiable"
-        entry = {"row": int(i), "target": names[idx[i]], "residual_m": float(r[i]), "threshold_m": fitted.threshold,
+        entry = {"row": int(i), "target": names[idx[i]], "residual_m": float(r[i]), "threshold_m": float(limit[i]),
                  "reason": reason}
         if stamps is not None:
             entry["stamp"] = float(stamps[i])
