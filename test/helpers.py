@@ -29,6 +29,9 @@ def fd_jacobian(fk, p0, h=1e-6):
     return np.stack(cols, axis=2)
 
 
+XARM7_URDF = Path(__file__).parent / "data" / "xarm7" / "xarm7.urdf"  # vendored: example-robot-data < 4.4 lacks it
+
+
 def example_urdf(name: str) -> Path:
     """Path of a URDF shipped by the PyPI package example-robot-data (e.g. 'ur5_robot.urdf')."""
     for f in importlib.metadata.files("example-robot-data") or []:

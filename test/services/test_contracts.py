@@ -104,7 +104,8 @@ def test_budget_messages(gao):
     only_a1 = json.dumps({"robot": "gao2023_7dof", "budget": {"tolerances": {"a1": 1e-4}}})
     with pytest.raises(ContractError, match="no tolerance for"):
         budget_from_message(only_a1, {"gao2023_7dof": gao})
-    for name, value, needle in (("a1", 1e308, "a1: 1e+308 is outside [0, 1]"), ("alpha1", 4.0, "alpha1: 4 is outside"),
+    for name, value, needle in (("a1", 1e308, "a1: 1e+308 is beyond 1 m"), ("alpha1", 4.0, "alpha1: 4.0 is beyond 3.14159 rad"),
+                                ("a1", -1e-3, "a1: must be >= 0"),
                                 ("a1", "1+" * 30000 + "1", "more than 100 characters"),
                                 ("a1", "1" + "0" * 400, "more than 100 characters")):
         doc = budget.to_dict()

@@ -6,7 +6,7 @@ import shutil
 import numpy as np
 import pytest
 
-from helpers import example_urdf
+from helpers import XARM7_URDF, example_urdf
 from tolerance_ros.core.accuracy import checks
 from tolerance_ros.core.accuracy.evaluation import evaluate_file
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_targets
@@ -25,7 +25,7 @@ NOISE = 20e-6
 
 @pytest.fixture(scope="module")
 def xarm():
-    return URDFChain(example_urdf("xarm7.urdf"))
+    return URDFChain(XARM7_URDF)
 
 
 @pytest.fixture(scope="module")
@@ -165,7 +165,7 @@ def test_validate_says_when_orientation_is_not_scored(xarm, poses, calibrated):
 def test_a_moved_calibration_folder_says_to_give_the_robot(xarm, calibrated, tmp_path):
     cal, _ = calibrated
     (tmp_path / "robot").mkdir()
-    shutil.copy(example_urdf("xarm7.urdf"), tmp_path / "robot" / "xarm7.urdf")
+    shutil.copy(XARM7_URDF, tmp_path / "robot" / "xarm7.urdf")
     cal.sources = dict(cal.sources, robot="../robot/xarm7.urdf")
     save_calibration(cal, tmp_path / "cal" / "calibration.yaml")
     assert calibration_robot(tmp_path / "cal" / "calibration.yaml").name == xarm.name
