@@ -36,7 +36,6 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import multiprocessing  # noqa: E402
-import platform  # noqa: E402
 import signal  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -44,7 +43,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT)]  # run from a checkout without installing
+sys.path[:0] = [str(ROOT), str(ROOT / "bench")]  # run from a checkout without installing
 
 from hypothesis import HealthCheck, Phase, given, seed, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
@@ -54,13 +53,14 @@ from tolerance_ros.testing.fuzz_corpus import (ENCODINGS, NESTED_ID, UNKNOWN, al
 from tolerance_ros.testing.schemas import validator  # noqa: E402
 from tolerance_ros.core.jsonio import dumps_fast, loads_strict  # noqa: E402
 from tolerance_ros.services.contracts import CODES  # noqa: E402
+from fuzz_inputs import EXAMPLES, SLOW_S, entry_points, fuzz_cases, print_cases  # noqa: E402
+from fuzz_soak import SOAK_CHUNK, rss_of_process, soak  # noqa: E402
+from machine import load_average, machine  # noqa: E402
 
 SERVICES = ("compute_error_jacobian", "allocate_tolerances")
-SLOW_S = 1.0
 LATE_S = 0.5   # a final allocation answer may come at most this long after its time_limit
 WARM = 500     # requests of a batch before its memory is taken as warmed up
 SOLVES = "(a solve of this batch)"  # what the answers of the allocator's solves answer
-EXAMPLES = 3  # failures kept per kind and batch, to show
 
 
 def ros_available() -> bool:
@@ -133,7 +133,6 @@ class Target:
 
     def _emit(self, kind, doc):
         if kind == "response":
-            from tolerance_ros.core.jsonio import dumps_fast
             self.pending.append(dumps_fast(doc))
 
     def send(self, text):
@@ -271,368 +270,6 @@ def run_batch(service, n, batch_seed, use_ros, conn):
     conn.close()
 
 
-class Unusable(Exception):
-    """An input taken although it had to be refused, or that gave something unusable."""
-
-
-OUTCOMES = ("accepted", "refused", "escaped", "unusable")
-"""What a reader or entry point did with one input: took it (and what it gave is usable), refused it with its
-own error (a reader's naming the file), let another exception out (or an error that does not name the file),
-or took it and gave something unusable (non-finite numbers, a broken log)."""
-
-
-def entry_points():
-    """name -> (strategy of inputs, make() -> handle(case) returning 'accepted' or 'refused'): every entry point
-    of the services besides the two JSON requests, as the nodes call them."""
-    import numpy as np
-    from tolerance_ros.testing.fuzz_corpus import (PAYLOADS, budget_messages, joint_states, measured_poses, must_refuse, names_twice,
-                             urdf_text)
-    from helpers import example_urdf
-    from tolerance_ros.core.budget import load_budget
-    from tolerance_ros.core.ingest import IngestError
-    from tolerance_ros.core.models import ModelError, URDFChain, load_robot
-    from tolerance_ros.services.contracts import ContractError, budget_from_message
-    from tolerance_ros.services.error_model import ErrorModelService
-    from tolerance_ros.services.joint_source import JointStateSequence
-    from tolerance_ros.services.monitor import MonitorLogic
-    from tolerance_ros.services.robots import RobotSet
-    from tolerance_ros.services.tracker import SimulatedTracker
-
-    gao = load_robot("gao2023_7dof")
-    budget = load_budget("gao2023_delta2", gao)
-
-    def monitor():
-        tmp = tempfile.mkdtemp()
-        mon = MonitorLogic(gao, budget, None, slop=0.05, max_wait=0.0, log_path=Path(tmp) / "log.jsonl")
-
-        def handle(case):
-            state, pose = case
-            before = dict(mon.counts)
-            mon.on_joint_state(*state)
-            mon.on_pose(*pose)
-            mon.resolve()
-            dumps_fast(mon.report())
-            c = mon.counts
-            if c["received"] != c["paired"] + c["unpaired"] + c["rejected"] + len(mon.pending):
-                raise Unusable("the counts do not add up")
-            if names_twice(state[1]) and c["joint_states"] > before["joint_states"]:
-                raise Unusable("took a joint state that names a joint twice")
-            return "refused" if c["rejected"] > before["rejected"] or \
-                c["joint_states_rejected"] > before["joint_states_rejected"] else "accepted"
-        return handle
-
-    def budgets():
-        svc = ErrorModelService({gao.name: gao}, gao.name)
-        mon = MonitorLogic(gao, None, None)
-
-        def handle(case):
-            text, state = case
-            try:
-                _, b = budget_from_message(text, svc.models)
-            except ContractError:
-                return "refused"
-            svc.current_budget = b
-            mon.set_budget(b)
-            bound = svc.bound_at(*state[1:], stamp=state[0])
-            finite = bound is None or np.isfinite([bound["position_bound_m"], bound["orientation_bound_rad"]]).all()
-            return "accepted" if finite else "unusable"
-        return handle
-
-    def bound():
-        svc = ErrorModelService({gao.name: gao}, gao.name)
-        svc.current_budget = budget
-
-        def handle(state):
-            b = svc.bound_at(state[1], state[2], stamp=state[0])
-            if b is None:
-                return "refused"
-            if names_twice(state[1]):
-                raise Unusable("bound at a joint state that names a joint twice")
-            return "accepted" if np.isfinite([b["position_bound_m"], b["orientation_bound_rad"]]).all() else "unusable"
-        return handle
-
-    def tracker():
-        sim = SimulatedTracker(gao, budget.vector_for(gao))
-
-        def handle(state):
-            try:
-                T = sim.on_joint_state(state[1], state[2])
-            except IngestError:
-                return "refused"
-            if names_twice(state[1]):
-                raise Unusable("measured at a joint state that names a joint twice")
-            return "accepted" if np.isfinite(T).all() else "unusable"
-        return handle
-
-    def description():
-        robots = RobotSet(["robot_description"], "robot_description", tip_link="tool0")
-        same = Path(tempfile.mkdtemp()) / "same.urdf"
-
-        def handle(text):
-            same.write_text(text, encoding="utf-8", errors="surrogatepass")
-            try:
-                URDFChain(same, tip_link="tool0")
-                from_file = "accepted"
-            except ModelError:
-                from_file = "refused"
-            try:
-                robots.on_description(text)
-            except (ModelError, ContractError):
-                outcome = "refused"
-            else:
-                m = robots.single()
-                if not np.isfinite(m.fk(m.joint_limits.mean(axis=1)[None])).all():
-                    raise Unusable("non-finite poses")
-                if must_refuse(text.encode("utf-8", "surrogatepass"), "urdf"):
-                    raise Unusable(f"accepted {must_refuse(text.encode('utf-8', 'surrogatepass'), 'urdf')}")
-                outcome = "accepted"
-            if outcome != from_file:
-                raise Unusable(f"robot_description {outcome}, the same text from a file {from_file}")
-            return outcome
-        return handle
-
-    def source():
-        seq = JointStateSequence(gao, "random", count=5, dwell=0.5, loop=True)
-
-        def handle(t):
-            try:
-                return "accepted" if np.isfinite(seq.at(t)[2]).all() else "unusable"
-            except ValueError:
-                return "refused" if not math.isfinite(t) else "escaped"
-        return handle
-
-    def payloads():
-        svc = ErrorModelService({gao.name: gao}, gao.name)
-
-        def handle(payload):
-            code = loads_strict(svc.handle_text(payload))["error"]["code"]
-            return "refused" if code in ("invalid_request", "invalid_json") else "escaped"
-        return handle
-
-    doc = budget.to_dict()
-    return {"monitor: joint state + measured pose": (st.tuples(joint_states(), measured_poses()), monitor),
-            "tolerance_budget message, then a bound": (st.tuples(budget_messages(doc), joint_states()), budgets),
-            "predicted bound at a joint state": (joint_states(), bound),
-            "simulated tracker: joint state": (joint_states(), tracker),
-            "robot_description (URDF text)": (urdf_text(example_urdf("ur5_robot.urdf").read_text()), description),
-            "joint-state source: time": (st.floats(), source),
-            "request that is not text": (st.sampled_from(PAYLOADS), payloads)}
-
-
-def run_cases(kind, name, n, batch_seed, conn):
-    """Child process: ``n`` generated inputs of one file reader (kind 'reader') or entry point ('entry')."""
-    from tolerance_ros.core.models import warm_up_kernels
-    warm_up_kernels()  # as every node does at start
-    stats = {"inputs": 0, "slow": 0, "max_s": 0.0, "examples": {}, **{o: 0 for o in OUTCOMES}}
-    with tempfile.TemporaryDirectory() as tmp:
-        if kind == "reader":
-            from tolerance_ros.testing.fuzz_corpus import readers
-            reader = readers()[name]
-            strategy, path = reader.files, Path(tmp) / f"input{reader.suffix}"
-
-            def handle(data):
-                path.write_bytes(data)
-                try:
-                    result = reader.read(path)
-                except reader.error as exc:
-                    return "refused" if str(path) in str(exc) else "escaped"
-                if reader.refuse(data):  # read what it had to refuse
-                    raise Unusable(f"accepted {reader.refuse(data)}")
-                try:
-                    reader.check(result)
-                except Exception as exc:  # what it read is not usable
-                    raise Unusable(f"{type(exc).__name__}: {exc}") from None
-                return "accepted"
-        else:
-            strategy, make = entry_points()[name]
-            handle = make()
-
-        @seed(batch_seed)
-        @settings(max_examples=n, database=None, phases=[Phase.generate], deadline=None,
-                  suppress_health_check=list(HealthCheck))
-        @given(strategy)
-        def fuzz(case):
-            stats["inputs"] += 1
-            t0 = time.perf_counter()
-            try:
-                outcome = handle(case)
-            except Unusable as exc:
-                outcome, detail = "unusable", str(exc)
-            except Exception as exc:  # escaped the reader or the entry point
-                outcome, detail = "escaped", f"{type(exc).__name__}: {exc}"
-            else:
-                detail = outcome
-            elapsed = time.perf_counter() - t0
-            stats[outcome] += 1
-            if outcome in ("escaped", "unusable"):
-                shown = stats["examples"].setdefault(outcome, [])
-                if len(shown) < EXAMPLES:
-                    shown.append({"input": repr(case)[:300], "detail": detail[:300]})
-            stats["max_s"] = max(stats["max_s"], elapsed)
-            if elapsed > SLOW_S:
-                stats["slow"] += 1
-
-        fuzz()
-    conn.send(stats)
-    conn.close()
-
-
-def fuzz_cases(kind, name, n, batch, ctx):
-    """All batches of one reader or entry point; the summed counts, crashes and hangs."""
-    total = {"inputs": 0, "slow": 0, "max_s": 0.0, "crashes": [], "hangs": 0, "examples": {},
-             **{o: 0 for o in OUTCOMES}}
-    left, index, started = n, 0, time.monotonic()
-    while left > 0:
-        m = min(batch, left)
-        receive, send = ctx.Pipe(duplex=False)
-        child = ctx.Process(target=run_cases, args=(kind, name, m, ARGS.seed * 1000 + index, send))
-        child.start()
-        send.close()
-        try:
-            stats = receive.recv() if receive.poll(60 + m * 1.0) else None
-        except EOFError:
-            stats = None
-        if child.is_alive() and stats is None:
-            total["hangs"] += 1
-            child.kill()
-        child.join(30)
-        if stats is None:
-            total["inputs"] += m
-            total["crashes"].append(f"batch {index}: {child.exitcode}")
-        else:
-            for key in ("inputs", "slow", *OUTCOMES):
-                total[key] += stats[key]
-            total["max_s"] = max(total["max_s"], stats["max_s"])
-            for k, shown in stats["examples"].items():
-                total["examples"].setdefault(k, []).extend(shown)
-        left -= m
-        index += 1
-    total["wall_s"] = time.monotonic() - started
-    print(f"  {name}: {total['inputs']} inputs, {total['wall_s']:.0f} s", file=sys.stderr, flush=True)
-    return total
-
-
-def print_cases(title, results) -> bool:
-    """A table of readers or entry points; True when any input escaped, crashed, hung or gave something
-    unusable, or took longer than SLOW_S."""
-    width = max(len(name) for name in results)
-    slow = f"slower than {SLOW_S:g} s (max)"
-    print(f"\n| {title:{width}} | inputs | accepted | refused | escaped | unusable | crashes / hangs | {slow} |")
-    print(f"|{'-' * (width + 2)}|-------:|---------:|--------:|--------:|---------:|----------------:|"
-          f"{'-' * (len(slow) + 1)}:|")
-    bad = False
-    for name, r in results.items():
-        print(f"| {name:{width}} | {r['inputs']:6d} | {r['accepted']:8d} | {r['refused']:7d} | {r['escaped']:7d} | "
-              f"{r['unusable']:8d} | {len(r['crashes']) :>7d} / {r['hangs']:<5d} | "
-              f"{str(r['slow']) + ' (' + format(r['max_s'] * 1e3, '.1f') + ' ms)':>{len(slow)}} |")
-        bad = bad or bool(r["escaped"] or r["unusable"] or r["crashes"] or r["hangs"] or r["slow"])
-        for k, shown in r["examples"].items():
-            for example in shown[:EXAMPLES]:
-                print(f"{name}: {k}: {json.dumps(example)}")
-    return bad
-
-
-SOAK_CHUNK = 1_000
-
-
-def rss_of_process():
-    """Resident memory of this process, MB (None where /proc is not there)."""
-    try:
-        return next(int(line.split()[1]) / 1024 for line in Path("/proc/self/status").read_text().splitlines()
-                    if line.startswith("VmRSS"))
-    except (OSError, StopIteration):
-        return None
-
-
-def run_soak(service, n, conn):
-    """Child process: ``n`` generated requests through one service's logic in chunks of SOAK_CHUNK, each chunk
-    generated first and then answered under tracemalloc (the allocator then left to finish its solves): the
-    bytes still held after each chunk, i.e. what the service keeps."""
-    import gc
-    import tracemalloc
-    from tolerance_ros.core.models import warm_up_kernels
-    from tolerance_ros.services.allocation import AllocatorService
-    from tolerance_ros.services.contracts import Limits
-    from tolerance_ros.services.error_model import ErrorModelService
-    from tolerance_ros.services.robots import RobotSet
-    warm_up_kernels()
-    robots = RobotSet(["gao2023_7dof"], "gao2023_7dof")
-    accepted = [0]
-    logic = None
-
-    def emit(kind, doc):  # as bench batches do: ARGS.solve of every 1,000 accepted jobs solved, the others cancelled
-        if kind == "response" and doc.get("status") == "accepted":
-            accepted[0] += 1
-            if accepted[0] % SOAK_CHUNK >= ARGS.solve:
-                logic.handle(json.dumps({"id": "soak-cancel", "command": "cancel", "target": doc["id"]}))
-
-    if service == "compute_error_jacobian":
-        logic = ErrorModelService(robots)
-        handle = logic.handle_text
-    else:
-        logic = AllocatorService(robots, emit, Limits(max_bytes=100_000), max_queue=4,
-                                 max_time_limit_s=ARGS.time_limit)
-        handle = logic.handle
-    kept = []
-    for chunk in range(0, n, SOAK_CHUNK):
-        texts = []
-
-        @seed(ARGS.seed * 1000 + 500 + chunk // SOAK_CHUNK)
-        @settings(max_examples=min(SOAK_CHUNK, n - chunk), database=None, phases=[Phase.generate], deadline=None,
-                  suppress_health_check=list(HealthCheck))
-        @given(st.tuples(jacobian_request() if service == "compute_error_jacobian" else allocate_request(),
-                         st.sampled_from(ENCODINGS)))
-        def generate(case):
-            texts.append(encode(*case))
-
-        generate()
-        tracemalloc.start()
-        for text in texts:
-            handle(text)
-        deadline = time.monotonic() + 4 * ARGS.time_limit * max(ARGS.solve, 1) + 30
-        while service != "compute_error_jacobian" and logic.busy() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        texts.clear()
-        gc.collect()
-        kept.append((tracemalloc.get_traced_memory()[0], rss_of_process()))
-        tracemalloc.stop()
-    if service != "compute_error_jacobian":
-        logic.close()
-    conn.send(kept)
-    conn.close()
-
-
-def soak(service, ctx):
-    """The bytes kept after each chunk of the soak of one service (None if its process died or hung)."""
-    receive, send = ctx.Pipe(duplex=False)
-    child = ctx.Process(target=run_soak, args=(service, ARGS.soak, send))
-    child.start()
-    send.close()
-    try:
-        kept = receive.recv() if receive.poll(120 + ARGS.soak * 0.2) else None
-    except EOFError:
-        kept = None
-    if child.is_alive():
-        child.kill()
-    child.join(30)
-    print(f"  soak of {service}: {ARGS.soak} requests", file=sys.stderr, flush=True)
-    return kept
-
-
-def machine() -> str:
-    cpu = platform.processor() or "unknown CPU"
-    try:
-        cpu = next(line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
-                   if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
-
-
-def load() -> str:
-    return "load average " + " ".join(f"{x:.2f}" for x in os.getloadavg())
-
-
 def fuzz_service(service, use_ros, ctx):
     """All batches of one service; returns the summed counts, crashes and hangs."""
     total = {"requests": 0, "escaped": 0, "internal": 0, "slow": 0, "max_s": 0.0, "schema": 0, "unanswered": 0,
@@ -681,19 +318,20 @@ def fuzz_service(service, use_ros, ctx):
 def main():
     use_ros = ros_available() and not ARGS.no_ros
     ctx = multiprocessing.get_context("fork")
-    print(f"machine: {machine()}; {load()} at the start")
+    print(f"machine: {machine()}; {load_average()} at the start")
     print("through: " + ("the request callbacks of ErrorModelServer and ToleranceAllocator, each node in a "
                          "private rclpy context" if use_ros else "the services' handle_text / handle (no rclpy)"))
     print(f"corpus: tolerance_ros/testing/fuzz_corpus.py, {ARGS.requests} requests per service in batches of {ARGS.batch} "
           f"(one child process each), seed {ARGS.seed}; allocator: {ARGS.solve} accepted job(s) per batch solved "
           f"with a {ARGS.time_limit:g} s limit, the others cancelled")
     results = {s: fuzz_service(s, use_ros, ctx) for s in SERVICES} if ARGS.requests else {}
-    soaks = {s: soak(s, ctx) for s in SERVICES} if ARGS.soak else {}
+    soaks = {s: soak(s, ctx, ARGS.soak, ARGS.seed, ARGS.solve, ARGS.time_limit) for s in SERVICES} if ARGS.soak else {}
     from tolerance_ros.testing.fuzz_corpus import readers
-    files = {name: fuzz_cases("reader", name, ARGS.files // (5 if name.startswith("URDF") else 1), ARGS.batch, ctx)
+    files = {name: fuzz_cases("reader", name, ARGS.files // (5 if name.startswith("URDF") else 1), ARGS.batch, ctx,
+                        ARGS.seed)
              for name in readers()} if ARGS.files else {}
     entries = {name: fuzz_cases("entry", name, ARGS.entries // (5 if name.startswith("robot_desc") else 1),
-                                ARGS.batch, ctx) for name in entry_points()} if ARGS.entries else {}
+                                ARGS.batch, ctx, ARGS.seed) for name in entry_points()} if ARGS.entries else {}
     rows = [("requests", lambda r: f"{r['requests']}"),
             ("process crashes (signals)", lambda r: f"{len(r['crashes'])}"),
             ("batches that hung (killed)", lambda r: f"{r['hangs']}"),
@@ -727,7 +365,7 @@ def main():
     failed = any(kept is None for kept in soaks.values())
     failed = (bool(files) and print_cases("file reader", files)) or failed
     failed = (bool(entries) and print_cases("entry point", entries)) or failed
-    print(f"\n{load()} at the end")
+    print(f"\n{load_average()} at the end")
     for service, r in results.items():
         bad = (r["crashes"] or r["hangs"] or r["escaped"] or r["internal"] or r["schema"] or r["unanswered"]
                or r["late"] or r["wrong_id"])

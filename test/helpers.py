@@ -2,7 +2,6 @@
 private ROS domain for each test process."""
 from __future__ import annotations
 
-import importlib.metadata
 import os
 from pathlib import Path
 
@@ -10,6 +9,7 @@ import numpy as np
 
 from tolerance_ros.core.models import DHChain
 from tolerance_ros.core.geometry import matrix_log_vec, transform
+from tolerance_ros.testing.example_robots import example_urdf  # noqa: F401  (the tests import it from here)
 
 
 def pose_difference(Tp, Tm):
@@ -30,14 +30,6 @@ def fd_jacobian(fk, p0, h=1e-6):
 
 
 XARM7_URDF = Path(__file__).parent / "data" / "xarm7" / "xarm7.urdf"  # vendored: example-robot-data < 4.4 lacks it
-
-
-def example_urdf(name: str) -> Path:
-    """Path of a URDF shipped by the PyPI package example-robot-data (e.g. 'ur5_robot.urdf')."""
-    for f in importlib.metadata.files("example-robot-data") or []:
-        if str(f).endswith("/" + name):
-            return Path(f.locate())
-    raise FileNotFoundError(name)
 
 
 def random_dh(rng, dof=None, convention=None):

@@ -511,7 +511,7 @@ def _build_readers():
     import numpy as np
     import yaml
 
-    from helpers import example_urdf
+    from .example_robots import example_urdf
     from tolerance_ros.core.accuracy.io import MeasurementError, read_csv
     from tolerance_ros.core.budget import BudgetError, load_budget
     from tolerance_ros.core.calibration.writers import CalibrationError, load_calibration
