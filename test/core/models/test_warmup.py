@@ -132,9 +132,9 @@ def test_the_command_line_answers_at_once_on_a_cold_cache_and_says_it_compiles(t
 
 def test_the_compiling_child_runs_at_a_lower_priority(tmp_path):
     """fill_cache lowers its own priority by BACKGROUND_NICENESS before it compiles (the serving processes keep
-    the CPU meanwhile)."""
+    the CPU meanwhile); a process already niced ends at 19, the lowest priority."""
     code = ("import os; from tolerance_ros.core.models import kernels, warmup; before = os.nice(0); "
             "kernels.warm_up = lambda *a, **k: None; warmup.fill_cache(); print(os.nice(0) - before)")
     out = subprocess.run([sys.executable, "-c", code], env=_env(tmp_path), capture_output=True, text=True,
                          check=True)
-    assert int(out.stdout.split()[-1]) == warmup.BACKGROUND_NICENESS
+    assert int(out.stdout.split()[-1]) == min(warmup.BACKGROUND_NICENESS, 19 - os.nice(0))
