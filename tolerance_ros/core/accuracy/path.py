@@ -98,7 +98,8 @@ def cycles_of(p, runs, same: float = SAME):
 
 def corners(p, angle: float = CORNER_ANGLE, arm: float | None = None) -> np.ndarray:
     """(k,) arc lengths (m) of the corners of the polyline ``p`` (n, 3): where the directions over ``arm`` m
-    before and after turn by more than ``angle`` rad, the middle of each such stretch."""
+    before and after turn by more than ``angle`` rad; in each such stretch, the point of the polyline
+    nearest the meeting point of the legs on either side."""
     s = arc_length(p)
     L = s[-1]
     arm = arm or min(5e-3, 0.02 * L)
@@ -117,7 +118,21 @@ def corners(p, angle: float = CORNER_ANGLE, arm: float | None = None) -> np.ndar
     cosang = np.einsum("ij,ij->i", a, b) / np.maximum(na * nb, 1e-300)
     turn = ok & (cosang < np.cos(angle))
     edges = np.flatnonzero(np.diff(np.concatenate([[0], turn.view(np.int8), [0]])))
-    return np.array([0.5 * (grid[i] + grid[j - 1]) for i, j in zip(edges[::2], edges[1::2])])
+    out = []
+    for i, j in zip(edges[::2], edges[1::2]):
+        lo, hi = grid[i] - arm, grid[j - 1] + arm          # the legs meet between lo and hi
+        a0, a1, b0, b1 = at(np.array([lo - arm, lo, hi, hi + arm]))
+        C = _line_meet(a1, (a1 - a0) / np.linalg.norm(a1 - a0), b0, (b1 - b0) / np.linalg.norm(b1 - b0))
+        sel = np.flatnonzero((s >= lo) & (s <= hi))
+        if len(sel) < 2:
+            out.append(0.5 * (lo + hi))
+            continue
+        A, B = p[sel[:-1]], p[sel[1:]]
+        AB = B - A
+        tt = np.clip(np.einsum("ij,ij->i", C - A, AB) / np.maximum(np.einsum("ij,ij->i", AB, AB), 1e-300), 0, 1)
+        k = int(np.argmin(np.linalg.norm(A + tt[:, None] * AB - C, axis=1)))
+        out.append(float(s[sel[k]] + tt[k] * (s[sel[k + 1]] - s[sel[k]])))
+    return np.array(out)
 
 
 def _line_meet(p0, u0, p1, u1) -> np.ndarray:
