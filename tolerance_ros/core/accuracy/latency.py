@@ -43,7 +43,7 @@ class Latency:
 
     latency_s: float
     std_s: float
-    std_curvature_s: float
+    std_curvature_s: float | None
     std_cycles_s: float | None
     std_parts_s: float | None
     per_cycle_s: list
@@ -138,7 +138,7 @@ def estimate_latency(tm, pm, tc, pc, window: float = 0.1, center: float = 0.0, r
     Sm = residual_sum(tau - h, tm[ref_i], pm[ref_i], tc, pc, register, cmd)
     curv = (Sp - 2 * S0 + Sm) / h ** 2
     sigma2 = S0 / max(3 * N - 7, 1)
-    u_curv = float(np.sqrt(2 * sigma2 / curv)) if curv > 0 else float("inf")
+    u_curv = float(np.sqrt(2 * sigma2 / curv)) if curv > 0 else None   # no minimum: nothing is known
     def alone(sets):
         sets = [np.asarray(g, int) for g in sets]
         sets = [g[inside[g]] for g in sets]
@@ -157,7 +157,8 @@ def estimate_latency(tm, pm, tc, pc, window: float = 0.1, center: float = 0.0, r
     u_cyc = float(np.std(per, ddof=1) / np.sqrt(len(per))) if len(per) >= 3 else None
     per_part = alone(parts) if parts is not None else []
     u_part = float(np.std(per_part, ddof=1)) if len(per_part) >= 2 else None
-    return Latency(tau, max(u_curv, u_cyc or 0.0, u_part or 0.0), u_curv, u_cyc, u_part, per, per_part,
+    u = max(u_curv, u_cyc or 0.0, u_part or 0.0) if u_curv is not None else float(window)
+    return Latency(tau, u, u_curv, u_cyc, u_part, per, per_part,
                    float(np.sqrt(S0 / N)), int(len(idx)), float(window), taus.tolist(),
                    np.sqrt(S / len(scan_i)).tolist())
 
