@@ -54,11 +54,12 @@ def speeds(t, p, h: float) -> np.ndarray:
     return np.linalg.norm(d, axis=1) / np.maximum(hi - lo, 1e-12)
 
 
-def motions(t, p, rest_speed: float = 1e-3, min_rest: float = 0.05, min_length: float = 1e-3) -> list:
-    """[(i0, i1)] index ranges (inclusive) of the command's motions: runs of speed above ``rest_speed`` m/s
-    joined across pauses shorter than ``min_rest`` s, at least ``min_length`` m long, with the rest sample
-    at each end."""
-    v = speeds(t, p, 0.0 if len(t) < 3 else float(np.median(np.diff(t))))
+def motions(t, p, rest_speed: float = 1e-3, min_rest: float = 0.05, min_length: float = 1e-3,
+            step: float | None = None) -> list:
+    """[(i0, i1)] index ranges (inclusive) of the command's motions: runs of speed (central differences over
+    ``+-step`` s, default the median sampling interval) above ``rest_speed`` m/s joined across pauses shorter
+    than ``min_rest`` s, at least ``min_length`` m long, with the rest sample at each end."""
+    v = speeds(t, p, step if step is not None else 0.0 if len(t) < 3 else float(np.median(np.diff(t))))
     moving = v > rest_speed
     edges = np.flatnonzero(np.diff(np.concatenate([[0], moving.view(np.int8), [0]])))
     runs = [[a, b - 1] for a, b in zip(edges[::2], edges[1::2])]
@@ -247,34 +248,55 @@ def segment_bounds(length: float, corner_s) -> np.ndarray:
     return np.concatenate([[0.0], np.asarray(corner_s, float), [length]])
 
 
+def _layout(bounds, stations):
+    """(first station's arc length per segment, their span, fractions) of the stations of ``bounds``."""
+    lengths = np.diff(bounds)
+    margin = np.minimum(END_MARGIN, 0.05 * lengths)
+    return bounds[:-1] + margin, lengths - 2 * margin, (np.arange(stations) + 0.5) / stations
+
+
+def cycle_stations(cyc: Cycle, bounds, stations: int = 100, speed_window: float = 0.01) -> dict:
+    """What one cycle contributes to the figures (its stations' attained and command points, tangents and
+    speeds, and each corner's CR and CO), all a path's figures need of it: an on-line monitor keeps this
+    instead of the cycle's samples. ``bounds`` as ``path_characteristics``."""
+    if stations < 2:
+        raise ValueError("stations: at least 2 per segment")
+    bounds = np.asarray(bounds, float)
+    nseg = len(bounds) - 1
+    first, span, frac = _layout(bounds, stations)
+    scale = cyc.s[-1] / bounds[-1]
+    sig = np.concatenate([(first[k] + frac * span[k]) * scale for k in range(nseg)])
+    lo = np.repeat(bounds[:-1], stations) * scale
+    hi = np.repeat(bounds[1:], stations) * scale
+    x, c, u, v, vc, along = station_points(cyc, sig, lo, hi, speed_window)
+    corner = [(None, None)] + [corner_figures(cyc, along, bounds[k] * scale, 0.5 * (bounds[k] - bounds[k - 1]) * scale,
+                                              0.5 * (bounds[k + 1] - bounds[k]) * scale) for k in range(1, nseg)]
+    return {"x": x, "c": c, "u": u, "v": v, "vc": vc, "corner": corner}
+
+
 def path_characteristics(cycles: list, bounds, stations: int = 100, speed_window: float = 0.01) -> list:
     """ISO 9283 path figures per segment (see the module docstring) of ``cycles`` (``Cycle``, one command
     path driven n times) cut at ``bounds`` (k + 1,) m of the first cycle's arc length (scaled to each
     cycle's length). Returns one dict per segment: SI figures, per-cycle figures and per-station arrays."""
     if not cycles:
         raise ValueError("no cycle of the test path")
-    if stations < 2:
-        raise ValueError("stations: at least 2 per segment")
+    return figures([cycle_stations(c, bounds, stations, speed_window) for c in cycles], bounds, stations,
+                   speed_window)
+
+
+def figures(per: list, bounds, stations: int = 100, speed_window: float = 0.01) -> list:
+    """The figures per segment from the cycles' ``cycle_stations``."""
+    if not per:
+        raise ValueError("no cycle of the test path")
     bounds = np.asarray(bounds, float)
-    L0 = bounds[-1]
-    nseg, n = len(bounds) - 1, len(cycles)
-    frac = (np.arange(stations) + 0.5) / stations
-    lengths = np.diff(bounds)
-    margin = np.minimum(END_MARGIN, 0.05 * lengths)
-    first, span = bounds[:-1] + margin, lengths - 2 * margin
+    nseg, n = len(bounds) - 1, len(per)
+    first, span, frac = _layout(bounds, stations)
     out = []
-    per = []  # per cycle: (x, c, u, v, vc, along, scale)
-    for cyc in cycles:
-        scale = cyc.s[-1] / L0
-        sig = np.concatenate([(first[k] + frac * span[k]) * scale for k in range(nseg)])
-        lo = np.repeat(bounds[:-1], stations) * scale
-        hi = np.repeat(bounds[1:], stations) * scale
-        per.append(station_points(cyc, sig, lo, hi, speed_window) + (scale,))
-    X = np.stack([r[0] for r in per])          # (n, k m, 3)
-    Cm = np.stack([r[1] for r in per])
-    U = np.stack([r[2] for r in per])
-    V = np.stack([r[3] for r in per])          # (n, k m)
-    VC = np.stack([r[4] for r in per])
+    X = np.stack([r["x"] for r in per])          # (n, k m, 3)
+    Cm = np.stack([r["c"] for r in per])
+    U = np.stack([r["u"] for r in per])
+    V = np.stack([r["v"] for r in per])          # (n, k m)
+    VC = np.stack([r["vc"] for r in per])
     D = X - Cm
     D -= np.einsum("nij,nij->ni", D, U)[..., None] * U     # the deviation in the normal plane
     for k in range(nseg):
@@ -298,15 +320,8 @@ def path_characteristics(cycles: list, bounds, stations: int = 100, speed_window
         vbar_j = v.mean(axis=1)
         vbar = float(vbar_j.mean())
         FV_j = v.max(axis=1) - v.min(axis=1)
-        CR_j = CO_j = [None] * n
-        if k > 0:
-            lo, hi = bounds[k - 1], bounds[k + 1]
-            res = []
-            for cyc, r in zip(cycles, per):
-                sc = bounds[k] * r[-1]
-                res.append(corner_figures(cyc, r[5], sc, 0.5 * (bounds[k] - lo) * r[-1],
-                                          0.5 * (hi - bounds[k]) * r[-1]))
-            CR_j, CO_j = [c[0] for c in res], [c[1] for c in res]
+        CR_j = [r["corner"][k][0] for r in per]
+        CO_j = [r["corner"][k][1] for r in per]
         known = [c for c in CR_j if c is not None]
         seg = {
             "name": f"S{k + 1}", "length_m": float((bounds[k + 1] - bounds[k])), "stations": stations, "cycles": n,

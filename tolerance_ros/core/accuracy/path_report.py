@@ -46,10 +46,12 @@ def _cycles(t_c, p_c, ta, a, runs, picked):
 
 def path_report(model, stamps, points, joint_stamps, joints, budget=None, registration: str = "base",
                 latency: float | None = None, window: float = 0.1, center: float = 0.0, stations: int = 100,
-                speed_window: float = 0.01, rest_speed: float = 1e-3, source: str = "") -> dict:
+                speed_window: float = 0.01, rest_speed: float = 1e-3, source: str = "", T_tracker_base=None,
+                step: float | None = None) -> dict:
     """The path report (a JSON-ready dict, SI) of the tracker's ``points`` (n, 3) m stamped ``stamps`` (n,) s
     against the commanded ``joints`` (k, dof) stamped ``joint_stamps`` (k,) s. ``latency``: given (s) instead
-    of estimated within ``center +- window``. ``registration``: 'base' or 'none'."""
+    of estimated within ``center +- window``. ``registration``: 'base' or 'none'; ``T_tracker_base`` (4, 4):
+    the tracker's placement, given instead of fitted. ``step``: the motions' speed step (``path.motions``)."""
     tm, pm = np.asarray(stamps, float), np.asarray(points, float)
     tj, qj = np.asarray(joint_stamps, float), np.asarray(joints, float)
     if registration not in ("base", "none"):
@@ -63,7 +65,7 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
             raise ValueError(f"{name} must not decrease")
     p_c = command_points(model, qj)
     reg = registration == "base"
-    runs = P.motions(tj, p_c, rest_speed)
+    runs = P.motions(tj, p_c, rest_speed, step=step)
     picked, others = P.cycles_of(p_c, runs)
     if not picked:
         raise ValueError("the command never moves: no path to judge (joint states at rest)")
@@ -88,7 +90,10 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
     ta = tm - tau
     inside = (ta >= tj[0]) & (ta <= tj[-1])
     pc_a = np.column_stack([np.interp(ta[inside], tj, p_c[:, k]) for k in range(3)])
-    if reg:
+    if T_tracker_base is not None:
+        R, t = np.asarray(T_tracker_base, float)[:3, :3], np.asarray(T_tracker_base, float)[:3, 3]
+        registration = "given"
+    elif reg:
         R, t, _ = kabsch(pc_a, pm[inside])
     else:
         R, t = np.eye(3), np.zeros(3)
