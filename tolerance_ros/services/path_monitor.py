@@ -49,7 +49,7 @@ class PathMonitor:
 
     def __init__(self, model, budget=None, latency=None, T_tracker_base=None, stations: int = 100,
                  speed_window: float = 0.01, rest_speed: float = 1e-3, min_rest: float = 0.05, window: float = 0.1,
-                 max_cycles: int = 100, max_buffer: float = 120.0, max_groups: int = 10, step: float | None = None,
+                 max_cycles: int = 1000, max_buffer: float = 120.0, max_groups: int = 10, step: float | None = None,
                  estimate_after: float = 8.0):
         self.model, self.budget = model, budget
         self.latency = None if latency is None else float(latency)
