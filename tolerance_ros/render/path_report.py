@@ -40,7 +40,11 @@ def summary_lines(doc) -> list:
              f"joint states; {doc['cycles']} cycles of a {doc['path_length_m'] * 1e3:.1f} mm path at "
              f"{doc['speed_m_s'] * 1e3:.1f} mm/s in {len(doc['segments'])} segment(s)"
              + (f", {doc['other_motions']} other motion(s)" if doc["other_motions"] else "")]
-    if lat.get("given"):
+    if (doc.get("command") or {}).get("kind") == "trajectory":
+        lines.append(f"the trajectory starts at {doc['latency_s']:.6f} s +- {doc['latency_std_s'] * 1e3:.3f} ms on the "
+                     f"tracker's clock (no latency is measurable without the joint states' stamps); registration "
+                     f"residual RMS {doc['registration']['residual_rms_m'] * 1e3:.4f} mm")
+    elif lat.get("given"):
         lines.append(f"latency {doc['latency_s'] * 1e3:.3f} ms (given)")
     else:
         lines.append(f"latency {doc['latency_s'] * 1e3:.3f} ms +- {doc['latency_std_s'] * 1e3:.3f} ms (standard "
