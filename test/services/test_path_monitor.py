@@ -72,3 +72,30 @@ def test_online_refuses_an_uncertain_latency(gao, rect):
     feed(mon, rect, batch=0.2)
     level, words = mon.status()
     assert level == ERROR and "too uncertain" in words
+
+
+class _Msg:
+    """A duck-typed ROS message: attributes from keywords, nested with dicts."""
+
+    def __init__(self, **kw):
+        for k, v in kw.items():
+            setattr(self, k, _Msg(**v) if isinstance(v, dict) else v)
+
+
+def test_messages_are_queued_judged_and_bad_ones_counted(gao, rect):
+    st = rect
+    mon = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
+    names = list(gao.joint_names)[::-1]                  # another order: put back in the model's
+    reports = []
+    stop = st.joint_stamps[0] + 12.0
+    for t, q in zip(st.joint_stamps[st.joint_stamps < stop], st.joints[st.joint_stamps < stop]):
+        mon.on_joint_state_msg(_Msg(header={"stamp": float(t)}, name=names, position=list(q[::-1])))
+    for t, p in zip(st.stamps[st.stamps < stop], st.points[st.stamps < stop]):
+        mon.on_point_msg(_Msg(header={"stamp": float(t)}, point={"x": p[0], "y": p[1], "z": p[2]}))
+    mon.on_point_msg(_Msg(header={"stamp": float(stop)}, point={"x": float("nan"), "y": 0.0, "z": 0.0}))
+    mon.on_joint_state_msg(_Msg(header={"stamp": float(stop)}, name=["joint1"], position=[0.0]))
+    reports += mon.flush()
+    assert len(reports) == 2 and reports[-1]["cycles"] == 2
+    d = mon.diagnostic()
+    assert d["values"]["rejected"] == "2" and "no value for joint(s)" in d["values"]["last_rejected"]
+    assert d["level"] == OK and "AT_p" in d["message"] and float(d["values"]["AT_p_m"]) > 0

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.accuracy import path as P
+from ..core.ingest import IngestError, JointOrder, stamp_seconds
 from ..core.accuracy.latency import estimate_latency
 from ..core.accuracy.path_report import LATENCY_SHARE, command_points
 from ..core.accuracy.registration import KabschAccumulator, kabsch
@@ -45,12 +46,14 @@ class _Group:
 class PathMonitor:
     """See the module docstring. ``latency`` (s) and ``T_tracker_base`` (4, 4): given, else estimated (within
     ``+-window`` s, from at least ``estimate_after`` s of motion). ``step``: the motions' speed step (default the
-    first batch's median joint-state interval)."""
+    first batch's median joint-state interval). ``offset`` (3,) m: the measured target's point in the tool
+    frame (default the tool point). Messages (duck-typed ROS ones) are queued by ``on_*_msg`` and judged by
+    ``flush``."""
 
     def __init__(self, model, budget=None, latency=None, T_tracker_base=None, stations: int = 100,
                  speed_window: float = 0.01, rest_speed: float = 1e-3, min_rest: float = 0.05, window: float = 0.1,
                  max_cycles: int = 1000, max_buffer: float = 120.0, max_groups: int = 10, step: float | None = None,
-                 estimate_after: float = 8.0):
+                 estimate_after: float = 8.0, offset=None, name: str = "tolerance_ros: path monitor"):
         self.model, self.budget = model, budget
         self.latency = None if latency is None else float(latency)
         self.latency_doc = None if latency is None else {"latency_s": self.latency, "std_s": 0.0, "given": True}
@@ -61,6 +64,11 @@ class PathMonitor:
         self.stations, self.speed_window, self.rest_speed, self.min_rest = stations, speed_window, rest_speed, min_rest
         self.window, self.max_cycles, self.max_buffer, self.max_groups = window, max_cycles, max_buffer, max_groups
         self.step, self.estimate_after = step, estimate_after
+        self.offset = None if offset is None else np.asarray(offset, float)
+        self.name = name
+        self.order = JointOrder(model.joint_names)
+        self.queued = {"joints": ([], []), "points": ([], [])}
+        self.reasons = []
         self.tj = np.zeros(0)
         self.qj = np.zeros((0, model.dof))
         self.pc = np.zeros((0, 3))
@@ -69,7 +77,7 @@ class PathMonitor:
         self.first_joint = None
         self.groups = []
         self.counts = {"points": 0, "joint_states": 0, "on_path": 0, "at_rest": 0, "other_motions": 0,
-                       "outside_joint_states": 0, "not_judged": 0, "motions": 0}
+                       "outside_joint_states": 0, "not_judged": 0, "motions": 0, "rejected": 0}
         self.last = None
 
     # -- input ---------------------------------------------------------------------------------------------
@@ -90,7 +98,7 @@ class PathMonitor:
         self.counts["joint_states"] += len(t)
         self.tj = np.concatenate([self.tj, t])
         self.qj = np.vstack([self.qj, q])
-        self.pc = np.vstack([self.pc, command_points(self.model, q)])
+        self.pc = np.vstack([self.pc, command_points(self.model, q, offset=self.offset)])
         return self._process()
 
     def add_points(self, stamps, points) -> list:
@@ -106,6 +114,60 @@ class PathMonitor:
         self.tm = np.concatenate([self.tm, t])
         self.pm = np.vstack([self.pm, p])
         return self._process()
+
+    def on_joint_state_msg(self, msg):
+        """Queue a duck-typed sensor_msgs/JointState (its joints put in the model's order)."""
+        self._queue("joints", msg, lambda: self.order(msg.name, msg.position))
+
+    def on_point_msg(self, msg):
+        """Queue a duck-typed geometry_msgs/PointStamped (the tracker frame)."""
+        self._queue("points", msg, lambda: (msg.point.x, msg.point.y, msg.point.z))
+
+    def on_pose_msg(self, msg):
+        """Queue the position of a duck-typed geometry_msgs/PoseStamped (the tracker frame)."""
+        self._queue("points", msg, lambda: (msg.pose.position.x, msg.pose.position.y, msg.pose.position.z))
+
+    def _queue(self, kind, msg, value):
+        stamps, values = self.queued[kind]
+        try:
+            t = stamp_seconds(msg.header.stamp)
+            v = np.asarray(value(), float)
+            if not np.all(np.isfinite(v)):
+                raise IngestError("not a finite number")
+            if stamps and t < stamps[-1]:
+                raise IngestError(f"stamp {t:.6f} s is earlier than the previous one")
+        except (IngestError, AttributeError, TypeError, ValueError) as exc:
+            self.counts["rejected"] += 1
+            self.reasons = (self.reasons + [f"{kind}: {exc}"])[-10:]
+            return
+        stamps.append(t)
+        values.append(v)
+
+    def flush(self) -> list:
+        """Judge what was queued; the reports of the paths that ended."""
+        out = []
+        for kind, add in (("joints", self.add_joint_states), ("points", self.add_points)):
+            stamps, values = self.queued[kind]
+            if stamps:
+                self.queued[kind] = ([], [])
+                try:
+                    out += add(np.array(stamps), np.array(values))
+                except ValueError as exc:
+                    self.counts["rejected"] += len(stamps)
+                    self.reasons = (self.reasons + [f"{kind}: {exc}"])[-10:]
+        return out
+
+    def diagnostic(self) -> dict:
+        """The /diagnostics status (level, name, message, values) of the path monitor."""
+        level, message = self.status()
+        values = {k: str(v) for k, v in self.counts.items()}
+        if self.latency is not None:
+            values["latency_s"] = f"{self.latency:.6f}"
+        if self.last is not None:
+            values.update({k: "" if v is None else f"{v:.9g}" for k, v in self.last["overall"].items()})
+        if self.reasons:
+            values["last_rejected"] = self.reasons[-1]
+        return {"level": level, "name": self.name, "hardware_id": "", "message": message, "values": values}
 
     def finish(self) -> list:
         """The end of the streams: the points left are counted (at rest, or outside the joint states' span)."""

@@ -26,11 +26,13 @@ from .registration import kabsch
 LATENCY_SHARE = 0.1   # of the design limit: the most the latency's uncertainty (2 u x speed) may move the path
 
 
-def command_points(model, joints, chunk: int = 100_000) -> np.ndarray:
-    """(k, 3) nominal tool points (m) of joints (k, dof)."""
+def command_points(model, joints, chunk: int = 100_000, offset=None) -> np.ndarray:
+    """(k, 3) nominal points (m) of joints (k, dof): the tool point, or the point ``offset`` (3,) m of the tool
+    frame (a target's)."""
     out = np.empty((len(joints), 3))
     for i in range(0, len(joints), chunk):
-        out[i:i + chunk] = model.fk(joints[i:i + chunk])[:, :3, 3]
+        T = model.fk(joints[i:i + chunk])
+        out[i:i + chunk] = T[:, :3, 3] if offset is None else T[:, :3, :3] @ np.asarray(offset, float) + T[:, :3, 3]
     return out
 
 
