@@ -99,3 +99,20 @@ def test_joint_states_without_a_joint_of_the_robot_exit_2(capsys, streams, tmp_p
     code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
                        "--joint-states", deg)
     assert code == 2 and "needs an angle unit" in err
+
+
+def test_joints_in_degrees_labelled_radians_and_millimetres_labelled_metres_exit_2(capsys, streams, tmp_path):
+    lines = (streams / "path.joints.csv").read_text().splitlines()
+    head = [i for i, l in enumerate(lines) if l.startswith("stamp")][0]
+    deg = tmp_path / "deg.csv"
+    rows = [lines[head]] + [",".join([r.split(",")[0]] + [f"{float(v) * 57.29577951:.6f}" for v in r.split(",")[1:]])
+                            for r in lines[head + 1:]]
+    deg.write_text("\n".join(rows) + "\n")
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                       "--joint-states", deg)
+    assert code == 2 and "degrees" in err
+    pts = (streams / "path.csv").read_text().replace("x[mm],y[mm],z[mm]", "x[m],y[m],z[m]")
+    (tmp_path / "m.csv").write_text(pts)
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "m.csv",
+                       "--joint-states", streams / "path.joints.csv")
+    assert code == 2 and "millimetres labelled metres" in err

@@ -7,7 +7,9 @@
    (``base``), or none (``none``: the points are in the base frame).
 4. Cycles and segments (``path.motions``, ``path.cycles_of``, ``path.corners``) and the ISO 9283 figures
    (``path.path_characteristics``).
-5. With a budget: its predicted bound (its criterion) at every station of the first cycle, the tube the
+5. Checks before any figure (``checks``): the length and angle units of the streams, joint states beyond the
+   limits, a registered residual beyond 2 % of the robot's reach: refused with the cause (ValueError).
+6. With a budget: its predicted bound (its criterion) at every station of the first cycle, the tube the
    barycentres should stay in, and two verdicts: the path accuracy against the design limit, and the
    latency's uncertainty against it (refused when ``2 u(tau) v_max`` exceeds ``LATENCY_SHARE`` of the limit:
    the time alignment alone could then move the path by that much).
@@ -21,6 +23,7 @@ import numpy as np
 
 from . import path as P
 from .latency import estimate_latency
+from .checks import PLAUSIBLE_RESIDUAL, robot_reach, units_problem
 from .registration import kabsch
 
 LATENCY_SHARE = 0.1   # of the design limit: the most the latency's uncertainty (2 u x speed) may move the path
@@ -71,6 +74,7 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
     picked, others = P.cycles_of(p_c, runs)
     if not picked:
         raise ValueError("the command never moves: no path to judge (joint states at rest)")
+    _check(model, tm, pm, tj, qj)
     groups = [np.arange(*np.searchsorted(tm - center, [tj[runs[k][0]], tj[runs[k][1]]])) for k in picked]
     i0, i1 = runs[picked[0]]
     s_ref = P.arc_length(p_c[i0:i1 + 1])
@@ -91,6 +95,8 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
         tau, lat_doc = float(latency), {"latency_s": float(latency), "std_s": 0.0, "given": True}
     ta = tm - tau
     inside = (ta >= tj[0]) & (ta <= tj[-1])
+    if not inside.any():
+        raise ValueError("no tracker point lies within the joint states' time span: the two streams do not overlap")
     pc_a = np.column_stack([np.interp(ta[inside], tj, p_c[:, k]) for k in range(3)])
     if T_tracker_base is not None:
         R, t = np.asarray(T_tracker_base, float)[:3, :3], np.asarray(T_tracker_base, float)[:3, 3]
@@ -101,6 +107,13 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
         R, t = np.eye(3), np.zeros(3)
     a = (pm - t) @ R                      # base frame
     resid = np.linalg.norm(pc_a - a[inside], axis=1)
+    rms = float(np.sqrt(np.mean(resid ** 2)))
+    reach = robot_reach(model)
+    if rms > PLAUSIBLE_RESIDUAL * reach:
+        raise ValueError(f"the registered residual RMS is {rms * 1e3:.4g} mm, {rms / reach * 100:.3g} % of the robot's "
+                         f"reach ({reach:.3g} m): these streams cannot be judged against {model.name} as given "
+                         f"(another robot, the wrong joint states, or points not in the base frame with "
+                         f"--registration none?)")
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, t
     cycles = _cycles(tj, p_c, ta, a, runs, picked)
@@ -118,13 +131,35 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
     doc = {"robot": model.name, "source": source, "points": int(len(tm)), "joint_states": int(len(tj)),
            "latency_s": tau, "latency_std_s": lat_doc["std_s"], "latency": lat_doc,
            "registration": {"method": registration, "T_tracker_base": T.tolist(),
-                            "residual_rms_m": float(np.sqrt(np.mean(resid ** 2)))},
+                            "residual_rms_m": rms},
            "cycles": len(picked), "other_motions": len(others), "path_length_m": float(ref.s[-1]),
            "speed_m_s": v_max, "segments": segs, "overall": P.overall(segs), "outside": outside,
            "stations_per_segment": stations, "budget": None, "refused": None, "missed": []}
     if budget is not None:
         _judge(doc, model, budget, ref, tj, qj, v_max)
     return doc
+
+
+def _check(model, tm, pm, tj, qj, sample: int = 2000):
+    """ValueError when the streams cannot be in the units they claim (``checks.units_problem`` on tracker
+    points paired by stamp) or when most joint states lie beyond the joint limits (another robot)."""
+    lo, hi = model.joint_limits[:, 0] - 0.01, model.joint_limits[:, 1] + 0.01
+    out = (qj < lo) | (qj > hi)
+    if out.any(axis=1).mean() > 0.5:
+        j = int(np.argmax(out.sum(axis=0)))
+        revolute = np.array([t != "prismatic" for t in model.joint_types])
+        q_deg = np.where(revolute, qj * np.pi / 180.0, qj)
+        hint = ("the values fit the limits read as degrees: degrees labelled radians?"
+                if not ((q_deg < lo) | (q_deg > hi)).any(axis=1).mean() > 0.5 else "another robot, or another unit?")
+        raise ValueError(f"joint states: {int(out[:, j].sum())} of {len(qj)} values of {model.joint_names[j]} lie beyond "
+                         f"its limits [{model.joint_limits[j, 0]:.4g}, {model.joint_limits[j, 1]:.4g}]: {hint}")
+    sel = np.flatnonzero((tm >= tj[0]) & (tm <= tj[-1]))
+    sel = sel[np.linspace(0, len(sel) - 1, min(sample, len(sel))).astype(int)] if len(sel) else sel
+    if len(sel) >= 3:
+        q = np.column_stack([np.interp(tm[sel], tj, qj[:, j]) for j in range(model.dof)])
+        problem = units_problem(model, q, pm[sel])
+        if problem:
+            raise ValueError(problem)
 
 
 def _judge(doc, model, budget, ref, tj, qj, v_max):
