@@ -99,3 +99,24 @@ def test_messages_are_queued_judged_and_bad_ones_counted(gao, rect):
     d = mon.diagnostic()
     assert d["values"]["rejected"] == "2" and "no value for joint(s)" in d["values"]["last_rejected"]
     assert d["level"] == OK and "AT_p" in d["message"] and float(d["values"]["AT_p_m"]) > 0
+
+
+def test_the_simulated_tracker_streams_and_the_monitor_finds_its_latency(gao):
+    """The loop without a graph: joint states of a planned rectangle at 500 Hz into the streaming simulated
+    tracker (1 kHz, 8 ms late), both into the path monitor."""
+    from tolerance_ros.core.accuracy.iso_paths import plan_path
+    from tolerance_ros.services.tracker import SimulatedTracker
+    jp, _ = plan_path(gao, "rectangle", speed=0.2, cycles=3, q_center=np.radians([0, 45, 0, 60, 0, 30, 0]))
+    sim = SimulatedTracker(gao, load_budget("gao2023_delta2", gao).vector_for(gao), seed=2, T_tracker_base=T_TB)
+    mon = PathMonitor(gao)
+    tj = 100.0 + np.arange(0.0, jp.duration + 0.5, 0.002)
+    qj = jp.at(tj - 100.0)
+    reports = []
+    for k in range(0, len(tj), 50):
+        readings = [r for t, q in zip(tj[k:k + 50], qj[k:k + 50]) for r in sim.stream(t, q, 1000.0, 0.008)]
+        assert all(np.diff([s for s, _ in readings]) > 0)
+        reports += mon.add_joint_states(tj[k:k + 50], qj[k:k + 50])
+        if readings:
+            reports += mon.add_points(np.array([s for s, _ in readings]), np.array([T[:3, 3] for _, T in readings]))
+    assert abs(mon.latency - 0.008) < 0.5e-3
+    assert reports and reports[-1]["cycles"] == 3 and reports[-1]["overall"]["AT_p_m"] < 1e-3
