@@ -1,4 +1,5 @@
-"""`tolerance-ros plan-campaign`: test poses that make the identification best conditioned."""
+"""`tolerance-ros plan-campaign`: test poses that make the identification best conditioned, or (``--path``) an
+ISO 9283 test path as the joint trajectory that drives it."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,7 +25,19 @@ def add_arguments(p):
     p.add_argument("--candidates", type=int, default=2000,
                    help=f"candidate poses within the joint limits (default 2000, at most {CAPS['candidates'][0]})")
     p.add_argument("--seed", type=int, default=0, help="seed of the candidate configurations (default 0)")
-    p.add_argument("--cycles", type=int, default=3, help="visits per test pose in the campaign file (default 3)")
+    p.add_argument("--cycles", type=int, help="visits per test pose in the campaign file (default 3), or cycles of "
+                                               "the --path (default 10)")
+    p.add_argument("--path", choices=["line", "circle", "rectangle"],
+                   help="write an ISO 9283 test path in the ISO cube instead: the joint trajectory that drives it "
+                        "(docs/path-accuracy.md)")
+    p.add_argument("--speed", default="0.1m/s", help="with --path: the programmed speed (default 0.1m/s)")
+    p.add_argument("--accel", default="1m/s^2", help="with --path: the acceleration at start and stop (default 1m/s^2)")
+    p.add_argument("--side", help="with --path: the cube's edge (default: the largest of 400mm halved that the robot "
+                                  "reaches along the whole path)")
+    p.add_argument("--center-joints", metavar="Q1,Q2,...",
+                   help="with --path: the joints (each with its unit) whose tool pose is the cube's centre (default: "
+                        "the centre of the ISO cube the planner finds)")
+    p.add_argument("--dwell", default="0.5s", help="with --path: the rest before each cycle (default 0.5s)")
     p.add_argument("--budget", help="scale each parameter by its tolerance (default 1 mm / 1 mrad)")
     p.add_argument("--noise", default="10um", help="tracker position noise (default 10um)")
     p.add_argument("--orientation-noise",
@@ -53,11 +66,61 @@ def add_arguments(p):
     p.add_argument("--plot", metavar="DIR", help="write singular_values.png into DIR")
 
 
+def _center(model, text):
+    """(dof,) joints of ``--center-joints`` (each value with its unit)."""
+    parts = text.split(",")
+    if len(parts) != model.dof:
+        raise CLIError(f"--center-joints: expected {model.dof} values (one per joint of {model.name}), got {len(parts)}")
+    return [quantity(v, "length" if t == "prismatic" else "angle", "--center-joints", positive=False)
+            for v, t in zip(parts, model.joint_types)]
+
+
+def run_path(args, model):
+    """``--path``: the test path's joint trajectory written to ``--out`` (YAML, SI)."""
+    import yaml
+    from ..core.accuracy.iso_paths import plan_path
+    from ..core.accuracy.path import arc_length, corners
+    cycles = 10 if args.cycles is None else args.cycles
+    if cycles < 1:
+        raise CLIError("--cycles: must be >= 1")
+    speed = quantity(args.speed, "speed", "--speed")
+    accel = quantity(args.accel, "acceleration", "--accel")
+    dwell = quantity(args.dwell, "time", "--dwell", positive=False)
+    side = quantity(args.side, "length", "--side")
+    center = _center(model, args.center_joints) if args.center_joints else None
+    try:
+        jp, tp = plan_path(model, args.path, speed, accel, dwell, cycles, side, center, seed=args.seed)
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+    test = tp.moves[tp.test]
+    doc = jp.to_dict()
+    doc.update(robot=model.name, side_m=tp.side, center_m=tp.center.tolist(), length_m=float(arc_length(test)[-1]),
+               corners=len(corners(test)), period_s=jp.period, duration_s=jp.duration)
+    desc = (f"ISO 9283 {args.path} path by tolerance-ros plan-campaign: cube edge {tp.side * 1e3:.1f} mm centred at "
+            f"[{', '.join(f'{v * 1e3:.1f}' for v in tp.center)}] mm, {speed:g} m/s, {cycles} cycles; SI (s, rad, m)")
+    if args.out:
+        from pathlib import Path
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(f"# {desc}\n" + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
+    if args.json:
+        return {k: v for k, v in doc.items() if k != "points"} | {"points": len(jp.t), "file": args.out}
+    print(desc)
+    print(f"test path {doc['length_m'] * 1e3:.1f} mm with {doc['corners']} corner(s); a cycle lasts {jp.period:.2f} s "
+          f"({len(jp.t)} knots), {cycles} cycles {jp.duration:.1f} s")
+    print(f"wrote {args.out}" if args.out else "trajectory not saved (give --out FILE.yaml to save it)")
+    return None
+
+
 def run(args):
     from ..core.calibration.planning import CRITERIA, REFERENCES, campaign_dict, plan
     from ..core.campaign import load_campaign
     from ..core.workspace import Workspace, listed, rejection_summary, restrictions
     model = load_model(args)
+    if args.path:
+        return run_path(args, model)
+    if args.cycles is None:
+        args.cycles = 3
     for name in ("candidates", "cycles"):
         if getattr(args, name) < 1:
             raise CLIError(f"--{name}: must be >= 1")

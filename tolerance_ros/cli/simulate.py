@@ -7,6 +7,11 @@ the points of reflectors on the tool. The measurements go to ``--out`` (the CSV 
 ``calibrate`` read); the truth (the as-built errors, the tracker's placement and the targets) goes beside
 them in the calibration file's format (``<out>.truth.yaml``), so that what ``calibrate`` finds can be checked
 against it (``validate --calibration <out>.truth.yaml`` predicts with the truth itself).
+
+With ``--trajectory`` (a joint trajectory, e.g. of ``plan-campaign --path``) instead of a campaign, the robot
+drives it and the tracker streams its tool point during the motion (``--tracker-rate``, ``--latency``,
+``--noise``; ``--repeatability`` a joint offset drawn per cycle), the controller logs its commanded joints
+(``--joint-rate``) into ``<out>.joints.csv``: the two streams ``path-report`` reads.
 """
 from __future__ import annotations
 
@@ -22,7 +27,17 @@ ROBOT = True
 
 
 def add_arguments(p):
-    p.add_argument("--campaign", required=True, help="campaign file or shipped name (the test poses and cycles)")
+    p.add_argument("--campaign", help="campaign file or shipped name (the test poses and cycles)")
+    p.add_argument("--trajectory", metavar="FILE",
+                   help="a joint trajectory (plan-campaign --path) driven instead of a campaign: the tracker streams "
+                        "points during the motion and the joint states go to <out>.joints.csv")
+    p.add_argument("--tracker-rate", default="1kHz", help="with --trajectory: the tracker's rate (default 1kHz)")
+    p.add_argument("--joint-rate", default="500Hz", help="with --trajectory: the joint states' rate (default 500Hz)")
+    p.add_argument("--latency", default="8ms",
+                   help="with --trajectory: how late the tracker stamps its points (default 8ms)")
+    p.add_argument("--repeatability", default="0rad",
+                   help="with --trajectory: standard deviation of a joint offset drawn per joint and cycle (e.g. "
+                        "0.1mrad; default 0rad)")
     p.add_argument("--tolerances", required=True,
                    help="budget (file or shipped name) the as-built errors are drawn within, or uniform:LENGTH,ANGLE "
                         "(e.g. uniform:0.1mm,0.5mrad) for every parameter")
@@ -68,22 +83,85 @@ def _targets(specs):
     return Targets.from_offsets(names, offsets)
 
 
+def _run_trajectory(args, model, delta, noise, out):
+    """The streams of a trajectory driven by the as-built robot (see the module docstring)."""
+    from ..core.accuracy.io.joint_states import write_joint_states, write_points
+    from ..core.accuracy.iso_paths import read_trajectory
+    from ..core.accuracy.simulate import as_built_errors, path_streams
+    from ..core.geometry import transform
+    if args.campaign or args.target_offset:
+        raise CLIError("--trajectory: give it instead of --campaign, without --target-offset (the tracker follows "
+                       "the tool point)")
+    try:
+        jp = read_trajectory(args.trajectory, model)
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+    rate = quantity(args.tracker_rate, "frequency", "--tracker-rate")
+    jrate = quantity(args.joint_rate, "frequency", "--joint-rate")
+    latency = quantity(args.latency, "time", "--latency", positive=False)
+    rep = quantity(args.repeatability, "angle", "--repeatability", positive=False)
+    if jp.duration * max(rate, jrate) > 5e7:
+        raise CLIError(f"--tracker-rate: {jp.duration:.0f} s at {max(rate, jrate):g} Hz exceeds 50,000,000 samples")
+    dx = as_built_errors(delta, args.seed, args.errors)
+    T_tracker = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
+    st = path_streams(model, jp, dx, T_tracker, jrate, rate, latency, noise, args.seed + 1, repeatability=rep)
+    comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
+               f"seed {args.seed}) driving {args.trajectory}; tracker {args.tracker_rate}, {args.latency} late, "
+               f"noise {args.noise}")
+    write_points(out, st.stamps, st.points, [comment])
+    joints = write_joint_states(out.with_name(f"{out.stem}.joints.csv"), st.joint_stamps, st.joints, model.joint_names,
+                                model.joint_types, [comment])
+    truth_path = _truth(args, model, dx, T_tracker, noise, out, len(st.stamps), 0, None, "base", False,
+                        f" driving {args.trajectory}")
+    doc = {"measurements": str(out), "joint_states": str(joints), "truth": str(truth_path), "rows": len(st.stamps),
+           "joint_state_rows": len(st.joint_stamps), "latency_s": latency, "noise_m": noise,
+           "duration_s": jp.duration}
+    if args.json:
+        return doc
+    print(f"wrote {out}: {len(st.stamps)} tracker points over {jp.duration:.1f} s ({jp.cycles} cycles of "
+          f"{args.trajectory}), stamped {latency * 1e3:g} ms late")
+    print(f"wrote {joints}: {len(st.joint_stamps)} joint states")
+    print(f"wrote {truth_path}: the as-built errors and the tracker's placement (calibration format)")
+    return None
+
+
+def _truth(args, model, dx, T_tracker, noise, out, rows, poses, targets, registration, orientation, what):
+    """The truth beside the measurements (calibration format): its path."""
+    from ..core.calibration.calibrate import Calibration
+    from ..core.calibration.writers import save_calibration
+    truth = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), dx, np.zeros_like(dx),
+                        np.zeros(6), T_tracker, None, [], [], {}, float("nan"), float("nan"), 0, 0, noise,
+                        float("nan"), float("nan"), rows, poses, 0, registration, targets=targets,
+                        has_orientation=orientation)
+    source = getattr(model, "config_path", None) or getattr(model, "source", None)
+    truth.sources = {"robot": relative(source, out.parent) if source and Path(str(source)).is_file() else model.name,
+                     "measurements": out.name, "campaign": args.campaign or args.trajectory,
+                     "joint_names": list(model.joint_names),
+                     "truth": f"simulated as built within {args.tolerances} ({args.errors}, seed {args.seed}){what}"}
+    if hasattr(model, "tip_link"):
+        truth.sources.update(tip_link=model.tip_link, base_link=model.base_link)
+    truth.model = {"parameters": "truth", "label": "the simulated as-built robot", "how": "drawn, not identified"}
+    return save_calibration(truth, out.with_name(f"{out.stem}.truth.yaml"))
+
+
 def run(args):
     from ..core.accuracy.io import write_csv
     from ..core.accuracy.simulate import as_built_errors, measure_targets
-    from ..core.calibration.calibrate import Calibration
-    from ..core.calibration.writers import save_calibration
     from ..core.campaign import load_campaign
     from ..core.geometry import transform
     model = load_model(args)
-    campaign = load_campaign(args.campaign, model)
     delta = _tolerances(model, args.tolerances)
     noise = quantity(args.noise, "length", "--noise", positive=False)
-    targets = _targets(args.target_offset)
-    onoise = quantity(args.orientation_noise, "angle", "--orientation-noise", positive=False)
     out = Path(args.out)
     if out.suffix.lower() != ".csv":
         raise CLIError(f"--out: the measurements are a CSV file (name ending in .csv), got {args.out!r}")
+    if args.trajectory:
+        return _run_trajectory(args, model, delta, noise, out)
+    if not args.campaign:
+        raise CLIError("--campaign: required (or --trajectory for a path driven while the tracker streams)")
+    campaign = load_campaign(args.campaign, model)
+    targets = _targets(args.target_offset)
+    onoise = quantity(args.orientation_noise, "angle", "--orientation-noise", positive=False)
     dx = as_built_errors(delta, args.seed, args.errors)
     T_tracker = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
     qk = campaign.joints_for(model)
@@ -99,18 +177,8 @@ def run(args):
                                                                       else "") + f"; truth in {out.stem}.truth.yaml")
     write_csv(out, meas, comments=[comment])
     names, tg = (tuple(targets.names), targets) if targets is not None else (("",), None)
-    truth = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), dx, np.zeros_like(dx),
-                        np.zeros(6), T_tracker, None, [], [], {}, float("nan"), float("nan"), 0, 0, noise,
-                        float("nan"), float("nan"), rows, len(campaign.names), 0,
-                        "base+tool" if targets is not None else "base", targets=tg, has_orientation=targets is None)
-    source = getattr(model, "config_path", None) or getattr(model, "source", None)
-    truth.sources = {"robot": relative(source, out.parent) if source and Path(str(source)).is_file() else model.name,
-                     "measurements": out.name, "campaign": args.campaign, "joint_names": list(model.joint_names),
-                     "truth": f"simulated as built within {args.tolerances} ({args.errors}, seed {args.seed})"}
-    if hasattr(model, "tip_link"):
-        truth.sources.update(tip_link=model.tip_link, base_link=model.base_link)
-    truth.model = {"parameters": "truth", "label": "the simulated as-built robot", "how": "drawn, not identified"}
-    truth_path = save_calibration(truth, out.with_name(f"{out.stem}.truth.yaml"))
+    truth_path = _truth(args, model, dx, T_tracker, noise, out, rows, len(campaign.names), tg,
+                        "base+tool" if targets is not None else "base", targets is None, "")
     doc = {"measurements": str(out), "truth": str(truth_path), "rows": rows, "poses": len(campaign.names),
            "visits": len(q), "targets": [n for n in names if n], "noise_m": noise,
            "orientation_noise_rad": None if targets is not None else onoise}

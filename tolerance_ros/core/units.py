@@ -99,22 +99,28 @@ def parse_number(value, field: str) -> float:
     return out
 
 
-_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Zµ]*)\s*$", re.ASCII)
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*((?:[a-zA-Zµ][a-zA-Zµ/^2]*)?)\s*$",
+                       re.ASCII)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 MASS_UNITS = {"kg": 1.0, "g": 1e-3, "t": 1e3}
+SPEED_UNITS = {"m/s": 1.0, "mm/s": 1e-3}
+ACCEL_UNITS = {"m/s^2": 1.0, "mm/s^2": 1e-3}
+FREQUENCY_UNITS = {"Hz": 1.0, "kHz": 1e3}
 _EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad", "time": "1s or 250ms",
-             "mass": "165kg or 0.5t"}
-_TABLES = {"time": TIME_UNITS, "mass": MASS_UNITS}
+             "mass": "165kg or 0.5t", "speed": "0.2m/s or 200mm/s", "acceleration": "1m/s^2",
+             "frequency": "1000Hz or 1kHz"}
+_TABLES = {"time": TIME_UNITS, "mass": MASS_UNITS, "speed": SPEED_UNITS, "acceleration": ACCEL_UNITS,
+           "frequency": FREQUENCY_UNITS}
 
 
 def parse_quantity(text, kind: str = "length", field: str = "value") -> float:
-    """SI value of a length, angle, time or mass written with its unit: ``'1.4mm'``, ``'0.3 mrad'``, ``'2 s'``,
-    ``'165kg'``.
+    """SI value of a length, angle, time, mass, speed, acceleration or frequency written with its unit:
+    ``'1.4mm'``, ``'0.3 mrad'``, ``'2 s'``, ``'165kg'``, ``'0.2m/s'``, ``'1m/s^2'``, ``'1kHz'``.
 
     A number without a unit is an error (a bare 1.4 could be metres or millimetres), as is an unknown
     unit or a non-finite value; the UnitError names ``field`` and shows the accepted forms.
     """
-    units = {"length": LENGTH_UNITS, "angle": ANGLE_UNITS, "time": TIME_UNITS, "mass": MASS_UNITS}[kind]
+    units = {"length": LENGTH_UNITS, "angle": ANGLE_UNITS, **_TABLES}[kind]
     forms = f"write it with its unit, e.g. {_EXAMPLES[kind]} ({kind} units: {', '.join(sorted(units))})"
     m = _QUANTITY.match(str(text)) if isinstance(text, str) else None
     if not m:

@@ -6,7 +6,9 @@ publishes /diagnostics (DiagnosticArray, the namespace in the status name), a JS
 measurement to a campaign log as it arrives. Several targets (parameter ``targets: "A,B,C"``) each have
 their own topic, ``measured_pose/A`` ... (relative, so a namespace moves them). The registration and the
 targets' offsets come from parameters or from a calibration file. The robot may come from
-``robot_description``.
+``robot_description``. The same streams feed the path monitor (``services.path_monitor``, parameter
+``path_monitor``): when a motion of the robot ends it publishes the ISO 9283 path figures of its path on
+``tolerance/path_report`` (std_msgs/String, JSON, SI) and a second /diagnostics status against the budget.
 
 The calibrate service (``services.calibration``) reads only logs under ``log_dir``, stamps each calibration
 with its provenance (made by this node, from a log of known SHA-256), signs it with ``signing_key`` when one
@@ -35,7 +37,9 @@ from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, budget_from_message
 from ..services.calibration import CalibrationService
 from ..services.jobs import Outbox
+from ..core.units import parse_quantity
 from ..services.monitor import WARN, MonitorLogic, monitor_targets, tracker_frame
+from ..services.path_monitor import PathMonitor
 from .common import (BUDGET_QOS, CALIBRATE_TOPIC, CALIBRATION_TOPIC, LATCHED_QOS, MEASUREMENT_QOS, PREFIX,
                      SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, calibration_gate, calibration_in_force,
                      declare, follow_robot, guarded, require_packages, robot_set, run, status_name)
@@ -87,6 +91,13 @@ class AccuracyMonitor(Node):
                                                           "link, or base_link as REP 105 names it)")
         self.tf_tracker = declare(self, "tf_tracker_frame", "tracker", "/tf_static: the tracker's frame, registered "
                                                                        "to the base")
+        self.path_on = declare(self, "path_monitor", True, "judge the paths too: ISO 9283 path figures on "
+                                                           "tolerance/path_report when a motion ends")
+        self.path_latency = declare(self, "path_latency", "", "the tracker's latency against the joint states (e.g. "
+                                                              "8ms); empty: estimated from the streams")
+        self.path_registration = declare(self, "path_registration", "given",
+                                         "given: the path monitor uses tracker_to_base (or the calibration's); "
+                                         "estimate: it fits the tracker's placement from the streams")
         self.T_tracker_base = transform(base[:3], base[3:])
         self.targets = monitor_targets(self.measurement, names, offsets)
         self.gate = calibration_gate(self)
@@ -99,6 +110,9 @@ class AccuracyMonitor(Node):
         self.waiting = {"measurements": 0, "joint_states": 0}  # what arrived before the robot did
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.report_pub = self.create_publisher(String, f"{PREFIX}/accuracy_report", STATUS_QOS)
+        self.path_pub = self.create_publisher(String, f"{PREFIX}/path_report", STATUS_QOS)
+        self.path = None
+        self.create_timer(0.1, guarded(self, self.flush_path))
         self.marker_pub = self.create_publisher(MarkerArray, f"{PREFIX}/markers", STATUS_QOS)
         self.tf_pub = self.create_publisher(TFMessage, "/tf_static", LATCHED_QOS)
         kind, topic = (PointStamped, "measured_point") if self.measurement == "point" else (PoseStamped, "measured_pose")
@@ -155,6 +169,7 @@ class AccuracyMonitor(Node):
         self.logic = MonitorLogic(model, budget, camp, self.slop, self.max_wait, T_tracker_base, targets, log_path,
                                   self.pose_tolerance, name=status_name(self, "accuracy monitor"),
                                   orientation=self.measurement == "pose")
+        self.path = self.path_monitor(model, budget, T_tracker_base, targets) if self.path_on else None
         if self.budget_text is not None:
             self.on_budget(String(data=self.budget_text))
         if self.calibration_text is not None:
@@ -162,6 +177,22 @@ class AccuracyMonitor(Node):
         self.frame = self.marker_frame or getattr(model, "base_link", None) or "base_link"
         self.publish_tracker_frame(T_tracker_base)
         self.get_logger().info(f"monitoring {model.name}; campaign log {log_path}")
+
+    def path_monitor(self, model, budget, T_tracker_base, targets) -> PathMonitor:
+        """The path monitor of the first target (its offset on the tool), with the node's registration when
+        ``path_registration`` is given."""
+        if self.path_registration not in ("given", "estimate"):
+            raise ValueError(f"path_registration: expected given or estimate, got {self.path_registration!r}")
+        latency = parse_quantity(self.path_latency, "time", "path_latency") if self.path_latency else None
+        return PathMonitor(model, budget, latency, T_tracker_base if self.path_registration == "given" else None,
+                           offset=targets.offsets[0], name=status_name(self, "path monitor"))
+
+    def flush_path(self):
+        """Judge the queued streams; publish the report of each path that ended."""
+        if self.path is None:
+            return
+        for doc in self.path.flush():
+            self.path_pub.publish(String(data=dumps_fast(doc)))
 
     def publish_tracker_frame(self, T_tracker_base):
         """The registered tracker frame on /tf_static (latched), so RViz shows tracker, robot and markers."""
@@ -184,6 +215,8 @@ class AccuracyMonitor(Node):
                 self.logic.on_point_msg(msg, target)
             else:
                 self.logic.on_pose_msg(msg, target)
+            if self.path is not None and target == self.targets.names[0]:
+                (self.path.on_point_msg if self.measurement == "point" else self.path.on_pose_msg)(msg)
         on_measurement.__name__ = f"on_measurement{'_' + target if target else ''}"
         return on_measurement
 
@@ -192,6 +225,8 @@ class AccuracyMonitor(Node):
             self.waiting["joint_states"] += 1
             return
         self.logic.on_joint_state_msg(msg)
+        if self.path is not None:
+            self.path.on_joint_state_msg(msg)
 
     def on_budget(self, msg):
         self.budget_text = msg.data
@@ -201,6 +236,8 @@ class AccuracyMonitor(Node):
         try:
             _, budget = budget_from_message(msg.data, {model.name: model})
             self.logic.set_budget(budget)
+            if self.path is not None:
+                self.path.budget = budget
         except ContractError as exc:
             self.get_logger().error(f"budget message ignored: {exc.message}")
             return
@@ -225,9 +262,11 @@ class AccuracyMonitor(Node):
         d = self.diagnostic()
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
-        arr.status = [DiagnosticStatus(level=bytes([d["level"]]), name=d["name"], message=d["message"],
-                                       hardware_id=d["hardware_id"],
-                                       values=[KeyValue(key=k, value=v) for k, v in d["values"].items()])]
+        statuses = [d] + ([self.path.diagnostic()] if self.path is not None else [])
+        arr.status = [DiagnosticStatus(level=bytes([s["level"]]), name=s["name"], message=s["message"],
+                                       hardware_id=s["hardware_id"],
+                                       values=[KeyValue(key=k, value=v) for k, v in s["values"].items()])
+                      for s in statuses]
         self.diag_pub.publish(arr)
         if self.logic is not None:
             self.report_pub.publish(String(data=dumps_fast(self.logic.report())))

@@ -1,7 +1,9 @@
 """Simulated laser tracker (node ``tolerance_simulated_tracker``): an as-built robot drawn within a
 tolerance budget (seeded), measurement noise and a base-frame offset; subscribes to ``joint_states``
-and publishes ``measured_pose`` (PoseStamped, tracker frame) stamped like the joint state. The robot
-may come from ``robot_description``."""
+and publishes ``measured_pose`` (PoseStamped, tracker frame) stamped like the joint state, or, with
+``rate`` > 0, streams at that rate while the robot moves (readings between joint states at the joints of
+their tick) stamped ``latency`` s late, as a real tracker does. The robot may come from
+``robot_description``."""
 from __future__ import annotations
 
 from geometry_msgs.msg import PoseStamped
@@ -10,8 +12,9 @@ from sensor_msgs.msg import JointState
 
 from ..core.budget import load_budget
 from ..core.geometry import transform
-from ..core.ingest import IngestError
-from ..services.tracker import SimulatedTracker
+from ..core.geometry import matrices_to_quat
+from ..core.ingest import IngestError, stamp_seconds
+from ..services.tracker import SimulatedTracker, stamp_fields
 from .common import MEASUREMENT_QOS, declare, follow_robot, guarded, robot_set, run
 
 
@@ -34,6 +37,9 @@ class SimulatedTrackerNode(Node):
                        "pose of the robot base in the tracker frame, [x y z roll pitch yaw] (m, rad)")
         self.frame_id = declare(self, "frame_id", "tracker", "frame_id of the measured poses")
         self.every = declare(self, "measure_every", 1, "measure every n-th joint state", (1, 1_000_000))
+        self.rate = declare(self, "rate", 0.0, "stream at this rate, Hz (0: one reading per measured joint state)",
+                            (0.0, 100_000.0))
+        self.latency = declare(self, "latency", 0.0, "streaming: how late the readings are stamped, s", (0.0, 10.0))
         self.T_tracker_base = transform(base[:3], base[3:])
         self.robots = robot_set(self, [robot], robot)
         self.sim = None
@@ -56,12 +62,22 @@ class SimulatedTrackerNode(Node):
         if self.sim is None or (self.count - 1) % self.every:
             return
         try:
+            if self.rate > 0:
+                t = stamp_seconds(msg.header.stamp)
+                readings = self.sim.stream(t, self.sim.joint_order(msg.name, msg.position), self.rate, self.latency)
+                for stamp, T in readings:
+                    self.publish(stamp_fields(stamp), T[:3, 3], matrices_to_quat(T[None, :3, :3])[0])
+                return
             _, p, q = self.sim.on_joint_state_msg(msg)
         except IngestError as exc:
             self.get_logger().warning(f"joint state ignored: {exc}", throttle_duration_sec=1.0)
             return
+        self.publish((msg.header.stamp.sec, msg.header.stamp.nanosec), p, q)
+
+    def publish(self, stamp, p, q):
+        """A reading: stamp (sec, nanosec), position (3,) m, quaternion x y z w, tracker frame."""
         out = PoseStamped()
-        out.header.stamp.sec, out.header.stamp.nanosec = msg.header.stamp.sec, msg.header.stamp.nanosec
+        out.header.stamp.sec, out.header.stamp.nanosec = int(stamp[0]), int(stamp[1])
         out.header.frame_id = self.frame_id
         out.pose.position.x, out.pose.position.y, out.pose.position.z = (float(v) for v in p)
         o = out.pose.orientation

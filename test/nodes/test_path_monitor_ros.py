@@ -1,0 +1,65 @@
+"""The accuracy monitor's path figures over a real ROS 2 graph (skipped without rclpy): joint states and a
+tracker's points of a simulated rectangle published as they would arrive, a report on tolerance/path_report
+when each motion ends, and the path monitor's status on /diagnostics."""
+import json
+import time
+import uuid
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy", reason="ROS 2 Jazzy is not sourced (rclpy not importable)")
+
+from builtin_interfaces.msg import Time  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import PointStamped  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+
+from path_runs import T_TB, run  # noqa: E402
+from ros_graph import Graph, wait_for  # noqa: E402
+from tolerance_ros.core.geometry import rpy_from_matrix  # noqa: E402
+from tolerance_ros.core.models import load_robot  # noqa: E402
+from tolerance_ros.nodes.common import MEASUREMENT_QOS, STATUS_QOS  # noqa: E402
+
+
+def _stamp(t):
+    return Time(sec=int(t), nanosec=int(round((t - int(t)) * 1e9)) % 1_000_000_000)
+
+
+def test_path_report_topic_and_diagnostics(tmp_path):
+    gao = load_robot("gao2023_7dof")
+    st = run(gao, "rectangle", cycles=2)
+    ns = f"/t{uuid.uuid4().hex[:8]}"
+    base = [float(v) for v in np.concatenate([T_TB[:3, 3], rpy_from_matrix(T_TB[None, :3, :3])[0]])]
+    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
+    g = Graph()
+    try:
+        g.start(AccuracyMonitor, ns, measurement="point", tracker_to_base=base, log_dir=str(tmp_path),
+                path_latency="8ms", report_period=0.3)
+        node = g.node(f"feeder_{uuid.uuid4().hex[:6]}", ns)
+        reports, diags = [], []
+        node.create_subscription(String, "tolerance/path_report", reports.append, STATUS_QOS)
+        node.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
+        js = node.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+        pts = node.create_publisher(PointStamped, "measured_point", MEASUREMENT_QOS)
+        assert wait_for(lambda: js.get_subscription_count() and pts.get_subscription_count(), 20)
+        k = 0
+        for t, q in zip(st.joint_stamps, st.joints):      # about twice real time: the queues (depth 100) keep up
+            m = JointState(name=list(gao.joint_names), position=[float(v) for v in q])
+            m.header.stamp = _stamp(t)
+            js.publish(m)
+            while k < len(st.stamps) and st.stamps[k] <= t:
+                p = PointStamped()
+                p.header.stamp = _stamp(st.stamps[k])
+                p.point.x, p.point.y, p.point.z = (float(v) for v in st.points[k])
+                pts.publish(p)
+                k += 1
+            time.sleep(0.001)
+        assert wait_for(lambda: len(reports) >= 2, 60)
+        doc = json.loads(reports[-1].data)
+        assert doc["cycles"] == 2 and len(doc["segments"]) == 4 and doc["overall"]["AT_p_m"] < 1e-3
+        assert wait_for(lambda: any(s.name.endswith("path monitor") and "AT_p" in s.message
+                                    for d in diags for s in d.status), 20)
+    finally:
+        g.close()

@@ -1,0 +1,122 @@
+"""The on-line path monitor fed the streams in batches as they would arrive: the same figures as the offline
+report on the same log (latency and placement given to both), close to them when it estimates its own, the
+points counted as offline, bounded memory, and its diagnostic."""
+import numpy as np
+import pytest
+
+from path_runs import T_TB, run
+from tolerance_ros.core.accuracy.path_report import path_report
+from tolerance_ros.core.budget import load_budget
+from tolerance_ros.services.path_monitor import ERROR, OK, WARN, PathMonitor
+
+
+@pytest.fixture(scope="module")
+def rect(gao):
+    return run(gao, "rectangle", cycles=4)
+
+
+def feed(mon, st, batch=0.05):
+    """The streams in time order, ``batch`` s at a time (joint states then the tracker's points of each)."""
+    reports = []
+    t0 = min(st.joint_stamps[0], st.stamps[0])
+    end = max(st.joint_stamps[-1], st.stamps[-1])
+    for a in np.arange(t0, end + batch, batch):
+        j = (st.joint_stamps >= a) & (st.joint_stamps < a + batch)
+        m = (st.stamps >= a) & (st.stamps < a + batch)
+        reports += mon.add_joint_states(st.joint_stamps[j], st.joints[j])
+        reports += mon.add_points(st.stamps[m], st.points[m])
+        assert len(mon.tm) < 20_000 and len(mon.tj) < 10_000       # bounded: about one motion at a time
+    return reports + mon.finish()
+
+
+def test_online_figures_equal_the_offline_report(gao, rect):
+    st = rect
+    offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints, latency=0.008, T_tracker_base=T_TB,
+                          step=0.002)
+    mon = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
+    reports = feed(mon, st)
+    assert [r["cycles"] for r in reports] == [1, 2, 3, 4]           # one report as each path ends
+    last = reports[-1]
+    assert len(last["segments"]) == len(offline["segments"]) == 4
+    for on, off in zip(last["segments"], offline["segments"]):
+        for key in ("AT_p_m", "RT_p_m", "CR_m", "CO_m", "AV", "RV", "FV_m_s"):
+            if off[key] is None:
+                assert on[key] is None, (on["name"], key)
+            else:
+                assert on[key] == pytest.approx(off[key], rel=1e-9, abs=1e-15), (on["name"], key)
+    c = mon.counts
+    assert c["on_path"] + c["at_rest"] + c["outside_joint_states"] + c["other_motions"] == len(st.stamps)
+    assert c["at_rest"] == offline["outside"]["at_rest"]
+    assert c["outside_joint_states"] == offline["outside"]["outside_joint_states"]
+
+
+def test_online_estimates_its_latency_and_placement(gao, rect):
+    st = rect
+    offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints)
+    mon = PathMonitor(gao, budget=load_budget("gao2023_delta2", gao))
+    assert mon.status()[0] == WARN
+    reports = feed(mon, st, batch=0.2)
+    assert abs(mon.latency - 0.008) < 0.5e-3
+    assert reports[-1]["cycles"] == offline["cycles"]
+    for on, off in zip(reports[-1]["segments"], offline["segments"]):
+        assert on["AT_p_m"] == pytest.approx(off["AT_p_m"], rel=0.1, abs=5e-6)
+        assert on["RT_p_m"] == pytest.approx(off["RT_p_m"], rel=0.1)
+    level, words = mon.status()
+    assert level == OK and "AT_p" in words and "latency 8.0" in words, words
+
+
+def test_online_refuses_an_uncertain_latency(gao, rect):
+    budget = load_budget("gao2023_delta2", gao)
+    budget.limit_position = 1e-6
+    mon = PathMonitor(gao, budget=budget)
+    feed(mon, rect, batch=0.2)
+    level, words = mon.status()
+    assert level == ERROR and "too uncertain" in words
+
+
+class _Msg:
+    """A duck-typed ROS message: attributes from keywords, nested with dicts."""
+
+    def __init__(self, **kw):
+        for k, v in kw.items():
+            setattr(self, k, _Msg(**v) if isinstance(v, dict) else v)
+
+
+def test_messages_are_queued_judged_and_bad_ones_counted(gao, rect):
+    st = rect
+    mon = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
+    names = list(gao.joint_names)[::-1]                  # another order: put back in the model's
+    reports = []
+    stop = st.joint_stamps[0] + 12.0
+    for t, q in zip(st.joint_stamps[st.joint_stamps < stop], st.joints[st.joint_stamps < stop]):
+        mon.on_joint_state_msg(_Msg(header={"stamp": float(t)}, name=names, position=list(q[::-1])))
+    for t, p in zip(st.stamps[st.stamps < stop], st.points[st.stamps < stop]):
+        mon.on_point_msg(_Msg(header={"stamp": float(t)}, point={"x": p[0], "y": p[1], "z": p[2]}))
+    mon.on_point_msg(_Msg(header={"stamp": float(stop)}, point={"x": float("nan"), "y": 0.0, "z": 0.0}))
+    mon.on_joint_state_msg(_Msg(header={"stamp": float(stop)}, name=["joint1"], position=[0.0]))
+    reports += mon.flush()
+    assert len(reports) == 2 and reports[-1]["cycles"] == 2
+    d = mon.diagnostic()
+    assert d["values"]["rejected"] == "2" and "no value for joint(s)" in d["values"]["last_rejected"]
+    assert d["level"] == OK and "AT_p" in d["message"] and float(d["values"]["AT_p_m"]) > 0
+
+
+def test_the_simulated_tracker_streams_and_the_monitor_finds_its_latency(gao):
+    """The loop without a graph: joint states of a planned rectangle at 500 Hz into the streaming simulated
+    tracker (1 kHz, 8 ms late), both into the path monitor."""
+    from tolerance_ros.core.accuracy.iso_paths import plan_path
+    from tolerance_ros.services.tracker import SimulatedTracker
+    jp, _ = plan_path(gao, "rectangle", speed=0.2, cycles=3, q_center=np.radians([0, 45, 0, 60, 0, 30, 0]))
+    sim = SimulatedTracker(gao, load_budget("gao2023_delta2", gao).vector_for(gao), seed=2, T_tracker_base=T_TB)
+    mon = PathMonitor(gao)
+    tj = 100.0 + np.arange(0.0, jp.duration + 0.5, 0.002)
+    qj = jp.at(tj - 100.0)
+    reports = []
+    for k in range(0, len(tj), 50):
+        readings = [r for t, q in zip(tj[k:k + 50], qj[k:k + 50]) for r in sim.stream(t, q, 1000.0, 0.008)]
+        assert all(np.diff([s for s, _ in readings]) > 0)
+        reports += mon.add_joint_states(tj[k:k + 50], qj[k:k + 50])
+        if readings:
+            reports += mon.add_points(np.array([s for s, _ in readings]), np.array([T[:3, 3] for _, T in readings]))
+    assert abs(mon.latency - 0.008) < 0.5e-3
+    assert reports and reports[-1]["cycles"] == 3 and reports[-1]["overall"]["AT_p_m"] < 1e-3

@@ -1,0 +1,118 @@
+"""The path commands end to end: plan-campaign --path writes a test path, simulate --trajectory drives it with
+a tracker 8 ms late, path-report finds the latency and the ISO figures (JSON keys in SI, files), refuses what
+it must (exit 3) and names bad input (exit 2)."""
+import json
+from pathlib import Path
+
+import pytest
+
+from tolerance_ros.cli import main
+
+CENTER = "0deg,45deg,0deg,60deg,0deg,30deg,0deg"
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture(scope="module")
+def streams(tmp_path_factory):
+    d = tmp_path_factory.mktemp("path")
+    assert main(["plan-campaign", "--robot", "gao2023_7dof", "--path", "rectangle", "--speed", "0.2m/s", "--cycles",
+                 "4", "--center-joints", CENTER, "--out", str(d / "rect.yaml"), "--quiet"]) == 0
+    assert main(["simulate", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--trajectory",
+                 str(d / "rect.yaml"), "--repeatability", "0.1mrad", "--out", str(d / "path.csv"), "--quiet"]) == 0
+    return d
+
+
+def test_plan_campaign_path_json(capsys, tmp_path):
+    code, out, _ = run(capsys, "plan-campaign", "--robot", "gao2023_7dof", "--path", "circle", "--center-joints", CENTER,
+                       "--side", "100mm", "--out", tmp_path / "c.yaml", "--json")
+    doc = json.loads(out)
+    assert code == 0 and doc["path"] == "circle" and doc["side_m"] == pytest.approx(0.1) and doc["corners"] == 0
+    assert doc["length_m"] == pytest.approx(3.14159 * 0.08, rel=1e-3) and (tmp_path / "c.yaml").is_file()
+
+
+def test_path_report_json_keys_latency_and_files(capsys, streams):
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                         "--joint-states", streams / "path.joints.csv", "--budget", "gao2023_delta2", "--out",
+                         streams / "report", "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["ok"] and abs(doc["latency_s"] - 0.008) < 0.5e-3 and doc["cycles"] == 4
+    assert len(doc["segments"]) == 4
+    for seg in doc["segments"]:
+        assert {"AT_p_m", "RT_p_m", "CR_m", "CO_m", "AV", "RV", "FV_m_s"} <= set(seg)
+        assert 0 < seg["AT_p_m"] < 1e-3 and 0 < seg["RT_p_m"] < 1e-3
+    for f in ("path_report.json", "path_report.md", "path.png", "along.png"):
+        assert (streams / "report" / f).is_file(), f
+    assert json.loads((streams / "report" / "path_report.json").read_text())["latency_s"] == doc["latency_s"]
+
+
+def test_path_report_text(capsys, streams):
+    code, out, _ = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                       "--joint-states", streams / "path.joints.csv")
+    assert code == 0 and "latency 8.0" in out and "AT_p mm" in out and "not on the test path:" in out
+
+
+def test_the_trajectory_as_sent_is_found_on_the_tracker_clock(capsys, streams):
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                         "--trajectory", streams / "rect.yaml", "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["command"]["kind"] == "trajectory" and doc["command"]["start_s"] == pytest.approx(1000.008, abs=5e-4)
+
+
+def test_a_latency_too_uncertain_for_the_budget_exits_3(capsys, streams, tmp_path):
+    text = (Path(__file__).resolve().parents[1] / "config" / "budgets" / "gao2023_delta2.yaml").read_text()
+    tight = tmp_path / "tight.yaml"
+    tight.write_text(text.replace("limit: {position: 1.4}", "limit: {position: 0.001}"))
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                         "--joint-states", streams / "path.joints.csv", "--budget", tight, "--json")
+    doc = json.loads(out)
+    assert code == 3 and not doc["ok"] and "too uncertain" in doc["refused"] and "FAILED: the latency" in err
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--latency", "8"], "--latency: '8' has no unit"),
+    (["--stations", "1"], "--stations: expected 2"),
+    (["--trajectory", "x.yaml"], "give one of them"),
+])
+def test_bad_options_exit_2(capsys, streams, extra, message):
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                       "--joint-states", streams / "path.joints.csv", *extra)
+    assert code == 2 and message in err
+
+
+def test_joint_states_without_a_joint_of_the_robot_exit_2(capsys, streams, tmp_path):
+    lines = (streams / "path.joints.csv").read_text().splitlines()
+    head = [i for i, l in enumerate(lines) if l.startswith("stamp")][0]
+    bad = tmp_path / "j.csv"
+    bad.write_text("\n".join(",".join(l.split(",")[:-1]) for l in lines[head:]) + "\n")
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                       "--joint-states", bad)
+    assert code == 2 and "no column for joint(s) ['joint7']" in err
+    deg = tmp_path / "d.csv"
+    deg.write_text(lines[head].replace("joint:joint1[rad]", "joint:joint1[furlong]") + "\n" + "\n".join(lines[head + 1:]))
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                       "--joint-states", deg)
+    assert code == 2 and "needs an angle unit" in err
+
+
+def test_joints_in_degrees_labelled_radians_and_millimetres_labelled_metres_exit_2(capsys, streams, tmp_path):
+    lines = (streams / "path.joints.csv").read_text().splitlines()
+    head = [i for i, l in enumerate(lines) if l.startswith("stamp")][0]
+    deg = tmp_path / "deg.csv"
+    rows = [lines[head]] + [",".join([r.split(",")[0]] + [f"{float(v) * 57.29577951:.6f}" for v in r.split(",")[1:]])
+                            for r in lines[head + 1:]]
+    deg.write_text("\n".join(rows) + "\n")
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                       "--joint-states", deg)
+    assert code == 2 and "degrees" in err
+    pts = (streams / "path.csv").read_text().replace("x[mm],y[mm],z[mm]", "x[m],y[m],z[m]")
+    (tmp_path / "m.csv").write_text(pts)
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "m.csv",
+                       "--joint-states", streams / "path.joints.csv")
+    assert code == 2 and "millimetres labelled metres" in err

@@ -1,0 +1,95 @@
+"""`tolerance-ros path-report`: ISO 9283 path characteristics of a tracker's stream along a commanded path,
+with the tracker's latency measured."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.budget import load_budget
+from ..render.text import table
+from .common import CLIError, load_model, missed, quantity
+
+NAME = "path-report"
+HELP = "ISO 9283 path accuracy of a tracker's stream along a commanded path (AT, RT, CR, CO, AV, RV, FV, latency)"
+ROBOT = True
+MAX_STATIONS = 10_000
+JOINT_RATE = 500.0   # Hz: a trajectory file's joints are sampled at this rate to make the command path
+
+
+def add_arguments(p):
+    p.add_argument("--measurements", required=True,
+                   help="the tracker's points: CSV (stamp[s] and x,y,z), campaign log (.jsonl) or rosbag2")
+    p.add_argument("--joint-states", metavar="JOINTS",
+                   help="CSV of stamp[s] and joint:NAME[rad] columns, as a controller logs them (default: the joints "
+                        "of the measurement rows)")
+    p.add_argument("--trajectory", metavar="FILE",
+                   help="the joint trajectory as sent (plan-campaign --path, or a compensated one): its start on the "
+                        "tracker's clock is found by the speeds' cross-correlation")
+    p.add_argument("--registration", choices=["base", "none"], default="base",
+                   help="fit the tracker's placement (base, default) or take the points as base-frame (none)")
+    p.add_argument("--budget", help="tolerance budget: the bound tube along the path and the verdicts")
+    p.add_argument("--latency", help="the tracker's latency, given (e.g. 8ms) instead of estimated")
+    p.add_argument("--latency-window", default="100ms",
+                   help="the latency is looked for within +- this (default 100ms)")
+    p.add_argument("--stations", type=int, default=100, help="calculation points per segment (default 100)")
+    p.add_argument("--speed-window", default="10ms",
+                   help="speeds are central differences over +- this (default 10ms)")
+    p.add_argument("--out", metavar="DIR", help="write path_report.json, path_report.md and plots into DIR")
+
+
+def _command(args, model, stamps, points):
+    """(joint stamps, joints, center of the latency search, where from) of the command."""
+    from ..core.accuracy.io import read_measurements
+    if args.joint_states and args.trajectory:
+        raise CLIError("--joint-states, --trajectory: give one of them (the command's joints)")
+    if args.joint_states:
+        from ..core.accuracy.io.joint_states import read_joint_states
+        tj, qj = read_joint_states(args.joint_states, model.joint_names, model.joint_types)
+        return tj, model.check_joints(qj, args.joint_states), 0.0, args.joint_states
+    if args.trajectory:
+        from ..core.accuracy.iso_paths import read_trajectory
+        from ..core.accuracy.latency import coarse_offset
+        from ..core.accuracy.path_report import command_points
+        try:
+            jp = read_trajectory(args.trajectory, model)
+        except ValueError as exc:
+            raise CLIError(str(exc)) from None
+        tj = np.arange(int(jp.duration * JOINT_RATE) + 1) / JOINT_RATE
+        qj = jp.at(tj)
+        return tj, qj, coarse_offset(stamps, points, tj, command_points(model, qj)), args.trajectory
+    m = read_measurements(args.measurements, joint_names=model.joint_names)
+    if m.joints is None:
+        raise CLIError(f"{args.measurements}: no joint columns; give the commanded joints with --joint-states or "
+                       f"--trajectory")
+    return m.stamps, model.check_joints(m.joints, args.measurements), 0.0, args.measurements
+
+
+def run(args):
+    from ..core.accuracy.io.joint_states import read_points
+    from ..core.accuracy.path_report import path_report
+    from ..render.path_report import HEADS, segment_rows, summary_lines, write_path_report
+    model = load_model(args)
+    if not 2 <= args.stations <= MAX_STATIONS:
+        raise CLIError(f"--stations: expected 2 to {MAX_STATIONS}, got {args.stations}")
+    budget = load_budget(args.budget, model) if args.budget else None
+    latency = quantity(args.latency, "time", "--latency", positive=False)
+    window = quantity(args.latency_window, "time", "--latency-window")
+    speed_window = quantity(args.speed_window, "time", "--speed-window")
+    stamps, points, source = read_points(args.measurements)
+    tj, qj, center, command_source = _command(args, model, stamps, points)
+    doc = path_report(model, stamps, points, tj, qj, budget, args.registration, latency, window, center,
+                      args.stations, speed_window, source=source)
+    doc["command"] = {"source": command_source, "kind": "trajectory" if args.trajectory else "joint states"}
+    if args.trajectory:
+        doc["command"]["start_s"] = doc["latency_s"]
+    for what in doc["missed"]:
+        missed(args, what)
+    files = write_path_report(doc, args.out) if args.out else {}
+    if args.json:
+        return dict(doc, files=files)
+    for line in summary_lines(doc):
+        print(line)
+    print(table(HEADS, segment_rows(doc)))
+    for k, v in files.items():
+        for f in (v if isinstance(v, list) else [v]):
+            print(f"wrote {f}")
+    return None

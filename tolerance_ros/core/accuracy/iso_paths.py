@@ -1,0 +1,223 @@
+"""The test paths of ISO 9283 (path section) in the test cube's diagonal plane, as tool paths and as the
+joint trajectories that drive them.
+
+The cube (edge ``side``, centre ``c``, ``h = side / 2``) is the one of ``iso9283.iso_cube_points``; its test
+plane is the diagonal plane through the corners (-,-,-), (+,+,-), (+,+,+), (-,-,+), spanned by
+``u = (1, 1, 0) / sqrt(2)`` and ``w = (0, 0, 1)`` of the base frame. In it:
+
+- ``line``: from P3 ``c - 0.8 h (1, 1, 1)`` to P2 ``c + 0.8 h (1, 1, 1)`` (the plane's diagonal, 80 % of it),
+  then back (the return is another motion, not the test path);
+- ``circle``: centre ``c``, diameter ``0.8 side``, starting at ``c + 0.4 side u``, once round;
+- ``rectangle``: P3 -> P4 -> P2 -> P5 -> P3 (``P4 = c + 0.8 h (1, 1, -1)``, ``P5 = c + 0.8 h (-1, -1, 1)``),
+  its four corners passed at the programmed speed.
+
+The tool keeps the orientation of the centre pose. Each move starts and ends at rest with a trapezoidal
+speed profile (``speed`` m/s, ``accel`` m/s^2); a cycle is a dwell at the start, then the move(s). Joints
+come from the nominal model's inverse kinematics (``calibration.compensate.nominal_solution``) at knots
+every ``spacing`` along the path, continued from knot to knot, and are linear in time between knots.
+SI throughout.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+PATHS = ("line", "circle", "rectangle")
+MAX_KNOT_STEP = 0.05  # rad or m: the largest joint change between knots before a path is called discontinuous
+
+
+@dataclass
+class ToolPath:
+    """One test path: ``moves`` is a list of (k_i, 3) polylines (m) in the base frame, each driven from
+    rest to rest; ``test`` the index of the move that is the test path; ``R`` the tool orientation."""
+
+    kind: str
+    moves: list
+    test: int
+    R: np.ndarray
+    center: np.ndarray
+    side: float
+
+
+def _polyline(corners, spacing) -> np.ndarray:
+    """(k, 3) points every ``spacing`` (at most) along the straight legs between ``corners``, corners kept."""
+    out = [corners[:1]]
+    for a, b in zip(corners[:-1], corners[1:]):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing)))
+        out.append(a + (b - a) * (np.arange(1, n + 1) / n)[:, None])
+    return np.vstack(out)
+
+
+def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3) -> ToolPath:
+    """The test path ``kind`` (``PATHS``) of the cube of edge ``side`` (m) at ``center`` (m)."""
+    if kind not in PATHS:
+        raise ValueError(f"path: expected one of {', '.join(PATHS)}, got {kind!r}")
+    c = np.asarray(center, float)
+    if c.shape != (3,) or not np.all(np.isfinite(c)):
+        raise ValueError("center: expected three finite numbers (m)")
+    if not (np.isfinite(side) and side > 0):
+        raise ValueError("side: expected a positive length (m)")
+    h = side / 2.0
+    u, w = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0), np.array([0.0, 0.0, 1.0])
+    P2, P3 = c + 0.8 * h * np.array([1, 1, 1.0]), c - 0.8 * h * np.array([1, 1, 1.0])
+    P4, P5 = c + 0.8 * h * np.array([1, 1, -1.0]), c + 0.8 * h * np.array([-1, -1, 1.0])
+    R = np.eye(3) if R is None else np.asarray(R, float)
+    if kind == "line":
+        fwd = _polyline(np.array([P3, P2]), spacing)
+        return ToolPath(kind, [fwd, fwd[::-1].copy()], 0, R, c, side)
+    if kind == "rectangle":
+        return ToolPath(kind, [_polyline(np.array([P3, P4, P2, P5, P3]), spacing)], 0, R, c, side)
+    r = 0.4 * side
+    n = max(8, int(np.ceil(2 * np.pi * r / spacing)))
+    a = np.linspace(0.0, 2 * np.pi, n + 1)
+    return ToolPath(kind, [c + r * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * w)], 0, R, c, side)
+
+
+def trapezoid_times(s, speed: float, accel: float) -> np.ndarray:
+    """(k,) time (s) at arc lengths ``s`` (k,) m of a move from rest to rest of length ``s[-1]``: accelerate
+    at ``accel``, cruise at ``speed`` (or less when the move is too short), decelerate."""
+    if not (speed > 0 and accel > 0):
+        raise ValueError("speed and accel must be > 0")
+    L = float(s[-1])
+    v = min(speed, np.sqrt(accel * L))
+    da = v * v / (2 * accel)
+    ta, tc = v / accel, (L - 2 * da) / v
+    s = np.asarray(s, float)
+    t = np.where(s < da, np.sqrt(2 * np.maximum(s, 0) / accel),
+                 np.where(s <= L - da, ta + (s - da) / v,
+                          2 * ta + tc - np.sqrt(2 * np.maximum(L - s, 0) / accel)))
+    return np.maximum.accumulate(t)
+
+
+@dataclass
+class JointPath:
+    """One cycle of a joint trajectory: knots ``t`` (k,) s from the cycle's start, ``q`` (k, dof); a run is
+    ``cycles`` of them in a row, then the last pose held."""
+
+    joint_names: tuple
+    t: np.ndarray
+    q: np.ndarray
+    cycles: int = 1
+    kind: str = ""
+    speed: float = float("nan")
+
+    @property
+    def period(self) -> float:
+        return float(self.t[-1])
+
+    @property
+    def duration(self) -> float:
+        return self.period * self.cycles
+
+    def at(self, t) -> np.ndarray:
+        """(n, dof) joints at run times ``t`` (n,) s (0 = the first cycle's start)."""
+        t = np.asarray(t, float)
+        k = np.clip(np.floor(t / self.period), 0, self.cycles - 1)
+        tc = np.clip(t - k * self.period, 0.0, self.period)
+        return np.column_stack([np.interp(tc, self.t, self.q[:, j]) for j in range(self.q.shape[1])])
+
+    def to_dict(self) -> dict:
+        """The trajectory file (``read_trajectory``): SI, one cycle of knots."""
+        return {"kind": "joint_trajectory", "path": self.kind, "speed_m_s": self.speed, "cycles": self.cycles,
+                "joint_names": list(self.joint_names),
+                "points": [{"time_from_start": float(ti), "positions": [float(v) for v in qi]}
+                           for ti, qi in zip(self.t, self.q)]}
+
+
+def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: float = 0.5,
+               cycles: int = 1) -> JointPath:
+    """The joint trajectory of ``tp`` for ``model``: IK at every knot (position and orientation ``tp.R``),
+    continued from ``q_seed`` (dof,); ValueError when a knot is out of reach or the joints jump."""
+    from ..calibration.compensate import solve
+    times, qs, t0 = [], [], 0.0
+    q_prev = np.asarray(q_seed, float)
+    for k, pts in enumerate(tp.moves):
+        T = np.tile(np.eye(4), (len(pts), 1, 1))
+        T[:, :3, :3], T[:, :3, 3] = tp.R, pts
+        q = np.empty((len(pts), model.dof))
+        step = 200
+        for i in range(0, len(pts), step):  # each block starts from the previous block's last answer
+            q0 = np.broadcast_to(q_prev, (min(step, len(pts) - i), model.dof))
+            qi, rp, ro, _ = solve(model, T[i:i + step], q0, tol_position=1e-9, tol_orientation=1e-9)
+            if rp.max() > 1e-6 or ro.max() > 1e-6:
+                bad = i + int(np.argmax(rp))
+                raise ValueError(f"path {tp.kind}: the tool point {np.round(pts[bad] * 1e3, 1).tolist()} mm is out "
+                                 f"of reach of {model.name} at this orientation")
+            q[i:i + len(qi)], q_prev = qi, qi[-1]
+        jumps = np.abs(np.diff(np.vstack([q[:1], q]), axis=0)).max(axis=1)
+        if jumps.max() > MAX_KNOT_STEP:
+            raise ValueError(f"path {tp.kind}: the joints jump by {jumps.max():.3f} between knots (a singularity or "
+                             f"a change of branch); choose another centre or a smaller cube")
+        if model.out_of_limits(q).any():
+            raise ValueError(f"path {tp.kind}: the joints leave their limits along the path")
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        tm = trapezoid_times(s, speed, accel)
+        times += [t0, t0 + dwell] if k == 0 else [t0 + dwell]
+        qs += [q[0], q[0]] if k == 0 else [q[0]]
+        times += list(t0 + dwell + tm[1:])
+        qs += list(q[1:])
+        t0 = times[-1]
+    return JointPath(tuple(model.joint_names), np.array(times), np.array(qs), cycles, tp.kind, speed)
+
+
+def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: float = 0.5, cycles: int = 10,
+              side: float | None = None, q_center=None, spacing: float = 0.5e-3, seed: int = 0):
+    """(JointPath, ToolPath) of the test path ``kind`` in an ISO cube the model reaches: centred at the tool
+    pose of ``q_center`` (dof,) rad or m, or else at the cube of ``calibration.planning.iso_cube_joints``;
+    of edge ``side`` m, or else the largest of 0.4 m halved until the whole path is reached within the joint
+    limits without a jump. ValueError when none is."""
+    from ..calibration.compensate import solve
+    if q_center is None:
+        from ..calibration.planning import iso_cube_joints
+        q_iso, note = iso_cube_joints(model, model.sample_joints(2000, seed), seed)
+        if q_iso is None:
+            raise ValueError(f"{model.name}: {note}")
+        q_center = q_iso[0]
+    q_center = model.check_joints(q_center, "center joints")[0]
+    T = model.fk(q_center[None])[0]
+    sides = [side] if side else [0.4 / 2 ** k for k in range(6)]
+    why = ""
+    for sd in sides:
+        tp = tool_path(kind, T[:3, 3], sd, T[:3, :3], spacing)
+        T0 = T.copy()
+        T0[:3, 3] = tp.moves[0][0]
+        q0 = solve(model, T0[None], q_center[None])[0][0]
+        try:
+            return joint_path(model, tp, q0, speed, accel, dwell, cycles), tp
+        except ValueError as exc:
+            why = str(exc)
+    raise ValueError(f"{model.name}: no ISO cube{'' if side else ' of edge 12.5 mm to 400 mm'} centred at "
+                     f"{np.round(T[:3, 3] * 1e3, 1).tolist()} mm carries the {kind} path: {why}")
+
+
+def read_trajectory(path, model) -> JointPath:
+    """A trajectory file (YAML or JSON: ``joint_names``, ``points`` of ``time_from_start`` s and
+    ``positions`` rad or m, optional ``cycles``), its joints put in the model's order."""
+    from ..yamlio import read_yaml
+    data = read_yaml(path)
+    where = str(path)
+    if not isinstance(data, dict) or "points" not in data or "joint_names" not in data:
+        raise ValueError(f"{where}: a trajectory needs joint_names and points (time_from_start, positions)")
+    names = [str(n) for n in data["joint_names"]]
+    missing = [n for n in model.joint_names if n not in names]
+    if missing:
+        raise ValueError(f"{where}: joint_names lacks {missing} of robot {model.name}")
+    pts = data["points"]
+    if not isinstance(pts, list) or len(pts) < 2:
+        raise ValueError(f"{where}: points: expected a list of at least 2 points")
+    try:
+        t = np.array([float(p["time_from_start"]) for p in pts])
+        Q = np.array([[float(v) for v in p["positions"]] for p in pts])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: points: each needs time_from_start and positions ({exc})") from None
+    if Q.shape[1] != len(names) or not np.all(np.isfinite(Q)) or not np.all(np.isfinite(t)):
+        raise ValueError(f"{where}: points: every point needs {len(names)} finite positions")
+    if np.any(np.diff(t) <= 0):
+        raise ValueError(f"{where}: points: time_from_start must increase")
+    cycles = int(data.get("cycles", 1))
+    if cycles < 1:
+        raise ValueError(f"{where}: cycles: must be >= 1")
+    Q = Q[:, [names.index(n) for n in model.joint_names]]
+    return JointPath(tuple(model.joint_names), t - t[0], Q, cycles, str(data.get("path", "")),
+                     float(data.get("speed_m_s", float("nan"))))

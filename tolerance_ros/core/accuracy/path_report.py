@@ -1,0 +1,193 @@
+"""A path report from two streams: the tracker's points and the commanded joints.
+
+1. The command path: the nominal tool point of the commanded joints at their stamps (``model.fk``).
+2. Time alignment: the tracker's latency against the joint states (``latency.estimate_latency``), unless
+   given; its points are then taken at ``stamp - latency``.
+3. Registration: the tracker's placement by Kabsch over every point paired at the aligned stamps
+   (``base``), or none (``none``: the points are in the base frame).
+4. Cycles and segments (``path.motions``, ``path.cycles_of``, ``path.corners``) and the ISO 9283 figures
+   (``path.path_characteristics``).
+5. Checks before any figure (``checks``): the length and angle units of the streams, joint states beyond the
+   limits, a registered residual beyond 2 % of the robot's reach: refused with the cause (ValueError).
+6. With a budget: its predicted bound (its criterion) at every station of the first cycle, the tube the
+   barycentres should stay in, and two verdicts: the path accuracy against the design limit, and the
+   latency's uncertainty against it (refused when ``2 u(tau) v_max`` exceeds ``LATENCY_SHARE`` of the limit:
+   the time alignment alone could then move the path by that much).
+
+Nothing measured is dropped silently: the points outside the test path's cycles are counted by why (the
+robot at rest, another motion, outside the joint states' time span). SI throughout.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import path as P
+from .latency import estimate_latency
+from .checks import PLAUSIBLE_RESIDUAL, robot_reach, units_problem
+from .registration import kabsch
+
+LATENCY_SHARE = 0.1   # of the design limit: the most the latency's uncertainty (2 u x speed) may move the path
+
+
+def command_points(model, joints, chunk: int = 100_000, offset=None) -> np.ndarray:
+    """(k, 3) nominal points (m) of joints (k, dof): the tool point, or the point ``offset`` (3,) m of the tool
+    frame (a target's)."""
+    out = np.empty((len(joints), 3))
+    for i in range(0, len(joints), chunk):
+        T = model.fk(joints[i:i + chunk])
+        out[i:i + chunk] = T[:, :3, 3] if offset is None else T[:, :3, :3] @ np.asarray(offset, float) + T[:, :3, 3]
+    return out
+
+
+def _cycles(t_c, p_c, ta, a, runs, picked):
+    out = []
+    for k in picked:
+        i0, i1 = runs[k]
+        j0, j1 = np.searchsorted(ta, [t_c[i0], t_c[i1]], side="left")
+        tc, pc = t_c[i0:i1 + 1], p_c[i0:i1 + 1]
+        out.append(P.Cycle(tc, pc, P.arc_length(pc), ta[j0:j1], a[j0:j1]))
+    return out
+
+
+def path_report(model, stamps, points, joint_stamps, joints, budget=None, registration: str = "base",
+                latency: float | None = None, window: float = 0.1, center: float = 0.0, stations: int = 100,
+                speed_window: float = 0.01, rest_speed: float = 1e-3, source: str = "", T_tracker_base=None,
+                step: float | None = None) -> dict:
+    """The path report (a JSON-ready dict, SI) of the tracker's ``points`` (n, 3) m stamped ``stamps`` (n,) s
+    against the commanded ``joints`` (k, dof) stamped ``joint_stamps`` (k,) s. ``latency``: given (s) instead
+    of estimated within ``center +- window``. ``registration``: 'base' or 'none'; ``T_tracker_base`` (4, 4):
+    the tracker's placement, given instead of fitted. ``step``: the motions' speed step (``path.motions``)."""
+    tm, pm = np.asarray(stamps, float), np.asarray(points, float)
+    tj, qj = np.asarray(joint_stamps, float), np.asarray(joints, float)
+    if registration not in ("base", "none"):
+        raise ValueError(f"registration: expected base or none, got {registration!r}")
+    if pm.ndim != 2 or pm.shape[1] != 3 or len(pm) != len(tm):
+        raise ValueError(f"points: expected (n, 3) with n stamps, got {pm.shape} and {tm.shape}")
+    if len(tj) < 3 or qj.shape != (len(tj), model.dof):
+        raise ValueError(f"joint states: expected (k >= 3, {model.dof}) joints with k stamps, got {qj.shape}")
+    for name, t in (("tracker stamps", tm), ("joint state stamps", tj)):
+        if np.any(np.diff(t) < 0):
+            raise ValueError(f"{name} must not decrease")
+    p_c = command_points(model, qj)
+    reg = registration == "base"
+    runs = P.motions(tj, p_c, rest_speed, step=step)
+    picked, others = P.cycles_of(p_c, runs)
+    if not picked:
+        raise ValueError("the command never moves: no path to judge (joint states at rest)")
+    _check(model, tm, pm, tj, qj)
+    groups = [np.arange(*np.searchsorted(tm - center, [tj[runs[k][0]], tj[runs[k][1]]])) for k in picked]
+    i0, i1 = runs[picked[0]]
+    s_ref = P.arc_length(p_c[i0:i1 + 1])
+    bounds = P.segment_bounds(s_ref[-1], P.corners(p_c[i0:i1 + 1]))
+    cuts = bounds if len(bounds) > 2 else np.linspace(0.0, bounds[-1], 5)   # one segment: its quarters
+    parts = [[] for _ in range(len(cuts) - 1)]
+    for k in picked:
+        a, b = runs[k]
+        s_k = P.arc_length(p_c[a:b + 1])
+        t_b = np.interp(cuts * s_k[-1] / cuts[-1], s_k, tj[a:b + 1])
+        for j in range(len(cuts) - 1):
+            parts[j].append(np.arange(*np.searchsorted(tm - center, [t_b[j], t_b[j + 1]])))
+    parts = [np.concatenate(p) for p in parts]
+    if latency is None:
+        lat = estimate_latency(tm, pm, tj, p_c, window, center, reg, groups, parts)
+        tau, lat_doc = lat.latency_s, lat.to_dict()
+    else:
+        tau, lat_doc = float(latency), {"latency_s": float(latency), "std_s": 0.0, "given": True}
+    ta = tm - tau
+    inside = (ta >= tj[0]) & (ta <= tj[-1])
+    if not inside.any():
+        raise ValueError("no tracker point lies within the joint states' time span: the two streams do not overlap")
+    pc_a = np.column_stack([np.interp(ta[inside], tj, p_c[:, k]) for k in range(3)])
+    if T_tracker_base is not None:
+        R, t = np.asarray(T_tracker_base, float)[:3, :3], np.asarray(T_tracker_base, float)[:3, 3]
+        registration = "given"
+    elif reg:
+        R, t, _ = kabsch(pc_a, pm[inside])
+    else:
+        R, t = np.eye(3), np.zeros(3)
+    a = (pm - t) @ R                      # base frame
+    resid = np.linalg.norm(pc_a - a[inside], axis=1)
+    rms = float(np.sqrt(np.mean(resid ** 2)))
+    reach = robot_reach(model)
+    if rms > PLAUSIBLE_RESIDUAL * reach:
+        raise ValueError(f"the registered residual RMS is {rms * 1e3:.4g} mm, {rms / reach * 100:.3g} % of the robot's "
+                         f"reach ({reach:.3g} m): these streams cannot be judged against {model.name} as given "
+                         f"(another robot, the wrong joint states, or points not in the base frame with "
+                         f"--registration none?)")
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    cycles = _cycles(tj, p_c, ta, a, runs, picked)
+    ref = cycles[0]
+    segs = P.path_characteristics(cycles, bounds, stations, speed_window)
+    in_cycle = np.zeros(len(tm), bool)
+    in_other = np.zeros(len(tm), bool)
+    for k, (i0, i1) in enumerate(runs):
+        j0, j1 = np.searchsorted(ta, [tj[i0], tj[i1]])
+        (in_cycle if k in picked else in_other)[j0:j1] = True
+    in_other &= ~in_cycle
+    outside = {"points": int(len(tm) - in_cycle.sum()), "at_rest": int((inside & ~in_cycle & ~in_other).sum()),
+               "other_motions": int(in_other.sum()), "outside_joint_states": int((~inside).sum())}
+    v_max = max(s["v_c_m_s"] for s in segs)
+    doc = {"robot": model.name, "source": source, "points": int(len(tm)), "joint_states": int(len(tj)),
+           "latency_s": tau, "latency_std_s": lat_doc["std_s"], "latency": lat_doc,
+           "registration": {"method": registration, "T_tracker_base": T.tolist(),
+                            "residual_rms_m": rms},
+           "cycles": len(picked), "other_motions": len(others), "path_length_m": float(ref.s[-1]),
+           "speed_m_s": v_max, "segments": segs, "overall": P.overall(segs), "outside": outside,
+           "stations_per_segment": stations, "budget": None, "refused": None, "missed": []}
+    if budget is not None:
+        _judge(doc, model, budget, ref, tj, qj, v_max)
+    return doc
+
+
+def _check(model, tm, pm, tj, qj, sample: int = 2000):
+    """ValueError when the streams cannot be in the units they claim (``checks.units_problem`` on tracker
+    points paired by stamp) or when most joint states lie beyond the joint limits (another robot)."""
+    lo, hi = model.joint_limits[:, 0] - 0.01, model.joint_limits[:, 1] + 0.01
+    out = (qj < lo) | (qj > hi)
+    if out.any(axis=1).mean() > 0.5:
+        j = int(np.argmax(out.sum(axis=0)))
+        revolute = np.array([t != "prismatic" for t in model.joint_types])
+        q_deg = np.where(revolute, qj * np.pi / 180.0, qj)
+        hint = ("the values fit the limits read as degrees: degrees labelled radians?"
+                if not ((q_deg < lo) | (q_deg > hi)).any(axis=1).mean() > 0.5 else "another robot, or another unit?")
+        raise ValueError(f"joint states: {int(out[:, j].sum())} of {len(qj)} values of {model.joint_names[j]} lie beyond "
+                         f"its limits [{model.joint_limits[j, 0]:.4g}, {model.joint_limits[j, 1]:.4g}]: {hint}")
+    sel = np.flatnonzero((tm >= tj[0]) & (tm <= tj[-1]))
+    sel = sel[np.linspace(0, len(sel) - 1, min(sample, len(sel))).astype(int)] if len(sel) else sel
+    if len(sel) >= 3:
+        q = np.column_stack([np.interp(tm[sel], tj, qj[:, j]) for j in range(model.dof)])
+        problem = units_problem(model, q, pm[sel])
+        if problem:
+            raise ValueError(problem)
+
+
+def _judge(doc, model, budget, ref, tj, qj, v_max):
+    """The bound tube along the first cycle's stations and the verdicts against the budget (into ``doc``)."""
+    from ..errors import criterion_bound
+    delta = budget.vector_for(model)
+    for seg in doc["segments"]:
+        sig = np.asarray(seg["along"]["s_m"])
+        ts = np.interp(sig, ref.s, ref.t)
+        q = np.column_stack([np.interp(ts, tj, qj[:, j]) for j in range(model.dof)])
+        b = criterion_bound(model.error_jacobian(q).position, delta, budget.criterion)
+        seg["along"]["bound_m"] = b.tolist()
+        seg["bound_max_m"] = float(b.max())
+        seg["stations_outside_bound"] = int(np.sum(np.asarray(seg["along"]["AT_m"]) > b))
+    limit = budget.limit_position
+    doc["budget"] = {"criterion": budget.criterion, "limit_position_m": limit,
+                     "bound_max_m": max(s["bound_max_m"] for s in doc["segments"]),
+                     "stations_outside_bound": sum(s["stations_outside_bound"] for s in doc["segments"])}
+    if limit is None:
+        return
+    shift = 2.0 * doc["latency_std_s"] * v_max
+    doc["budget"]["latency_shift_m"] = shift
+    if shift > LATENCY_SHARE * limit:
+        doc["refused"] = (f"the latency {doc['latency_s'] * 1e3:.2f} ms is too uncertain for the budget: 2 x its "
+                          f"uncertainty {doc['latency_std_s'] * 1e3:.3f} ms x the speed {v_max:.3f} m/s moves the path "
+                          f"by {shift * 1e3:.3f} mm, more than {LATENCY_SHARE:.0%} of the {limit * 1e3:.3f} mm limit")
+        doc["missed"].append(doc["refused"])
+        return
+    at = doc["overall"]["AT_p_m"]
+    if at > limit:
+        doc["missed"].append(f"path accuracy AT_p {at * 1e3:.4f} mm exceeds the design limit {limit * 1e3:.4f} mm")

@@ -1,0 +1,336 @@
+"""The on-line path monitor (ROS-free): fed the joint states and the tracker's points as they arrive, it reports
+the ISO 9283 path figures each time a motion of the robot ends, the same figures ``path-report`` computes
+offline from the same log (``core/accuracy/path_report.py``, ``core/accuracy/path.py``).
+
+Incremental, in bounded memory: the command path is computed per batch of joint states; a motion is taken when
+the command has rested ``min_rest`` s after it (so that no later sample can extend it) and the tracker's points
+have reached its end; its stations (``path.cycle_stations``) are kept, its samples dropped. The latency and the
+tracker's placement are given, or estimated on the data up to the first motions that determine them
+(``latency.estimate_latency`` and Kabsch on the buffered data); the latency is then held, the placement
+refined by a Kabsch over every point paired since (``registration.KabschAccumulator``, constant memory), as
+offline; the stations' attained points are kept in the tracker's frame and put in the base frame by the
+placement of each report (CR and CO keep the placement of their cycle). Motions are grouped as offline
+(``path.cycles_of``): start, end and length; each group keeps its last ``max_cycles`` cycles; the report of a
+path is its group's. Nothing is dropped silently: the points are counted as on a path, at rest, during other
+motions, or outside the joint states' time span, and samples no motion could use within ``max_buffer`` s
+(the robot never rests) are counted as not judged.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.accuracy import path as P
+from ..core.ingest import IngestError, JointOrder, stamp_seconds
+from ..core.accuracy.latency import estimate_latency
+from ..core.accuracy.path_report import LATENCY_SHARE, command_points
+from ..core.accuracy.registration import KabschAccumulator, kabsch
+
+OK, WARN, ERROR = 0, 1, 2
+
+
+class _Group:
+    """The cycles of one path: its reference command (start, end, length), segment bounds and stations."""
+
+    def __init__(self, p, bounds):
+        self.start, self.end, self.length = p[0].copy(), p[-1].copy(), float(P.arc_length(p)[-1])
+        self.bounds = bounds
+        self.per = []
+        self.cycles = 0
+
+    def matches(self, p) -> bool:
+        L = float(P.arc_length(p)[-1])
+        return (np.linalg.norm(p[0] - self.start) <= P.SAME and np.linalg.norm(p[-1] - self.end) <= P.SAME
+                and abs(L - self.length) <= 0.01 * self.length)
+
+
+class PathMonitor:
+    """See the module docstring. ``latency`` (s) and ``T_tracker_base`` (4, 4): given, else estimated (within
+    ``+-window`` s, from at least ``estimate_after`` s of motion). ``step``: the motions' speed step (default the
+    first batch's median joint-state interval). ``offset`` (3,) m: the measured target's point in the tool
+    frame (default the tool point). Messages (duck-typed ROS ones) are queued by ``on_*_msg`` and judged by
+    ``flush``."""
+
+    def __init__(self, model, budget=None, latency=None, T_tracker_base=None, stations: int = 100,
+                 speed_window: float = 0.01, rest_speed: float = 1e-3, min_rest: float = 0.05, window: float = 0.1,
+                 max_cycles: int = 1000, max_buffer: float = 120.0, max_groups: int = 10, step: float | None = None,
+                 estimate_after: float = 8.0, offset=None, name: str = "tolerance_ros: path monitor"):
+        self.model, self.budget = model, budget
+        self.latency = None if latency is None else float(latency)
+        self.latency_doc = None if latency is None else {"latency_s": self.latency, "std_s": 0.0, "given": True}
+        self.A = None if T_tracker_base is None else np.asarray(T_tracker_base, float)
+        self.given_A = T_tracker_base is not None
+        self.pairs = KabschAccumulator()
+        self.registration = "given" if T_tracker_base is not None else "base"
+        self.stations, self.speed_window, self.rest_speed, self.min_rest = stations, speed_window, rest_speed, min_rest
+        self.window, self.max_cycles, self.max_buffer, self.max_groups = window, max_cycles, max_buffer, max_groups
+        self.step, self.estimate_after = step, estimate_after
+        self.offset = None if offset is None else np.asarray(offset, float)
+        self.name = name
+        self.order = JointOrder(model.joint_names)
+        self.queued = {"joints": ([], []), "points": ([], [])}
+        self.reasons = []
+        self.tj = np.zeros(0)
+        self.qj = np.zeros((0, model.dof))
+        self.pc = np.zeros((0, 3))
+        self.tm = np.zeros(0)
+        self.pm = np.zeros((0, 3))
+        self.first_joint = None
+        self.groups = []
+        self.counts = {"points": 0, "joint_states": 0, "on_path": 0, "at_rest": 0, "other_motions": 0,
+                       "outside_joint_states": 0, "not_judged": 0, "motions": 0, "rejected": 0}
+        self.last = None
+
+    # -- input ---------------------------------------------------------------------------------------------
+    def add_joint_states(self, stamps, joints) -> list:
+        """Joint states (k,) s, (k, dof) rad or m, in time order; returns the reports of the paths that ended."""
+        t = np.asarray(stamps, float).reshape(-1)
+        q = self.model.check_joints(joints, "joint states")
+        if len(t) != len(q):
+            raise ValueError(f"joint states: {len(t)} stamps for {len(q)} rows")
+        if len(t) == 0:
+            return []
+        if np.any(np.diff(t) < 0) or (len(self.tj) and t[0] < self.tj[-1]):
+            raise ValueError("joint states: stamps must not decrease")
+        if self.first_joint is None:
+            self.first_joint = float(t[0])
+            if self.step is None:
+                self.step = float(np.median(np.diff(t))) if len(t) > 2 else 0.002
+        self.counts["joint_states"] += len(t)
+        self.tj = np.concatenate([self.tj, t])
+        self.qj = np.vstack([self.qj, q])
+        self.pc = np.vstack([self.pc, command_points(self.model, q, offset=self.offset)])
+        return self._process()
+
+    def add_points(self, stamps, points) -> list:
+        """Tracker points (n,) s, (n, 3) m in the tracker frame, in time order; returns the reports of the
+        paths that ended."""
+        t = np.asarray(stamps, float).reshape(-1)
+        p = np.asarray(points, float).reshape(-1, 3)
+        if len(t) != len(p) or not (np.all(np.isfinite(t)) and np.all(np.isfinite(p))):
+            raise ValueError("points: expected finite (n,) stamps and (n, 3) points")
+        if np.any(np.diff(t) < 0) or (len(self.tm) and len(t) and t[0] < self.tm[-1]):
+            raise ValueError("points: stamps must not decrease")
+        self.counts["points"] += len(t)
+        self.tm = np.concatenate([self.tm, t])
+        self.pm = np.vstack([self.pm, p])
+        return self._process()
+
+    def on_joint_state_msg(self, msg):
+        """Queue a duck-typed sensor_msgs/JointState (its joints put in the model's order)."""
+        self._queue("joints", msg, lambda: self.order(msg.name, msg.position))
+
+    def on_point_msg(self, msg):
+        """Queue a duck-typed geometry_msgs/PointStamped (the tracker frame)."""
+        self._queue("points", msg, lambda: (msg.point.x, msg.point.y, msg.point.z))
+
+    def on_pose_msg(self, msg):
+        """Queue the position of a duck-typed geometry_msgs/PoseStamped (the tracker frame)."""
+        self._queue("points", msg, lambda: (msg.pose.position.x, msg.pose.position.y, msg.pose.position.z))
+
+    def _queue(self, kind, msg, value):
+        stamps, values = self.queued[kind]
+        try:
+            t = stamp_seconds(msg.header.stamp)
+            v = np.asarray(value(), float)
+            if not np.all(np.isfinite(v)):
+                raise IngestError("not a finite number")
+            if stamps and t < stamps[-1]:
+                raise IngestError(f"stamp {t:.6f} s is earlier than the previous one")
+        except (IngestError, AttributeError, TypeError, ValueError) as exc:
+            self.counts["rejected"] += 1
+            self.reasons = (self.reasons + [f"{kind}: {exc}"])[-10:]
+            return
+        stamps.append(t)
+        values.append(v)
+
+    def flush(self) -> list:
+        """Judge what was queued; the reports of the paths that ended."""
+        out = []
+        for kind, add in (("joints", self.add_joint_states), ("points", self.add_points)):
+            stamps, values = self.queued[kind]
+            if stamps:
+                self.queued[kind] = ([], [])
+                try:
+                    out += add(np.array(stamps), np.array(values))
+                except ValueError as exc:
+                    self.counts["rejected"] += len(stamps)
+                    self.reasons = (self.reasons + [f"{kind}: {exc}"])[-10:]
+        return out
+
+    def diagnostic(self) -> dict:
+        """The /diagnostics status (level, name, message, values) of the path monitor."""
+        level, message = self.status()
+        values = {k: str(v) for k, v in self.counts.items()}
+        if self.latency is not None:
+            values["latency_s"] = f"{self.latency:.6f}"
+        if self.last is not None:
+            values.update({k: "" if v is None else f"{v:.9g}" for k, v in self.last["overall"].items()})
+        if self.reasons:
+            values["last_rejected"] = self.reasons[-1]
+        return {"level": level, "name": self.name, "hardware_id": "", "message": message, "values": values}
+
+    def finish(self) -> list:
+        """The end of the streams: the points left are counted (at rest, or outside the joint states' span)."""
+        if self.latency is not None and len(self.tm):
+            ta = self.tm - self.latency
+            out = (ta < (self.first_joint if self.first_joint is not None else np.inf)) | \
+                (ta > (self.tj[-1] if len(self.tj) else -np.inf))
+            self.counts["outside_joint_states"] += int(out.sum())
+            self.counts["at_rest"] += int((~out).sum())
+        else:
+            self.counts["not_judged"] += len(self.tm)
+        self.tm, self.pm = self.tm[:0], self.pm[:0]
+        return []
+
+    # -- processing ----------------------------------------------------------------------------------------
+    def _complete_runs(self):
+        """The motions in the buffer that no later sample can change."""
+        if len(self.tj) < 3:
+            return []
+        runs = P.motions(self.tj, self.pc, self.rest_speed, self.min_rest, step=self.step)
+        done = self.tj[-1] - self.min_rest - 2 * self.step
+        return [r for r in runs if self.tj[r[1]] < done]
+
+    def _process(self) -> list:
+        out = []
+        runs = self._complete_runs()
+        if self.latency is None or self.A is None:
+            if not runs or not self._estimate(runs):
+                self._bound_memory()
+                return out
+            runs = self._complete_runs()
+        while runs:
+            i0, i1 = runs[0]
+            if not len(self.tm) or self.tm[-1] - self.latency < self.tj[i1]:
+                break                                  # the tracker has not reached the motion's end yet
+            out += self._take(i0, i1)                  # drops the buffer up to the motion's end
+            runs = self._complete_runs()
+        self._bound_memory()
+        return out
+
+    def _estimate(self, runs) -> bool:
+        """Latency and placement from the buffered data once ``estimate_after`` s of motion are in it and the
+        tracker's points reach past the last of them."""
+        moving = sum(self.tj[b] - self.tj[a] for a, b in runs)
+        end = self.tj[runs[-1][1]]
+        if moving < self.estimate_after or not len(self.tm) or self.tm[-1] - self.window < end:
+            return False
+        keep = self.tj <= end + self.min_rest
+        tj, pc = self.tj[keep], self.pc[keep]
+        sel = self.tm - self.window <= tj[-1]
+        tm, pm = self.tm[sel], self.pm[sel]
+        tau, lat_doc, A = self.latency, self.latency_doc, self.A
+        try:
+            if tau is None:
+                groups = [np.arange(*np.searchsorted(tm, [tj[a], tj[b]])) for a, b in runs]
+                lat = estimate_latency(tm, pm, tj, pc, self.window, 0.0, True, groups if len(groups) >= 3 else None,
+                                       np.array_split(np.concatenate(groups), 4))
+                tau, lat_doc = lat.latency_s, lat.to_dict()
+            if A is None:
+                ta = tm - tau
+                inside = (ta >= tj[0]) & (ta <= tj[-1])
+                P_ = np.column_stack([np.interp(ta[inside], tj, pc[:, k]) for k in range(3)])
+                R, t, S = kabsch(P_, pm[inside])
+                if S[1] < 1e-6 * S[0]:
+                    return False                       # a straight line does not fix the rotation: wait
+                A = np.eye(4)
+                A[:3, :3], A[:3, 3] = R, t
+        except ValueError:
+            return False
+        self.latency, self.latency_doc, self.A = tau, lat_doc, A
+        return True
+
+    def _take(self, i0, i1) -> list:
+        """Judge the motion [i0, i1] of the buffer, count the points before it, drop the buffer up to its end."""
+        tau = self.latency
+        ta = self.tm - tau
+        j0, j1 = np.searchsorted(ta, [self.tj[i0], self.tj[i1]])
+        sel = slice(int(np.searchsorted(ta, self.first_joint)), j1)
+        self.pairs.add(np.column_stack([np.interp(ta[sel], self.tj, self.pc[:, k]) for k in range(3)]), self.pm[sel])
+        if not self.given_A and self.pairs.n >= 3:
+            try:
+                self.A = self.pairs.result()
+            except ValueError:
+                pass
+        before = ta[:j0]
+        early = before < self.first_joint
+        self.counts["outside_joint_states"] += int(early.sum())
+        self.counts["at_rest"] += int((~early).sum())
+        tc, pc = self.tj[i0:i1 + 1], self.pc[i0:i1 + 1]
+        self.counts["motions"] += 1
+        group = next((g for g in self.groups if g.matches(pc)), None)
+        report = []
+        if group is None and len(self.groups) < self.max_groups:
+            group = _Group(pc, P.segment_bounds(P.arc_length(pc)[-1], P.corners(pc)))
+            self.groups.append(group)
+        if group is None:
+            self.counts["not_judged"] += j1 - j0
+        else:
+            R, t = self.A[:3, :3], self.A[:3, 3]
+            a = (self.pm[j0:j1] - t) @ R
+            cyc = P.Cycle(tc, pc, P.arc_length(pc), ta[j0:j1], a)
+            try:
+                st = P.cycle_stations(cyc, group.bounds, self.stations, self.speed_window)
+                st["x"] = st["x"] @ R.T + t                # kept in the tracker's frame
+                group.per.append(st)
+                group.cycles += 1
+                group.per = group.per[-self.max_cycles:]
+                group.points = getattr(group, "points", 0) + (j1 - j0)
+                self.last = self._report(group)
+                report.append(self.last)
+                self.counts["on_path" if group is self.best() else "other_motions"] += j1 - j0
+            except ValueError:
+                self.counts["not_judged"] += j1 - j0
+        self.tm, self.pm = self.tm[j1:], self.pm[j1:]
+        self.tj, self.qj, self.pc = self.tj[i1:], self.qj[i1:], self.pc[i1:]
+        return report
+
+    def _bound_memory(self):
+        """Samples older than ``max_buffer`` s that no motion took (the robot never rested) are dropped and
+        counted as not judged."""
+        if len(self.tj) and self.tj[-1] - self.tj[0] > self.max_buffer:
+            cut = np.searchsorted(self.tj, self.tj[-1] - self.max_buffer)
+            self.tj, self.qj, self.pc = self.tj[cut:], self.qj[cut:], self.pc[cut:]
+            k = np.searchsorted(self.tm - (self.latency or 0.0), self.tj[0])
+            self.counts["not_judged"] += int(k)
+            self.tm, self.pm = self.tm[k:], self.pm[k:]
+
+    # -- output --------------------------------------------------------------------------------------------
+    def best(self):
+        """The group with the most cycles (the test path), or None."""
+        return max(self.groups, key=lambda g: g.cycles) if self.groups else None
+
+    def _report(self, group) -> dict:
+        R, t = self.A[:3, :3], self.A[:3, 3]
+        per = [dict(st, x=(st["x"] - t) @ R) for st in group.per]
+        segs = P.figures(per, group.bounds, self.stations, self.speed_window)
+        doc = {"robot": self.model.name, "latency_s": self.latency,
+               "latency_std_s": self.latency_doc.get("std_s") if self.latency_doc else None,
+               "registration": {"method": self.registration, "T_tracker_base": self.A.tolist()},
+               "path": self.groups.index(group), "cycles": len(group.per), "cycles_seen": group.cycles,
+               "path_length_m": group.length, "speed_m_s": max(s["v_c_m_s"] for s in segs), "segments": segs,
+               "overall": P.overall(segs), "counts": dict(self.counts), "refused": None, "missed": []}
+        if self.budget is not None and self.budget.limit_position is not None:
+            limit = self.budget.limit_position
+            shift = 2.0 * (doc["latency_std_s"] or 0.0) * doc["speed_m_s"]
+            if shift > LATENCY_SHARE * limit:
+                doc["refused"] = (f"the latency {self.latency * 1e3:.2f} ms is too uncertain for the budget: it moves "
+                                  f"the path by {shift * 1e3:.3f} mm, more than {LATENCY_SHARE:.0%} of the "
+                                  f"{limit * 1e3:.3f} mm limit")
+                doc["missed"].append(doc["refused"])
+            elif doc["overall"]["AT_p_m"] > limit:
+                doc["missed"].append(f"path accuracy AT_p {doc['overall']['AT_p_m'] * 1e3:.4f} mm exceeds the design "
+                                     f"limit {limit * 1e3:.4f} mm")
+        return doc
+
+    def status(self) -> tuple:
+        """(level OK/WARN/ERROR, message) for /diagnostics."""
+        if self.last is None:
+            return WARN, (f"no path judged yet ({self.counts['motions']} motions, {self.counts['points']} points)")
+        if self.last["refused"]:
+            return ERROR, self.last["refused"]
+        o = self.last["overall"]
+        words = (f"path {self.last['path']}: {self.last['cycles']} cycles, AT_p {o['AT_p_m'] * 1e3:.4f} mm"
+                 + (f", RT_p {o['RT_p_m'] * 1e3:.4f} mm" if o["RT_p_m"] is not None else "")
+                 + f", latency {self.latency * 1e3:.2f} ms")
+        return (ERROR, "; ".join(self.last["missed"]) + f" ({words})") if self.last["missed"] else (OK, words)
