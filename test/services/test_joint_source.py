@@ -45,3 +45,20 @@ def test_a_time_that_is_not_finite_is_refused(gao, t):
     with pytest.raises(ValueError, match="t: expected a finite time in s"):
         seq.at(t)
     assert seq.at(1e300)[3] is True  # long after the end: the last configuration, held
+
+
+def test_trajectory_mode_moves_along_the_knots_for_its_cycles(gao):
+    from tolerance_ros.core.accuracy.iso_paths import JointPath
+    q = gao.sample_joints(3, 2)
+    path = JointPath(tuple(gao.joint_names), np.array([0.0, 1.0, 3.0]), q, cycles=2)
+    seq = JointStateSequence(gao, "trajectory", trajectory=path)
+    step, label, qa, finished = seq.at(0.5)
+    assert np.allclose(qa, (q[0] + q[1]) / 2) and label == "cycle1 knot0" and step == 0 and not finished
+    step, label, qb, _ = seq.at(3.0 + 2.0)  # the second cycle, halfway between knots 1 and 2
+    assert np.allclose(qb, (q[1] + q[2]) / 2) and label == "cycle2 knot1" and step == 4
+    step, label, qc, finished = seq.at(100.0)
+    assert finished and np.allclose(qc, q[2])
+    looped = JointStateSequence(gao, "trajectory", trajectory=path, loop=True)
+    assert not looped.at(6.5)[3] and np.allclose(looped.at(6.5)[2], (q[0] + q[1]) / 2)
+    with pytest.raises(ValueError, match="needs a trajectory"):
+        JointStateSequence(gao, "trajectory")

@@ -12,6 +12,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from ..core.accuracy.iso_paths import read_trajectory
 from ..core.campaign import load_campaign
 from ..services.joint_source import JointStateSequence
 from .common import MEASUREMENT_QOS, STATUS_QOS, declare, follow_robot, guarded, robot_set, run
@@ -27,8 +28,11 @@ class JointStateSource(Node):
     def setup(self):
         """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
         robot = declare(self, "robot", "gao2023_7dof", "robot: shipped name, robot file, or robot_description")
-        self.mode = declare(self, "mode", "random", "campaign | random | selected (highest pose-selection index F)")
+        self.mode = declare(self, "mode", "random", "campaign | random | selected (highest pose-selection index F) | "
+                                                    "trajectory (a joint trajectory file, the robot moving)")
         self.campaign = declare(self, "campaign", "", "campaign config (mode 'campaign'): shipped name or path")
+        self.trajectory = declare(self, "trajectory", "", "joint trajectory file (mode 'trajectory'), e.g. from "
+                                                          "tolerance-ros plan-campaign --path rectangle")
         self.count = declare(self, "count", 100, "configurations for modes random and selected", (1, 1_000_000))
         self.seed = declare(self, "seed", 0, "seed of the random and selected modes", (0, 2 ** 31 - 1))
         self.dwell = declare(self, "dwell", 0.0, "seconds at each configuration; 0 takes the campaign's dwell (or 2 s)",
@@ -37,6 +41,9 @@ class JointStateSource(Node):
         self.loop = declare(self, "loop", False, "repeat the sequence instead of holding the last configuration")
         self.compensated = declare(self, "compensated", False, "send each configuration through the trajectory "
                                                                "compensator and publish what comes back")
+        if self.compensated and self.mode == "trajectory":
+            raise ValueError("compensated: not with mode 'trajectory' (compensate the trajectory file first: "
+                             "tolerance-ros compensate, or the trajectory_compensator node)")
         self.robots = robot_set(self, [robot], robot)
         self.sequence = None
         self.publisher = self.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
@@ -52,7 +59,11 @@ class JointStateSource(Node):
     def sequence_for(self, model):
         """The configurations to publish for ``model`` (CampaignError when the campaign does not fit it)."""
         camp = load_campaign(self.campaign, model) if self.campaign else None
-        return JointStateSequence(model, self.mode, camp, self.count, self.seed, self.dwell or None, self.loop)
+        if self.mode == "trajectory" and not self.trajectory:
+            raise ValueError("mode 'trajectory' needs the parameter trajectory (a joint trajectory file)")
+        traj = read_trajectory(self.trajectory, model) if self.mode == "trajectory" else None
+        return JointStateSequence(model, self.mode, camp, self.count, self.seed, self.dwell or None, self.loop,
+                                  traj)
 
     def start(self, model):
         """The sequence of the current robot (again, when robot_description changes)."""
@@ -60,8 +71,13 @@ class JointStateSource(Node):
         self.names = list(model.joint_names)
         self.t0 = self.get_clock().now()
         self.finished_logged = False
-        self.get_logger().info(f"{self.mode}: {len(self.sequence)} configurations of {model.name}, "
-                               f"{self.sequence.dwell:g} s each")
+        if self.sequence.trajectory is not None:
+            traj = self.sequence.trajectory
+            self.get_logger().info(f"trajectory {self.trajectory}: {len(traj.t)} knots of {model.name}, "
+                                   f"{traj.cycles} cycle(s) of {traj.period:.2f} s")
+        else:
+            self.get_logger().info(f"{self.mode}: {len(self.sequence)} configurations of {model.name}, "
+                                   f"{self.sequence.dwell:g} s each")
 
     def on_compensated(self, msg):
         """The compensator's answer to the configuration sent last: what the controller executes."""

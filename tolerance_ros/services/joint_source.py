@@ -1,9 +1,10 @@
 """Joint configurations over time for the joint-state publisher (ROS-free).
 
 Modes: 'campaign' (the test poses of a campaign, each held ``dwell`` seconds, for its cycles in its
-visiting order), 'random' (seeded uniform samples within the joint limits) and 'selected' (the
-configurations of highest pose-selection index F, eq. 25). With ``loop`` the sequence repeats;
-otherwise the last configuration is held once it has run out.
+visiting order), 'random' (seeded uniform samples within the joint limits), 'selected' (the
+configurations of highest pose-selection index F, eq. 25) and 'trajectory' (a joint trajectory, e.g. an
+ISO 9283 test path of ``plan-campaign --path``, interpolated between its knots, for its cycles: the robot
+moves). With ``loop`` the sequence repeats; otherwise the last configuration is held once it has run out.
 """
 from __future__ import annotations
 
@@ -11,18 +12,28 @@ import math
 
 import numpy as np
 
-MODES = ("campaign", "random", "selected")
+MODES = ("campaign", "random", "selected", "trajectory")
 
 
 class JointStateSequence:
     """``at(t)`` gives (step, label, joints (dof,), finished) for t seconds after the start."""
 
-    def __init__(self, model, mode="random", campaign=None, count=100, seed=0, dwell=None, loop=False):
+    def __init__(self, model, mode="random", campaign=None, count=100, seed=0, dwell=None, loop=False,
+                 trajectory=None):
         if mode not in MODES:
             raise ValueError(f"mode: expected one of {MODES}, got {mode!r}")
         self.model = model
         self.mode = mode
-        if mode == "campaign":
+        self.trajectory = None
+        if mode == "trajectory":
+            if trajectory is None:
+                raise ValueError("mode 'trajectory' needs a trajectory (a JointPath)")
+            self.trajectory = trajectory
+            self.q = trajectory.q
+            self.labels = [f"knot{k}" for k in range(len(self.q))]
+            self.cycles = [None] * len(self.q)
+            self.dwell = trajectory.duration  # the whole run: ``at`` interpolates within it
+        elif mode == "campaign":
             if campaign is None:
                 raise ValueError("mode 'campaign' needs a campaign")
             joints = campaign.joints_for(model)
@@ -52,6 +63,8 @@ class JointStateSequence:
     def at(self, t: float):
         if not math.isfinite(t):
             raise ValueError(f"t: expected a finite time in s, got {t!r}")
+        if self.trajectory is not None:
+            return self._along(max(t, 0.0))
         t, n = max(t, 0.0), len(self.q)
         if t >= n * self.dwell:
             if not self.loop:
@@ -59,3 +72,18 @@ class JointStateSequence:
             t %= n * self.dwell  # a time of any size: its steps need not fit an integer
         k = min(int(t // self.dwell), n - 1)
         return k, self.labels[k], self.q[k], False
+
+    def _along(self, t: float):
+        """Trajectory mode: (step, label, joints, finished) at ``t`` s; the step is the cycle's knot interval, so
+        that a compensated source sends each interval's end once."""
+        traj = self.trajectory
+        duration = traj.duration
+        finished = t >= duration
+        if finished and self.loop:
+            t, finished = t % duration, False
+        t = min(t, duration)
+        cycle = min(int(t // traj.period), traj.cycles - 1)
+        knot = int(np.searchsorted(traj.t, t - cycle * traj.period, side="right")) - 1
+        knot = min(max(knot, 0), len(traj.t) - 1)
+        q = traj.at(np.array([t]))[0]
+        return cycle * len(traj.t) + knot, f"cycle{cycle + 1} knot{knot}", q, finished
