@@ -44,8 +44,9 @@ def test_path_report_topic_and_diagnostics(tmp_path):
         js = node.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
         pts = node.create_publisher(PointStamped, "measured_point", MEASUREMENT_QOS)
         assert wait_for(lambda: js.get_subscription_count() and pts.get_subscription_count(), 20)
-        k = 0
-        for t, q in zip(st.joint_stamps, st.joints):      # about twice real time: the queues (depth 100) keep up
+        k, start = 0, time.monotonic()
+        for t, q in zip(st.joint_stamps, st.joints):      # in real time, as a robot and a tracker stream them
+            time.sleep(max(0.0, (t - st.joint_stamps[0]) - (time.monotonic() - start)))
             m = JointState(name=list(gao.joint_names), position=[float(v) for v in q])
             m.header.stamp = _stamp(t)
             js.publish(m)
@@ -55,7 +56,6 @@ def test_path_report_topic_and_diagnostics(tmp_path):
                 p.point.x, p.point.y, p.point.z = (float(v) for v in st.points[k])
                 pts.publish(p)
                 k += 1
-            time.sleep(0.001)
         assert wait_for(lambda: len(reports) >= 2, 60)
         doc = json.loads(reports[-1].data)
         assert doc["cycles"] == 2 and len(doc["segments"]) == 4 and doc["overall"]["AT_p_m"] < 1e-3
