@@ -116,3 +116,27 @@ def test_joints_in_degrees_labelled_radians_and_millimetres_labelled_metres_exit
     code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "m.csv",
                        "--joint-states", streams / "path.joints.csv")
     assert code == 2 and "millimetres labelled metres" in err
+
+
+def test_a_rosbag2_recording_of_both_streams_gives_the_csv_figures(capsys, streams, tmp_path):
+    """The points (PointStamped) and joint states of a recording are read as they streamed, unpaired, so the
+    latency between them is measured: the same report as from the two CSV files."""
+    from tolerance_ros.core.accuracy.io.joint_states import read_joint_states, read_points
+    from tolerance_ros.core.accuracy.io.rosbag import write_rosbag_streams
+    from tolerance_ros.core.models import load_robot
+    gao = load_robot("gao2023_7dof")
+    stamps, points, _ = read_points(streams / "path.csv")
+    tj, qj = read_joint_states(streams / "path.joints.csv", gao.joint_names, gao.joint_types)
+    write_rosbag_streams(tmp_path / "bag", stamps, points, tj, qj, gao.joint_names)
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "bag", "--json")
+    assert code == 0, err
+    bag = json.loads(out)
+    code, out, _ = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                       "--joint-states", streams / "path.joints.csv", "--json")
+    csv = json.loads(out)
+    assert abs(bag["latency_s"] - 0.008) < 0.5e-3 and bag["latency_s"] == pytest.approx(csv["latency_s"], abs=1e-9)
+    for a, b in zip(bag["segments"], csv["segments"]):
+        assert a["AT_p_m"] == pytest.approx(b["AT_p_m"], rel=1e-6) and a["RT_p_m"] == pytest.approx(b["RT_p_m"], rel=1e-6)
+    write_rosbag_streams(tmp_path / "points_only", stamps, points, [], [], gao.joint_names)
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "points_only")
+    assert code == 2 and "no joint states recorded" in err

@@ -2,6 +2,8 @@
 with the tracker's latency measured."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ..core.budget import load_budget
@@ -56,6 +58,14 @@ def _command(args, model, stamps, points):
         tj = np.arange(int(jp.duration * JOINT_RATE) + 1) / JOINT_RATE
         qj = jp.at(tj)
         return tj, qj, coarse_offset(stamps, points, tj, command_points(model, qj)), args.trajectory
+    p = Path(args.measurements)
+    if p.is_dir() or p.suffix in (".db3", ".mcap"):  # a recording: its joint states as they streamed
+        from ..core.accuracy.io.rosbag import read_rosbag_streams
+        _, _, tj, qj = read_rosbag_streams(p, model.joint_names)
+        if tj is None:
+            raise CLIError(f"{args.measurements}: no joint states recorded; give the commanded joints with "
+                           f"--joint-states or --trajectory")
+        return tj, model.check_joints(qj, args.measurements), 0.0, args.measurements
     m = read_measurements(args.measurements, joint_names=model.joint_names)
     if m.joints is None:
         raise CLIError(f"{args.measurements}: no joint columns; give the commanded joints with --joint-states or "

@@ -85,6 +85,12 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
                         np.full(len(pst), -1), True, str(path), skipped)
 
 
+def _stamp(Time, t):
+    """(builtin_interfaces/Time, nanoseconds) of ``t`` s."""
+    ns = int(round(t * 1e9))
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), ns
+
+
 def write_rosbag(path, m: Measurements, storage="sqlite3", pose_topic="/measured_pose", joint_topic="/joint_states",
                  frame_id="tracker", joint_offset_s=0.0) -> Path:
     """Write measurements as a rosbag2 recording (PoseStamped + JointState, ROS 2 Jazzy types)."""
@@ -101,8 +107,7 @@ def write_rosbag(path, m: Measurements, storage="sqlite3", pose_topic="/measured
     quats = matrices_to_quat(m.T[:, :3, :3])
 
     def stamp(t):
-        ns = int(round(t * 1e9))
-        return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), ns
+        return _stamp(Time, t)
 
     with Writer(Path(path), version=9, storage_plugin=plugin) as w:
         cp = w.add_connection(pose_topic, PoseStamped.__msgtype__, typestore=ts)
@@ -122,3 +127,106 @@ def write_rosbag(path, m: Measurements, storage="sqlite3", pose_topic="/measured
             w.write(cp, ns + 1, ts.serialize_cdr(msg, PoseStamped.__msgtype__))
     return Path(path)
 
+
+
+def _topic(path, topics, suffixes):
+    """The one topic of ``topics`` ending in one of ``suffixes`` (None if none; MeasurementError if several)."""
+    found = sorted(t for t in topics if any(t == s or t.endswith("/" + s.lstrip("/")) for s in suffixes))
+    if len(found) > 1:
+        raise MeasurementError(f"{path}: several topics could be the stream ({', '.join(found)}); record one")
+    return found[0] if found else None
+
+
+def read_rosbag_streams(path, joint_names):
+    """The two streams of a recording as they came, unpaired: (point stamps (n,) s, points (n, 3) m, joint stamps
+    (k,) s, joints (k, dof) in the order of ``joint_names``, or None when no joint states were recorded). Points
+    from ``measured_point`` (PointStamped) or ``measured_pose`` (PoseStamped, its position), joints from
+    ``joint_states`` (any namespace). A message that cannot be used is an error naming it: nothing is dropped."""
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.rosbag2 import ReaderError
+    from rosbags.typesys import Stores, get_typestore
+
+    path = Path(path)
+    if not path.exists():
+        raise MeasurementError(f"{path}: no such bag")
+    pts, pst, js, jst = [], [], [], []
+    order = JointOrder(joint_names)
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            topics = {c.topic for c in reader.connections}
+            ptopic = _topic(path, topics, ("measured_point", "measured_pose"))
+            jtopic = _topic(path, topics, ("joint_states",))
+            if ptopic is None:
+                raise MeasurementError(f"{path}: no measured_point or measured_pose topic (topics: {sorted(topics)})")
+            want = {ptopic: ("geometry_msgs/msg/PointStamped" if ptopic.endswith("measured_point")
+                             else "geometry_msgs/msg/PoseStamped")}
+            if jtopic is not None:
+                want[jtopic] = "sensor_msgs/msg/JointState"
+            conns = [c for c in reader.connections if c.topic in want]
+            for c in conns:
+                if c.msgtype != want[c.topic]:
+                    raise MeasurementError(f"{path}: topic {c.topic} carries {c.msgtype}, expected {want[c.topic]}")
+            for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
+                try:
+                    try:
+                        msg = reader.deserialize(raw, conn.msgtype)
+                    except (AnyReaderError, struct.error, ValueError) as exc:
+                        raise IngestError(f"cannot be decoded as {conn.msgtype} ({_cut(str(exc), 80)})") from None
+                    st = stamp_seconds(msg.header.stamp)
+                    if conn.topic == ptopic:
+                        p = msg.point if conn.msgtype.endswith("PointStamped") else msg.pose.position
+                        xyz = (float(p.x), float(p.y), float(p.z))
+                        if not all(np.isfinite(xyz)):
+                            raise IngestError(f"position {xyz} is not finite")
+                        pts.append(xyz)
+                        pst.append(st)
+                    else:
+                        js.append(order(msg.name, msg.position))
+                        jst.append(st)
+                except IngestError as exc:
+                    raise MeasurementError(f"{path}: message {k} on {conn.topic}: {exc}") from None
+    except (AnyReaderError, ReaderError, FileNotFoundError) as exc:
+        raise MeasurementError(f"{path}: not a readable rosbag2 recording ({exc})") from None
+    if not pts:
+        raise MeasurementError(f"{path}: no messages on {ptopic}")
+    i = np.argsort(pst, kind="stable")
+    joints = None
+    if js:
+        j = np.argsort(jst, kind="stable")
+        jst, joints = np.asarray(jst)[j], np.asarray(js, float)[j]
+    return np.asarray(pst)[i], np.asarray(pts, float)[i], (jst if js else None), joints
+
+
+def write_rosbag_streams(path, stamps, points, joint_stamps, joints, joint_names, storage="sqlite3",
+                         point_topic="/measured_point", joint_topic="/joint_states") -> Path:
+    """Write a tracker's points (PointStamped, m) and joint states (JointState) as they streamed, ROS 2 Jazzy types."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    T = ts.types
+    Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
+    Point, PointStamped, JointState = T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/PointStamped"], \
+        T["sensor_msgs/msg/JointState"]
+
+    def stamp(t):
+        return _stamp(Time, t)
+
+    events = [(t, 0, k) for k, t in enumerate(stamps)] + [(t, 1, k) for k, t in enumerate(joint_stamps)]
+    events.sort()
+    path = Path(path)
+    plugin = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}[storage]
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        cp = w.add_connection(point_topic, PointStamped.__msgtype__, typestore=ts)
+        cj = w.add_connection(joint_topic, JointState.__msgtype__, typestore=ts)
+        for t, kind, k in events:
+            st, ns = stamp(t)
+            if kind == 0:
+                x, y, z = (float(v) for v in points[k])
+                msg = PointStamped(header=Header(stamp=st, frame_id="tracker"), point=Point(x=x, y=y, z=z))
+                w.write(cp, ns, ts.serialize_cdr(msg, PointStamped.__msgtype__))
+            else:
+                msg = JointState(header=Header(stamp=st, frame_id=""), name=list(joint_names),
+                                 position=np.asarray(joints[k], float), velocity=np.empty(0), effort=np.empty(0))
+                w.write(cj, ns, ts.serialize_cdr(msg, JointState.__msgtype__))
+    return path
