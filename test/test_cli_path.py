@@ -140,3 +140,31 @@ def test_a_rosbag2_recording_of_both_streams_gives_the_csv_figures(capsys, strea
     write_rosbag_streams(tmp_path / "points_only", stamps, points, [], [], gao.joint_names)
     code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "points_only")
     assert code == 2 and "no joint states recorded" in err
+
+
+def test_a_target_off_the_tool_is_judged_at_its_offset_and_its_tube(capsys, streams):
+    """A reflector 300 mm along the tool axis (simulate --trajectory --target-offset): path-report with the same
+    --target-offset scores it like the tool point's stream (the path is the same, shifted); without it the
+    as-built orientation errors along the path show as path error that is not there; the tube is the
+    target's; a bare number is refused."""
+    d = streams
+    assert main(["simulate", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--trajectory",
+                 str(d / "rect.yaml"), "--repeatability", "0.1mrad", "--target-offset", "R=0mm,0mm,300mm", "--out",
+                 str(d / "target.csv"), "--quiet"]) == 0
+    capsys.readouterr()
+    base = ["path-report", "--robot", "gao2023_7dof", "--joint-states", d / "target.joints.csv", "--budget",
+            "gao2023_delta2", "--json", "--measurements"]
+    code, out, err = run(capsys, *base, d / "path.csv")
+    assert code == 0, err
+    tool = json.loads(out)
+    code, out, err = run(capsys, *base, d / "target.csv", "--target-offset", "0mm,0mm,300mm")
+    assert code == 0, err
+    at = json.loads(out)
+    code, out, err = run(capsys, *base, d / "target.csv")
+    blind = json.loads(out)
+    assert at["target_offset_m"] == pytest.approx([0.0, 0.0, 0.3]) and blind["target_offset_m"] is None
+    assert abs(at["latency_s"] - 0.008) < 0.5e-3
+    assert at["registration"]["residual_rms_m"] < blind["registration"]["residual_rms_m"]
+    assert at["budget"]["bound_max_m"] != pytest.approx(tool["budget"]["bound_max_m"], rel=1e-3)
+    code, _, err = run(capsys, *base, d / "target.csv", "--target-offset", "0,0,300mm")
+    assert code == 2 and "--target-offset" in err and "unit" in err

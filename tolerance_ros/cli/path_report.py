@@ -28,6 +28,11 @@ def add_arguments(p):
                         "tracker's clock is found by the speeds' cross-correlation")
     p.add_argument("--registration", choices=["base", "none"], default="base",
                    help="fit the tracker's placement (base, default) or take the points as base-frame (none)")
+    p.add_argument("--target-offset", metavar="X,Y,Z",
+                   help="the tracked target's position on the tool frame, a unit on each (e.g. 0mm,0mm,120mm; default: "
+                        "the tool frame's origin). Along a path of constant orientation (the standard's test paths) an "
+                        "offset is a translation the base registration absorbs, so it is not fitted: give it when the "
+                        "orientation changes")
     p.add_argument("--budget", help="tolerance budget: the bound tube along the path and the verdicts")
     p.add_argument("--latency", help="the tracker's latency, given (e.g. 8ms) instead of estimated")
     p.add_argument("--latency-window", default="100ms",
@@ -84,10 +89,17 @@ def run(args):
     latency = quantity(args.latency, "time", "--latency", positive=False)
     window = quantity(args.latency_window, "time", "--latency-window")
     speed_window = quantity(args.speed_window, "time", "--speed-window")
+    offset = None
+    if args.target_offset:
+        parts = args.target_offset.split(",")
+        if len(parts) != 3:
+            raise CLIError(f"--target-offset: expected X,Y,Z with a unit on each (e.g. 0mm,0mm,120mm), got "
+                           f"{args.target_offset!r}")
+        offset = [quantity(c, "length", "--target-offset", positive=False) for c in parts]
     stamps, points, source = read_points(args.measurements)
     tj, qj, center, command_source = _command(args, model, stamps, points)
     doc = path_report(model, stamps, points, tj, qj, budget, args.registration, latency, window, center,
-                      args.stations, speed_window, source=source)
+                      args.stations, speed_window, source=source, offset=offset)
     doc["command"] = {"source": command_source, "kind": "trajectory" if args.trajectory else "joint states"}
     if args.trajectory:
         doc["command"]["start_s"] = doc["latency_s"]

@@ -89,9 +89,12 @@ def _run_trajectory(args, model, delta, noise, out):
     from ..core.accuracy.iso_paths import read_trajectory
     from ..core.accuracy.simulate import as_built_errors, path_streams
     from ..core.geometry import transform
-    if args.campaign or args.target_offset:
-        raise CLIError("--trajectory: give it instead of --campaign, without --target-offset (the tracker follows "
-                       "the tool point)")
+    if args.campaign:
+        raise CLIError("--trajectory: give it instead of --campaign")
+    if len(args.target_offset) > 1:
+        raise CLIError("--trajectory: one --target-offset at most (the tracker follows one target along the path)")
+    targets = _targets(args.target_offset) if args.target_offset else None
+    offset = targets.offsets[0] if targets is not None else None
     try:
         jp = read_trajectory(args.trajectory, model)
     except ValueError as exc:
@@ -104,14 +107,15 @@ def _run_trajectory(args, model, delta, noise, out):
         raise CLIError(f"--tracker-rate: {jp.duration:.0f} s at {max(rate, jrate):g} Hz exceeds 50,000,000 samples")
     dx = as_built_errors(delta, args.seed, args.errors)
     T_tracker = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
-    st = path_streams(model, jp, dx, T_tracker, jrate, rate, latency, noise, args.seed + 1, repeatability=rep)
+    st = path_streams(model, jp, dx, T_tracker, jrate, rate, latency, noise, args.seed + 1, repeatability=rep,
+                      offset=offset)
     comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
                f"seed {args.seed}) driving {args.trajectory}; tracker {args.tracker_rate}, {args.latency} late, "
                f"noise {args.noise}")
     write_points(out, st.stamps, st.points, [comment])
     joints = write_joint_states(out.with_name(f"{out.stem}.joints.csv"), st.joint_stamps, st.joints, model.joint_names,
                                 model.joint_types, [comment])
-    truth_path = _truth(args, model, dx, T_tracker, noise, out, len(st.stamps), 0, None, "base", False,
+    truth_path = _truth(args, model, dx, T_tracker, noise, out, len(st.stamps), 0, targets, "base", False,
                         f" driving {args.trajectory}")
     doc = {"measurements": str(out), "joint_states": str(joints), "truth": str(truth_path), "rows": len(st.stamps),
            "joint_state_rows": len(st.joint_stamps), "latency_s": latency, "noise_m": noise,

@@ -76,3 +76,21 @@ def test_joint_states_at_rest_are_refused(gao):
     t = np.arange(100) * 0.002
     with pytest.raises(ValueError, match="never moves"):
         path_report(gao, t, np.zeros((100, 3)), t, q)
+
+
+def test_the_target_jacobian_is_the_offset_points_finite_difference(gao):
+    """The bound tube at a target off the tool frame: the position rows of the error Jacobian at that point
+    equal central differences of its position over each parameter."""
+    from tolerance_ros.core.accuracy.path_report import target_jacobian
+    q = gao.sample_joints(4, 3)
+    offset = np.array([0.03, -0.02, 0.12])
+    J = target_jacobian(gao, q, offset)
+    h = 1e-7
+    cols = []
+    for j in range(J.shape[2]):
+        dx = np.zeros(J.shape[2])
+        dx[j] = h
+        Tp, Tm = gao.fk(q, dx), gao.fk(q, -dx)
+        cols.append(((Tp[:, :3, :3] @ offset + Tp[:, :3, 3]) - (Tm[:, :3, :3] @ offset + Tm[:, :3, 3])) / (2 * h))
+    assert np.allclose(J, np.stack(cols, axis=2), atol=1e-7)
+    assert not np.allclose(J, gao.error_jacobian(q).position, atol=1e-4)

@@ -52,11 +52,14 @@ def _cycles(t_c, p_c, ta, a, runs, picked):
 def path_report(model, stamps, points, joint_stamps, joints, budget=None, registration: str = "base",
                 latency: float | None = None, window: float = 0.1, center: float = 0.0, stations: int = 100,
                 speed_window: float = 0.01, rest_speed: float = 1e-3, source: str = "", T_tracker_base=None,
-                step: float | None = None) -> dict:
+                step: float | None = None, offset=None) -> dict:
     """The path report (a JSON-ready dict, SI) of the tracker's ``points`` (n, 3) m stamped ``stamps`` (n,) s
     against the commanded ``joints`` (k, dof) stamped ``joint_stamps`` (k,) s. ``latency``: given (s) instead
     of estimated within ``center +- window``. ``registration``: 'base' or 'none'; ``T_tracker_base`` (4, 4):
-    the tracker's placement, given instead of fitted. ``step``: the motions' speed step (``path.motions``)."""
+    the tracker's placement, given instead of fitted. ``step``: the motions' speed step (``path.motions``).
+    ``offset`` (3,) m: the tracked target's position on the tool frame (None: its origin); along a path of
+    constant orientation (the standard's) an offset is a translation the registration absorbs, elsewhere it
+    must be given."""
     tm, pm = np.asarray(stamps, float), np.asarray(points, float)
     tj, qj = np.asarray(joint_stamps, float), np.asarray(joints, float)
     if registration not in ("base", "none"):
@@ -68,7 +71,11 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
     for name, t in (("tracker stamps", tm), ("joint state stamps", tj)):
         if np.any(np.diff(t) < 0):
             raise ValueError(f"{name} must not decrease")
-    p_c = command_points(model, qj)
+    if offset is not None:
+        offset = np.asarray(offset, float)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+            raise ValueError(f"offset: expected 3 finite lengths in m, got {offset.tolist()}")
+    p_c = command_points(model, qj, offset=offset)
     reg = registration == "base"
     runs = P.motions(tj, p_c, rest_speed, step=step)
     picked, others = P.cycles_of(p_c, runs)
@@ -132,11 +139,12 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
            "latency_s": tau, "latency_std_s": lat_doc["std_s"], "latency": lat_doc,
            "registration": {"method": registration, "T_tracker_base": T.tolist(),
                             "residual_rms_m": rms},
+           "target_offset_m": None if offset is None else offset.tolist(),
            "cycles": len(picked), "other_motions": len(others), "path_length_m": float(ref.s[-1]),
            "speed_m_s": v_max, "segments": segs, "overall": P.overall(segs), "outside": outside,
            "stations_per_segment": stations, "budget": None, "refused": None, "missed": []}
     if budget is not None:
-        _judge(doc, model, budget, ref, tj, qj, v_max)
+        _judge(doc, model, budget, ref, tj, qj, v_max, offset)
     return doc
 
 
@@ -162,15 +170,26 @@ def _check(model, tm, pm, tj, qj, sample: int = 2000):
             raise ValueError(problem)
 
 
-def _judge(doc, model, budget, ref, tj, qj, v_max):
-    """The bound tube along the first cycle's stations and the verdicts against the budget (into ``doc``)."""
+def target_jacobian(model, q, offset=None) -> np.ndarray:
+    """(n, 3, p) position rows of the parameter-error Jacobian at the point ``offset`` (3,) m of the tool frame
+    (None: its origin): dp + dphi x (R offset), the orientation rows being base-frame rotations."""
+    jac = model.error_jacobian(q)
+    if offset is None:
+        return jac.position
+    r = model.fk(q)[:, :3, :3] @ np.asarray(offset, float)
+    return jac.position + np.cross(jac.orientation.transpose(0, 2, 1), r[:, None, :]).transpose(0, 2, 1)
+
+
+def _judge(doc, model, budget, ref, tj, qj, v_max, offset=None):
+    """The bound tube along the first cycle's stations (at the target) and the verdicts against the budget
+    (into ``doc``)."""
     from ..errors import criterion_bound
     delta = budget.vector_for(model)
     for seg in doc["segments"]:
         sig = np.asarray(seg["along"]["s_m"])
         ts = np.interp(sig, ref.s, ref.t)
         q = np.column_stack([np.interp(ts, tj, qj[:, j]) for j in range(model.dof)])
-        b = criterion_bound(model.error_jacobian(q).position, delta, budget.criterion)
+        b = criterion_bound(target_jacobian(model, q, offset), delta, budget.criterion)
         seg["along"]["bound_m"] = b.tolist()
         seg["bound_max_m"] = float(b.max())
         seg["stations_outside_bound"] = int(np.sum(np.asarray(seg["along"]["AT_m"]) > b))

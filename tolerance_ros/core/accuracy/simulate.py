@@ -149,12 +149,13 @@ class PathStreams:
 
 def path_streams(model: Mechanism, jp, dx=None, T_tracker_base=None, joint_rate: float = 500.0,
                  tracker_rate: float = 1000.0, latency: float = 0.008, noise: float = 10e-6, seed=0,
-                 t0: float = 1000.0, lead: float = 0.5, repeatability: float = 0.0) -> PathStreams:
+                 t0: float = 1000.0, lead: float = 0.5, repeatability: float = 0.0, offset=None) -> PathStreams:
     """The joint states and the tracker's stream of the as-built robot (errors ``dx``) driving ``jp``
     (``iso_paths.JointPath``, run time 0 at clock time ``t0`` s), from ``lead`` s before to ``lead`` s after;
     the tracker's clock starts at a random phase of its period, its noise is Gaussian per axis (m).
     ``repeatability``: the standard deviation (rad or m) of a joint offset drawn per joint and cycle, added
-    to the joints the as-built robot reaches (the cycles then differ; the joint states do not show it)."""
+    to the joints the as-built robot reaches (the cycles then differ; the joint states do not show it).
+    ``offset`` (3,) m: the tracked target's position on the tool frame (None: its origin)."""
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     span = jp.duration + 2 * lead
     tj = t0 - lead + np.arange(int(span * joint_rate) + 1) / joint_rate
@@ -164,7 +165,8 @@ def path_streams(model: Mechanism, jp, dx=None, T_tracker_base=None, joint_rate:
     for i in range(0, len(tt), 100_000):
         tr = tt[i:i + 100_000] - t0
         cyc = np.clip(np.floor(tr / jp.period), 0, jp.cycles - 1).astype(int)
-        true[i:i + 100_000] = model.fk(jp.at(tr) + jitter[cyc], dx)[:, :3, 3]
+        T = model.fk(jp.at(tr) + jitter[cyc], dx)
+        true[i:i + 100_000] = T[:, :3, 3] if offset is None else T[:, :3, :3] @ np.asarray(offset, float) + T[:, :3, 3]
     meas = true + rng.standard_normal(true.shape) * noise
     A = np.eye(4) if T_tracker_base is None else np.asarray(T_tracker_base, float)
     return PathStreams(joint_stamps=tj, joints=jp.at(tj - t0), stamps=tt + latency, points=meas @ A[:3, :3].T + A[:3, 3],
