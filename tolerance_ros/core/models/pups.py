@@ -659,18 +659,11 @@ def _pair(data, key, scale, required=True, default=None):
     return _range(out, key)
 
 
-_PUPS_KEYS = {"name", "kind", "source", "description", "notes", "units", "slider_angles", "slider_travel",
-              "platform_radius", "u_joint_axes", "leg_length", "psi_range", "theta_range", "redundancy", "workspace",
-              "locked"}
-
-
 def pups_from_dict(data: dict, path=None) -> PUPS3:
     """PUPS3 from a parsed robot file of kind '3pups' (units stated in the file; see config/robots)."""
     extra = sorted(set(data) - _KEYS)
     if extra:
         raise ModelError(f"robot: unknown key(s) {extra}; allowed: {sorted(_KEYS)}")
-    from .loader import _unknown
-    _unknown(data, _PUPS_KEYS, "robot")
     units = data.get("units", {}) or {}
     if not isinstance(units, dict) or set(units) - {"length", "angle"}:
         raise ModelError("units: expected a mapping like {length: mm, angle: deg}")
