@@ -229,7 +229,7 @@ class PathMonitor:
             if A is None:
                 ta = tm - tau
                 inside = (ta >= tj[0]) & (ta <= tj[-1])
-                P_ = np.column_stack([np.interp(ta[inside], tj, pc[:, k]) for k in range(3)])
+                P_ = P.interp_columns(ta[inside], tj, pc)
                 R, t, S = kabsch(P_, pm[inside])
                 if S[1] < 1e-6 * S[0]:
                     return False                       # a straight line does not fix the rotation: wait
@@ -246,7 +246,7 @@ class PathMonitor:
         ta = self.tm - tau
         j0, j1 = np.searchsorted(ta, [self.tj[i0], self.tj[i1]])
         sel = slice(int(np.searchsorted(ta, self.first_joint)), j1)
-        self.pairs.add(np.column_stack([np.interp(ta[sel], self.tj, self.pc[:, k]) for k in range(3)]), self.pm[sel])
+        self.pairs.add(P.interp_columns(ta[sel], self.tj, self.pc), self.pm[sel])
         if not self.given_A and self.pairs.n >= 3:
             try:
                 self.A = self.pairs.result()

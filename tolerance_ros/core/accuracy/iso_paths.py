@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .path import interp_columns
+
 PATHS = ("line", "circle", "rectangle")
 MAX_KNOT_STEP = 0.05  # rad or m: the largest joint change between knots before a path is called discontinuous
 
@@ -115,7 +117,7 @@ class JointPath:
         t = np.asarray(t, float)
         k = np.clip(np.floor(t / self.period), 0, self.cycles - 1)
         tc = np.clip(t - k * self.period, 0.0, self.period)
-        return np.column_stack([np.interp(tc, self.t, self.q[:, j]) for j in range(self.q.shape[1])])
+        return interp_columns(tc, self.t, self.q)
 
     def to_dict(self) -> dict:
         """The trajectory file (``read_trajectory``): SI, one cycle of knots."""

@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .path import interp_columns
 from .registration import kabsch
 
 SCAN_POINTS = 10_000      # points of the coarse scan
@@ -58,10 +59,6 @@ class Latency:
         return asdict(self)
 
 
-def _at(t, tc, pc) -> np.ndarray:
-    return np.column_stack([np.interp(t, tc, pc[:, k]) for k in range(3)])
-
-
 class Resampled:
     """The command path on a uniform time grid (``dt`` s, at most 1 ms), interpolated linearly by arithmetic
     instead of a search: the many evaluations of a latency estimate at a fraction of ``np.interp``'s cost."""
@@ -73,7 +70,7 @@ class Resampled:
         self.t0 = float(tc[0])
         n = int(np.floor((tc[-1] - tc[0]) / self.dt)) + 1
         grid = self.t0 + np.arange(n) * self.dt
-        self.p = np.column_stack([np.interp(grid, tc, pc[:, k]) for k in range(3)])
+        self.p = interp_columns(grid, tc, pc)
 
     def __call__(self, t) -> np.ndarray:
         x = (np.asarray(t, float) - self.t0) / self.dt
@@ -93,7 +90,7 @@ def _fit(P, M, register: bool):
 def residual_sum(tau, tm, pm, tc, pc, register: bool = True, command=None) -> float:
     """``S(tau)`` (m^2) over the points ``tm`` (n,) s, ``pm`` (n, 3) m against the command ``tc``, ``pc``
     (or its ``Resampled`` ``command``)."""
-    P = command(tm - tau) if command is not None else _at(tm - tau, tc, pc)
+    P = command(tm - tau) if command is not None else interp_columns(tm - tau, tc, pc)
     return _fit(P, pm, register)[2]
 
 
@@ -172,7 +169,7 @@ def coarse_offset(tm, pm, tc, pc, dt: float = 0.01) -> float:
         mean = np.column_stack([np.bincount(k, p[:, j], minlength=n) for j in range(3)]) / np.maximum(cnt, 1)[:, None]
         have = cnt > 0
         x = np.arange(n)
-        mean = np.column_stack([np.interp(x, x[have], mean[have, j]) for j in range(3)])
+        mean = interp_columns(x, x[have], mean[have])
         v = np.zeros(n)
         v[1:-1] = np.linalg.norm(mean[2:] - mean[:-2], axis=1) / (2 * dt)
         return v - v.mean()

@@ -41,6 +41,12 @@ CORNER_ANGLE = np.radians(30.0)
 END_MARGIN = 2e-3    # m: stations keep this far (at most 5 % of the segment) from a segment's ends
 
 
+def interp_columns(x, t, Y) -> np.ndarray:
+    """(n, d) the columns of ``Y`` (k, d), sampled at ``t`` (k,) increasing, interpolated linearly at ``x`` (n,)
+    (held at the ends)."""
+    return np.column_stack([np.interp(x, t, Y[:, k]) for k in range(Y.shape[1])])
+
+
 def arc_length(p) -> np.ndarray:
     """(n,) cumulative length (m) of the polyline ``p`` (n, 3)."""
     return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
@@ -50,7 +56,7 @@ def speeds(t, p, h: float) -> np.ndarray:
     """(n,) speed (m/s) at stamps ``t`` of the path ``p`` (n, 3): ``|p(t + h) - p(t - h)| / 2h``, one-sided
     at the ends, ``p`` interpolated linearly in time."""
     lo, hi = np.maximum(t - h, t[0]), np.minimum(t + h, t[-1])
-    d = np.column_stack([np.interp(hi, t, p[:, k]) - np.interp(lo, t, p[:, k]) for k in range(3)])
+    d = interp_columns(hi, t, p) - interp_columns(lo, t, p)
     return np.linalg.norm(d, axis=1) / np.maximum(hi - lo, 1e-12)
 
 
@@ -109,8 +115,7 @@ def corners(p, angle: float = CORNER_ANGLE, arm: float | None = None) -> np.ndar
         return np.zeros(0)
 
     def at(x):
-        x = np.clip(x, 0.0, L)
-        return np.column_stack([np.interp(x, s, p[:, k]) for k in range(3)])
+        return interp_columns(np.clip(x, 0.0, L), s, p)
 
     before, here, after = at(grid - arm), at(grid), at(grid + arm)
     a, b = here - before, after - here
@@ -180,11 +185,11 @@ def station_points(cyc: Cycle, sigma, lo, hi, speed_window: float):
     t, p, s = cyc.t, cyc.p, cyc.s
 
     def at(x):
-        return np.column_stack([np.interp(x, s, p[:, k]) for k in range(3)])
+        return interp_columns(x, s, p)
 
     u_c = _tangents(p, s)
     sa = np.interp(cyc.ta, t, s)
-    ca = np.column_stack([np.interp(cyc.ta, t, p[:, k]) for k in range(3)])
+    ca = interp_columns(cyc.ta, t, p)
     ua = u_c[np.clip(np.searchsorted(t, cyc.ta), 0, len(t) - 1)]
     along = sa + np.einsum("ij,ij->i", cyc.a - ca, ua)
     mono = np.maximum.accumulate(along)

@@ -104,7 +104,7 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
     inside = (ta >= tj[0]) & (ta <= tj[-1])
     if not inside.any():
         raise ValueError("no tracker point lies within the joint states' time span: the two streams do not overlap")
-    pc_a = np.column_stack([np.interp(ta[inside], tj, p_c[:, k]) for k in range(3)])
+    pc_a = P.interp_columns(ta[inside], tj, p_c)
     if T_tracker_base is not None:
         R, t = np.asarray(T_tracker_base, float)[:3, :3], np.asarray(T_tracker_base, float)[:3, 3]
         registration = "given"
@@ -164,7 +164,7 @@ def _check(model, tm, pm, tj, qj, sample: int = 2000):
     sel = np.flatnonzero((tm >= tj[0]) & (tm <= tj[-1]))
     sel = sel[np.linspace(0, len(sel) - 1, min(sample, len(sel))).astype(int)] if len(sel) else sel
     if len(sel) >= 3:
-        q = np.column_stack([np.interp(tm[sel], tj, qj[:, j]) for j in range(model.dof)])
+        q = P.interp_columns(tm[sel], tj, qj)
         problem = units_problem(model, q, pm[sel])
         if problem:
             raise ValueError(problem)
@@ -188,7 +188,7 @@ def _judge(doc, model, budget, ref, tj, qj, v_max, offset=None):
     for seg in doc["segments"]:
         sig = np.asarray(seg["along"]["s_m"])
         ts = np.interp(sig, ref.s, ref.t)
-        q = np.column_stack([np.interp(ts, tj, qj[:, j]) for j in range(model.dof)])
+        q = P.interp_columns(ts, tj, qj)
         b = criterion_bound(target_jacobian(model, q, offset), delta, budget.criterion)
         seg["along"]["bound_m"] = b.tolist()
         seg["bound_max_m"] = float(b.max())
