@@ -53,6 +53,7 @@ from tolerance_ros.testing.fuzz_corpus import (ENCODINGS, NESTED_ID, UNKNOWN, al
 from tolerance_ros.testing.schemas import validator  # noqa: E402
 from tolerance_ros.core.jsonio import dumps_fast, loads_strict  # noqa: E402
 from tolerance_ros.services.contracts import CODES  # noqa: E402
+from child import run_child  # noqa: E402
 from fuzz_inputs import EXAMPLES, SLOW_S, entry_points, fuzz_cases, print_cases  # noqa: E402
 from fuzz_soak import SOAK_CHUNK, rss_of_process, soak  # noqa: E402
 from machine import load_average, machine  # noqa: E402
@@ -279,24 +280,15 @@ def fuzz_service(service, use_ros, ctx):
     left, index, started = ARGS.requests, 0, time.monotonic()
     while left > 0:
         n = min(ARGS.batch, left)
-        receive, send = ctx.Pipe(duplex=False)
-        child = ctx.Process(target=run_batch, args=(service, n, ARGS.seed * 1000 + index, use_ros, send))
-        child.start()
-        send.close()
-        try:
-            stats = receive.recv() if receive.poll(60 + n * 0.2 + 4 * ARGS.time_limit * ARGS.solve) else None
-        except EOFError:  # the child died without an answer
-            stats = None
-        if child.is_alive() and stats is None:
-            total["hangs"] += 1
-            child.kill()
-        child.join(30)
+        stats, hung, exitcode = run_child(ctx, run_batch, (service, n, ARGS.seed * 1000 + index, use_ros),
+                                          60 + n * 0.2 + 4 * ARGS.time_limit * ARGS.solve)
+        total["hangs"] += hung
         if stats is None:
             total["requests"] += n
-            if child.exitcode is not None and child.exitcode < 0:
-                total["crashes"].append(f"batch {index}: {signal.Signals(-child.exitcode).name}")
-            elif child.exitcode:
-                total["crashes"].append(f"batch {index}: exit {child.exitcode}")
+            if exitcode is not None and exitcode < 0:
+                total["crashes"].append(f"batch {index}: {signal.Signals(-exitcode).name}")
+            elif exitcode:
+                total["crashes"].append(f"batch {index}: exit {exitcode}")
         else:
             for key in ("requests", "escaped", "internal", "slow", "schema", "unanswered", "accepted", "solved",
                         "late", "wrong_id"):

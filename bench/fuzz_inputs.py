@@ -11,6 +11,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, Phase, given, seed, settings
 from hypothesis import strategies as st
 
+from child import run_child
 from tolerance_ros.core.jsonio import dumps_fast, loads_strict
 
 SLOW_S = 1.0
@@ -230,21 +231,11 @@ def fuzz_cases(kind, name, n, batch, ctx, seed_base=0):
     left, index, started = n, 0, time.monotonic()
     while left > 0:
         m = min(batch, left)
-        receive, send = ctx.Pipe(duplex=False)
-        child = ctx.Process(target=run_cases, args=(kind, name, m, seed_base * 1000 + index, send))
-        child.start()
-        send.close()
-        try:
-            stats = receive.recv() if receive.poll(60 + m * 1.0) else None
-        except EOFError:
-            stats = None
-        if child.is_alive() and stats is None:
-            total["hangs"] += 1
-            child.kill()
-        child.join(30)
+        stats, hung, exitcode = run_child(ctx, run_cases, (kind, name, m, seed_base * 1000 + index), 60 + m * 1.0)
+        total["hangs"] += hung
         if stats is None:
             total["inputs"] += m
-            total["crashes"].append(f"batch {index}: {child.exitcode}")
+            total["crashes"].append(f"batch {index}: {exitcode}")
         else:
             for key in ("inputs", "slow", *OUTCOMES):
                 total[key] += stats[key]
