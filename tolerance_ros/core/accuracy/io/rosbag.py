@@ -12,6 +12,15 @@ from ...ingest import IngestError, JointOrder, pair_by_stamp, pose_from_values, 
 from .measurements import MeasurementError, Measurements
 from .text import _cut
 
+def _decode(reader, raw, msgtype):
+    """One message of a rosbags ``AnyReader``; IngestError when its bytes are not a ``msgtype``."""
+    from rosbags.highlevel import AnyReaderError
+    try:
+        return reader.deserialize(raw, msgtype)
+    except (AnyReaderError, struct.error, ValueError) as exc:  # rosbags 0.10 does not wrap the last two
+        raise IngestError(f"cannot be decoded as {msgtype} ({_cut(str(exc), 80)})") from None
+
+
 def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic="/joint_states",
                 slop: float = 0.005, skip_bad: bool = False) -> Measurements:
     """Measurements from a rosbag2 recording (sqlite3 or mcap) of PoseStamped and JointState.
@@ -41,10 +50,7 @@ def read_rosbag(path, joint_names=None, pose_topic="/measured_pose", joint_topic
                     raise MeasurementError(f"{path}: topic {c.topic} carries {c.msgtype}, expected {types[c.topic]}")
             for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
                 try:
-                    try:
-                        msg = reader.deserialize(raw, conn.msgtype)
-                    except (AnyReaderError, struct.error, ValueError) as exc:  # rosbags 0.10 does not wrap the last two
-                        raise IngestError(f"cannot be decoded as {conn.msgtype} ({_cut(str(exc), 80)})") from None
+                    msg = _decode(reader, raw, conn.msgtype)
                     st = stamp_seconds(msg.header.stamp)
                     if conn.topic == pose_topic:
                         p, o = msg.pose.position, msg.pose.orientation
@@ -168,10 +174,7 @@ def read_rosbag_streams(path, joint_names):
                     raise MeasurementError(f"{path}: topic {c.topic} carries {c.msgtype}, expected {want[c.topic]}")
             for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
                 try:
-                    try:
-                        msg = reader.deserialize(raw, conn.msgtype)
-                    except (AnyReaderError, struct.error, ValueError) as exc:
-                        raise IngestError(f"cannot be decoded as {conn.msgtype} ({_cut(str(exc), 80)})") from None
+                    msg = _decode(reader, raw, conn.msgtype)
                     st = stamp_seconds(msg.header.stamp)
                     if conn.topic == ptopic:
                         p = msg.point if conn.msgtype.endswith("PointStamped") else msg.pose.position
