@@ -29,6 +29,14 @@ def fd_jacobian(fk, p0, h=1e-6):
     return np.stack(cols, axis=2)
 
 
+def run_cli(capsys, *argv):
+    """(exit code, stdout, stderr) of ``tolerance-ros argv`` in this process (each argument as text)."""
+    from tolerance_ros.cli import main
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
 XARM7_URDF = Path(__file__).parent / "data" / "xarm7" / "xarm7.urdf"  # vendored: example-robot-data < 4.4 lacks it
 
 

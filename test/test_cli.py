@@ -6,13 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import run_cli as run
 from tolerance_ros.cli import main
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture

@@ -5,14 +5,8 @@ import time
 import numpy as np
 import pytest
 
+from helpers import run_cli as run
 from tolerance_ros.cli.common import CAPS, SENSITIVITY_SAMPLES
-from tolerance_ros.cli.main import main
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def _refused(code, out, err, option, as_json=False):

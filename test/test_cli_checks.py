@@ -7,14 +7,8 @@ import numpy as np
 import pytest
 import yaml
 
-from helpers import XARM7_URDF, example_urdf
+from helpers import XARM7_URDF, example_urdf, run_cli as run
 from tolerance_ros.cli import main
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")

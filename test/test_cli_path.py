@@ -6,15 +6,10 @@ from pathlib import Path
 
 import pytest
 
+from helpers import run_cli as run
 from tolerance_ros.cli import main
 
 CENTER = "0deg,45deg,0deg,60deg,0deg,30deg,0deg"
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import run_cli as run
 from tolerance_ros.cli import main
 
 DATA = Path(__file__).resolve().parent / "data" / "tiago_mocap"
@@ -19,12 +20,6 @@ URDF = DATA / "tiago_48_schunk.urdf"
 TRAIN, VALIDATION = DATA / "qualisys_2021-11-30_static_postures.csv", DATA / "qualisys_2021-11-26_static_postures.csv"
 JOINTS = ["--joint", "torso_lift_joint[m]"] + [a for i in range(1, 8) for a in ("--joint", f"arm_{i}_joint[rad]")]
 OTHER_POINTS = "x2,y2,z2,x3,y3,z3,x4,y4,z4"
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def imported(capsys, source, out, points=("x1,y1,z1[m]",), ignore=""):
