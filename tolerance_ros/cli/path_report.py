@@ -2,8 +2,6 @@
 with the tracker's latency measured."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from ..core.budget import load_budget
@@ -43,8 +41,9 @@ def add_arguments(p):
     p.add_argument("--out", metavar="DIR", help="write path_report.json, path_report.md and plots into DIR")
 
 
-def _command(args, model, stamps, points):
-    """(joint stamps, joints, center of the latency search, where from) of the command."""
+def _command(args, model, stamps, points, recorded=None):
+    """(joint stamps, joints, center of the latency search, where from) of the command; ``recorded``: the
+    (joint stamps, joints) of the recording ``--measurements`` names (None for another file)."""
     from ..core.accuracy.io import read_measurements
     if args.joint_states and args.trajectory:
         raise CLIError("--joint-states, --trajectory: give one of them (the command's joints)")
@@ -63,10 +62,8 @@ def _command(args, model, stamps, points):
         tj = np.arange(int(jp.duration * JOINT_RATE) + 1) / JOINT_RATE
         qj = jp.at(tj)
         return tj, qj, coarse_offset(stamps, points, tj, command_points(model, qj)), args.trajectory
-    p = Path(args.measurements)
-    if p.is_dir() or p.suffix in (".db3", ".mcap"):  # a recording: its joint states as they streamed
-        from ..core.accuracy.io.rosbag import read_rosbag_streams
-        _, _, tj, qj = read_rosbag_streams(p, model.joint_names)
+    if recorded is not None:  # a recording: its joint states as they streamed
+        tj, qj = recorded
         if tj is None:
             raise CLIError(f"{args.measurements}: no joint states recorded; give the commanded joints with "
                            f"--joint-states or --trajectory")
@@ -80,6 +77,7 @@ def _command(args, model, stamps, points):
 
 def run(args):
     from ..core.accuracy.io.joint_states import read_points
+    from ..core.accuracy.io.rosbag import is_recording, read_rosbag_streams
     from ..core.accuracy.path_report import path_report
     from ..render.path_report import HEADS, segment_rows, summary_lines, write_path_report
     model = load_model(args)
@@ -96,8 +94,13 @@ def run(args):
             raise CLIError(f"--target-offset: expected X,Y,Z with a unit on each (e.g. 0mm,0mm,120mm), got "
                            f"{args.target_offset!r}")
         offset = [quantity(c, "length", "--target-offset", positive=False) for c in parts]
-    stamps, points, source = read_points(args.measurements)
-    tj, qj, center, command_source = _command(args, model, stamps, points)
+    recorded = None
+    if is_recording(args.measurements) and not (args.joint_states or args.trajectory):  # both streams, one read
+        stamps, points, *recorded = read_rosbag_streams(args.measurements, model.joint_names)
+        source = str(args.measurements)
+    else:
+        stamps, points, source = read_points(args.measurements)
+    tj, qj, center, command_source = _command(args, model, stamps, points, recorded)
     doc = path_report(model, stamps, points, tj, qj, budget, args.registration, latency, window, center,
                       args.stations, speed_window, source=source, offset=offset)
     doc["command"] = {"source": command_source, "kind": "trajectory" if args.trajectory else "joint states"}

@@ -9,7 +9,7 @@ from pathlib import Path
 from .campaign_log import MAX_DEPTH, read_log
 from .csv_format import read_csv, write_csv
 from .measurements import MeasurementError, Measurements, concat
-from .rosbag import read_rosbag, write_rosbag
+from .rosbag import is_recording, read_rosbag, write_rosbag
 from .text import MAX_LINE
 
 __all__ = ["MAX_DEPTH", "MAX_LINE", "MeasurementError", "Measurements", "concat", "read_csv", "read_log",
@@ -19,7 +19,7 @@ __all__ = ["MAX_DEPTH", "MAX_LINE", "MeasurementError", "Measurements", "concat"
 def read_measurements(path, joint_names=None, skip_bad=False, slop=0.005):
     """Measurements from a CSV file, a campaign log (.jsonl) or a rosbag2 directory / .db3 / .mcap."""
     p = Path(path)
-    if p.is_dir() or p.suffix in (".db3", ".mcap"):
+    if is_recording(p):
         return read_rosbag(p, joint_names=joint_names, skip_bad=skip_bad, slop=slop)
     if p.suffix in (".jsonl", ".log"):
         return read_log(p, skip_bad=skip_bad)

@@ -118,9 +118,9 @@ def read_points(path):
     other measurement file (CSV with more columns, campaign log, rosbag2) by ``read_measurements``."""
     from . import read_measurements
     p = Path(path)
-    if p.is_dir() or p.suffix in (".db3", ".mcap"):  # a recording: the points as they streamed, unpaired
-        from .rosbag import read_rosbag_streams
-        stamps, points, _, _ = read_rosbag_streams(p, ())
+    from .rosbag import is_recording, read_rosbag_streams
+    if is_recording(p):  # a recording: the points as they streamed, unpaired
+        stamps, points, _, _ = read_rosbag_streams(p)
         return stamps, points, str(path)
     if p.is_file() and p.suffix.lower() == ".csv":
         try:

@@ -12,6 +12,12 @@ from ...ingest import IngestError, JointOrder, pair_by_stamp, pose_from_values, 
 from .measurements import MeasurementError, Measurements
 from .text import _cut
 
+def is_recording(path) -> bool:
+    """Whether ``path`` names a rosbag2 recording (a folder, or a .db3 / .mcap file)."""
+    p = Path(path)
+    return p.is_dir() or p.suffix in (".db3", ".mcap")
+
+
 def _decode(reader, raw, msgtype):
     """One message of a rosbags ``AnyReader``; IngestError when its bytes are not a ``msgtype``."""
     from rosbags.highlevel import AnyReaderError
@@ -143,9 +149,10 @@ def _topic(path, topics, suffixes):
     return found[0] if found else None
 
 
-def read_rosbag_streams(path, joint_names):
+def read_rosbag_streams(path, joint_names=None):
     """The two streams of a recording as they came, unpaired: (point stamps (n,) s, points (n, 3) m, joint stamps
-    (k,) s, joints (k, dof) in the order of ``joint_names``, or None when no joint states were recorded). Points
+    (k,) s, joints (k, dof) in the order of ``joint_names``; both None when no joint states were recorded, or
+    when ``joint_names`` is None: the points alone are read). Points
     from ``measured_point`` (PointStamped) or ``measured_pose`` (PoseStamped, its position), joints from
     ``joint_states`` (any namespace). A message that cannot be used is an error naming it: nothing is dropped."""
     from rosbags.highlevel import AnyReader, AnyReaderError
@@ -156,7 +163,7 @@ def read_rosbag_streams(path, joint_names):
     if not path.exists():
         raise MeasurementError(f"{path}: no such bag")
     pts, pst, js, jst = [], [], [], []
-    order = JointOrder(joint_names)
+    order = JointOrder(joint_names) if joint_names is not None else None
     try:
         with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
             topics = {c.topic for c in reader.connections}
@@ -166,7 +173,7 @@ def read_rosbag_streams(path, joint_names):
                 raise MeasurementError(f"{path}: no measured_point or measured_pose topic (topics: {sorted(topics)})")
             want = {ptopic: ("geometry_msgs/msg/PointStamped" if ptopic.endswith("measured_point")
                              else "geometry_msgs/msg/PoseStamped")}
-            if jtopic is not None:
+            if jtopic is not None and order is not None:
                 want[jtopic] = "sensor_msgs/msg/JointState"
             conns = [c for c in reader.connections if c.topic in want]
             for c in conns:
