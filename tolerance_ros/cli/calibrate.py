@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..render.text import Progress, table
-from .common import CLIError, load_model, missed, quantity, relative
+from .common import CLIError, load_model, missed, point_option, quantity, relative
 
 NAME = "calibrate"
 HELP = "calibrated robot file from measured poses, validated on held-out poses"
@@ -64,11 +64,10 @@ def payload_option(text):
     if text is None:
         return None
     mass, at, point = text.partition("@")
-    coords = point.split(",")
-    if not at or len(coords) != 3:
+    coords = point_option(point, "--payload") if at else None
+    if coords is None:
         raise CLIError(f"--payload: expected MASS@X,Y,Z, each with its unit (e.g. 165kg@0.1m,0m,0.2m), got {text!r}")
-    return quantity(mass, "mass", "--payload"), tuple(quantity(c, "length", "--payload", positive=False)
-                                                       for c in coords)
+    return quantity(mass, "mass", "--payload"), tuple(coords)
 
 
 def run(args):

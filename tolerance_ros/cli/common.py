@@ -100,6 +100,15 @@ def quantity(text, kind, option, positive=True):
     return value
 
 
+def point_option(text, option):
+    """[x, y, z] m of ``X,Y,Z`` (a unit on each, e.g. ``0mm,0mm,120mm``), or None when it is not three values
+    (the caller says what it expected); CLIError for a value without its unit."""
+    parts = text.split(",")
+    if len(parts) != 3:
+        return None
+    return [quantity(c, "length", option, positive=False) for c in parts]
+
+
 def load_model(args):
     """The model of ``--robot`` (with ``--tip-link`` / ``--base-link``); says which tip it took when the
     choice was made for the user (a URDF whose only moving leaf link is the tip)."""

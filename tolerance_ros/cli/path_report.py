@@ -6,7 +6,7 @@ import numpy as np
 
 from ..core.budget import load_budget
 from ..render.text import table
-from .common import CLIError, load_model, missed, quantity
+from .common import CLIError, load_model, missed, point_option, quantity
 
 NAME = "path-report"
 HELP = "ISO 9283 path accuracy of a tracker's stream along a commanded path (AT, RT, CR, CO, AV, RV, FV, latency)"
@@ -89,11 +89,10 @@ def run(args):
     speed_window = quantity(args.speed_window, "time", "--speed-window")
     offset = None
     if args.target_offset:
-        parts = args.target_offset.split(",")
-        if len(parts) != 3:
+        offset = point_option(args.target_offset, "--target-offset")
+        if offset is None:
             raise CLIError(f"--target-offset: expected X,Y,Z with a unit on each (e.g. 0mm,0mm,120mm), got "
                            f"{args.target_offset!r}")
-        offset = [quantity(c, "length", "--target-offset", positive=False) for c in parts]
     recorded = None
     if is_recording(args.measurements) and not (args.joint_states or args.trajectory):  # both streams, one read
         stamps, points, *recorded = read_rosbag_streams(args.measurements, model.joint_names)

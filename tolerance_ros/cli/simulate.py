@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import CLIError, load_model, quantity, relative
+from .common import CLIError, load_model, point_option, quantity, relative
 
 NAME = "simulate"
 HELP = "tracker measurements of a campaign on a simulated as-built robot, with the truth beside"
@@ -72,12 +72,12 @@ def _targets(specs):
     names, offsets = [], []
     for spec in specs:
         name, eq, coords = spec.partition("=")
-        parts = coords.split(",")
-        if not eq or not name.strip() or len(parts) != 3:
+        offset = point_option(coords, "--target-offset") if eq and name.strip() else None
+        if offset is None:
             raise CLIError(f"--target-offset: expected NAME=X,Y,Z with a unit on each (e.g. R1=30mm,90mm,0mm), got "
                            f"{spec!r}")
         names.append(name.strip())
-        offsets.append([quantity(c, "length", "--target-offset", positive=False) for c in parts])
+        offsets.append(offset)
     if len(set(names)) != len(names):
         raise CLIError(f"--target-offset: the names must differ, got {names}")
     return Targets.from_offsets(names, offsets)
