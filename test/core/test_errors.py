@@ -57,10 +57,44 @@ def test_the_compiled_worst_case_equals_the_numpy_reference_on_many_generators(k
     rng = np.random.default_rng(len(kind))
     J = _degenerate(rng.standard_normal((200, 3, 42)), kind, rng)
     delta = rng.uniform(1e-6, 1e-4, 42)
-    ref = worst_case_bound(J, delta, backend="numpy")
+    ref, s_ref = worst_case_bound(J, delta, return_signs=True, backend="numpy")
+    assert np.allclose(error_norms(J, s_ref * delta), ref, rtol=1e-12, atol=0)
     w, s = worst_case_bound(J, delta, return_signs=True, backend="numba")
     assert np.allclose(w, ref, rtol=1e-12, atol=0)
     assert np.allclose(error_norms(J, s * delta), w, rtol=1e-12, atol=0)
+
+
+def test_the_numpy_worst_case_is_the_same_in_any_chunk_size(monkeypatch):
+    """The reference works in chunks of poses (``WORST_CASE_CHUNK``): one pose at a time, 7 or all at once
+    give the same values and signs."""
+    from tolerance_ros.core import errors
+    rng = np.random.default_rng(11)
+    J = rng.standard_normal((40, 3, 12))
+    delta = rng.uniform(1e-6, 1e-4, 12)
+    runs = []
+    for chunk in (1, 7, 1000):
+        monkeypatch.setattr(errors, "WORST_CASE_CHUNK", chunk)
+        runs.append(worst_case_bound(J, delta, return_signs=True, backend="numpy"))
+    for w, s in runs[1:]:
+        assert np.array_equal(w, runs[0][0]) and np.array_equal(s, runs[0][1])
+    assert np.allclose(runs[0][0], brute_force(J, delta), rtol=1e-9, atol=0)
+
+
+def test_the_perturbation_is_the_same_draws_whatever_the_calls_before(monkeypatch):
+    """The degeneracy-breaking perturbation of a block of n poses is the first draws of one seeded generator,
+    kept between calls: the same after a longer block, a shorter one, or a block beyond the kept table."""
+    from tolerance_ros.core import errors
+    monkeypatch.setattr(errors, "_NOISE", {})
+    monkeypatch.setattr(errors, "_NOISE_CAP", 3 * 5 * 100)
+
+    def fresh(n, m):
+        return np.random.default_rng(12345).standard_normal((n, 3, m))
+    for n in (3, 50, 7, 100, 101, 250, 1):
+        got = errors._perturbation(n, 5)
+        assert np.array_equal(got, fresh(n, 5)), n
+        assert not got.flags.writeable
+    assert len(errors._NOISE[5]) == 100  # the table never grows beyond its cap
+    assert np.array_equal(errors._perturbation(4, 2), fresh(4, 2))
 
 
 def test_worst_case_on_robot_jacobians_equals_brute_force():

@@ -26,6 +26,8 @@ from . import interrupt
 from .models import kernels as compiled
 
 _PERTURB = 1e-9
+WORST_CASE_CHUNK = 32
+"""Poses per chunk of the numpy worst case: its (chunk, pairs, generators) arrays stay in the cache."""
 
 
 def _check(J, delta):
@@ -82,6 +84,23 @@ def confidence_for_k(k_sigma: float) -> float:
     return float(2.0 * norm.cdf(k_sigma) - 1.0)
 
 
+_NOISE = {}  # generators m -> (rows, 3, m) draws of default_rng(12345).standard_normal, grown on demand
+_NOISE_CAP = 1 << 22  # values kept per generator count (32 MiB); a larger block draws its own
+
+
+def _perturbation(n, m):
+    """(n, 3, m) standard normals: the first n * 3 * m draws of ``default_rng(12345)``, the same for every call
+    (a block's perturbation does not depend on its length or on the calls before it); kept between calls."""
+    table = _NOISE.get(m)
+    if table is None or len(table) < n:
+        rows = n if n * 3 * m > _NOISE_CAP else max(n, min(4096, _NOISE_CAP // (3 * m)))
+        table = np.random.default_rng(12345).standard_normal((rows, 3, m))
+        table.flags.writeable = False
+        if rows * 3 * m <= _NOISE_CAP:
+            _NOISE[m] = table
+    return table[:n]
+
+
 def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: float = 64e6, backend: str = "numba"):
     """(n,) exact ``max over s in {-1,+1}^p of |J (s * delta)|``; optionally the maximising signs (n, p).
 
@@ -114,8 +133,7 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
         out[:] = np.linalg.norm(Ga[:, :, 0], axis=1)
         return (out, signs) if return_signs else out
     scale = np.abs(Ga).max(axis=(1, 2), keepdims=True)
-    rng = np.random.default_rng(12345)
-    Gp = Ga + _PERTURB * np.where(scale > 0, scale, 1.0) * rng.standard_normal(Ga.shape)
+    Gp = Ga + _PERTURB * np.where(scale > 0, scale, 1.0) * _perturbation(n, m)
     kernels = compiled.get("zonotope") if backend == "numba" else None
     if kernels is not None:
         best_s = np.empty((n, m))
@@ -128,34 +146,55 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
             signs[:, active] = best_s
             return out, signs
         return out
+    return _worst_case_numpy(Ga, Gp, out, signs, active, return_signs, max_chunk_bytes)
+
+
+def _worst_case_numpy(Ga, Gp, out, signs, active, return_signs, max_chunk_bytes):
+    """The numpy reference of ``worst_case_bound`` (same candidates as the compiled kernel), in chunks of
+    poses small enough for the cache. For each line ``v = gp_i x gp_j`` the other generators' signs are
+    ``sign(v . gp_l)``; of the four corners ``z + a g_i + b g_j`` the largest norm is chosen from
+    ``|z|^2 + |g_i|^2 + |g_j|^2 + 2 (a z.g_i + b z.g_j + a b g_i.g_j)``, and the value is the norm of the
+    chosen corner, computed from its coordinates."""
+    n, _, m = Ga.shape
     ii, jj = np.triu_indices(m, 1)
     npairs = ii.size
-    combos = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]], dtype=float)
-    chunk = max(1, int(max_chunk_bytes // (8 * npairs * (m + 8))))
+    pairs = np.arange(npairs)
+    combos = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
+    chunk = int(max(1, min(WORST_CASE_CHUNK, max_chunk_bytes // (8 * npairs * (m + 8)))))
+    g_all = np.ascontiguousarray(Ga.transpose(0, 2, 1))            # (n, m, 3)
+    gp_all = np.ascontiguousarray(Gp.transpose(0, 2, 1))
     best_s = np.ones((n, m))
     for a in range(0, n, chunk):
         interrupt.check()  # a long evaluation stops at the caller's deadline (a no-op outside interrupt.watching)
         b = min(n, a + chunk)
-        g, gp = Ga[a:b], Gp[a:b]
-        V = np.cross(gp[:, :, ii], gp[:, :, jj], axis=1)           # (c, 3, pairs)
-        S = np.sign(np.matmul(V.transpose(0, 2, 1), gp))            # (c, pairs, m)
-        S[S == 0] = 1.0
-        q = np.arange(npairs)
-        S[:, q, ii] = 0.0
-        S[:, q, jj] = 0.0
-        Z = np.matmul(S, g.transpose(0, 2, 1))                      # (c, pairs, 3)
-        gi = np.moveaxis(g[:, :, ii], 1, 2)                         # (c, pairs, 3)
-        gj = np.moveaxis(g[:, :, jj], 1, 2)
-        cand = Z[:, :, None, :] + combos[None, None, :, 0:1] * gi[:, :, None, :] \
-            + combos[None, None, :, 1:2] * gj[:, :, None, :]        # (c, pairs, 4, 3)
-        norms = np.einsum("cqrk,cqrk->cqr", cand, cand).reshape(b - a, -1)
-        arg = np.argmax(norms, axis=1)
-        out[a:b] = np.sqrt(norms[np.arange(b - a), arg])
+        c = b - a
+        g, gp = g_all[a:b], gp_all[a:b]
+        A, B = gp[:, ii], gp[:, jj]                                 # (c, pairs, 3)
+        V = np.empty_like(A)
+        V[..., 0] = A[..., 1] * B[..., 2] - A[..., 2] * B[..., 1]
+        V[..., 1] = A[..., 2] * B[..., 0] - A[..., 0] * B[..., 2]
+        V[..., 2] = A[..., 0] * B[..., 1] - A[..., 1] * B[..., 0]
+        S = np.matmul(V, Gp[a:b])                                   # (c, pairs, m)
+        S = np.copysign(1.0, S, out=S)
+        S[:, pairs, ii] = 0.0
+        S[:, pairs, jj] = 0.0
+        Z = np.matmul(S, g)                                         # (c, pairs, 3)
+        gi, gj = g[:, ii], g[:, jj]
+        X = np.einsum("cqk,cqk->cq", Z, gi)
+        Y = np.einsum("cqk,cqk->cq", Z, gj)
+        W = np.einsum("cqk,cqk->cq", gi, gj)
+        corner = np.stack([X + Y + W, X - Y - W, -X + Y - W, -X - Y + W], axis=2)   # (c, pairs, 4)
+        sq = (np.einsum("cqk,cqk->cq", Z, Z) + np.einsum("cqk,cqk->cq", gi, gi)
+              + np.einsum("cqk,cqk->cq", gj, gj))[:, :, None] + 2.0 * corner
+        arg = np.argmax(sq.reshape(c, -1), axis=1)
+        qbest, rbest = np.divmod(arg, 4)
+        rows = np.arange(c)
+        z = Z[rows, qbest] + combos[rbest, 0:1] * gi[rows, qbest] + combos[rbest, 1:2] * gj[rows, qbest]
+        out[a:b] = np.sqrt(np.einsum("ck,ck->c", z, z))
         if return_signs:
-            qbest, rbest = np.divmod(arg, 4)
-            s = S[np.arange(b - a), qbest]
-            s[np.arange(b - a), ii[qbest]] = combos[rbest, 0]
-            s[np.arange(b - a), jj[qbest]] = combos[rbest, 1]
+            s = S[rows, qbest]
+            s[rows, ii[qbest]] = combos[rbest, 0]
+            s[rows, jj[qbest]] = combos[rbest, 1]
             best_s[a:b] = s
     if return_signs:
         signs[:, active] = best_s
