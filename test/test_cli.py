@@ -8,6 +8,7 @@ import pytest
 
 from helpers import run_cli as run
 from tolerance_ros.cli import main
+from tolerance_ros.cli.main import kernel_needs
 
 
 @pytest.fixture
@@ -762,3 +763,27 @@ def test_keystore_without_ros2_says_what_to_source(capsys, tmp_path, monkeypatch
     assert main(["keystore", "--out", str(tmp_path / "ks")]) == 2
     assert "`ros2` is not on PATH; source ROS 2 Jazzy with sros2 first" in capsys.readouterr().err
     assert not (tmp_path / "ks").exists()
+
+
+@pytest.mark.parametrize("argv, needs", [
+    (["allocate", "--robot", "gao2023_7dof", "--limit", "2mm"], ("zonotope", "dh")),
+    (["paper", "gao2023"], ("zonotope", "dh")),
+    (["paper", "rong2018"], ("zonotope", "pups")),
+    (["report", "--robot=robot.urdf", "poses.csv"], ("zonotope", "urdf")),
+    (["allocate", "--robot", "gao2023_7dof", "--criterion", "rss", "--limit", "2mm"], ("dh",)),
+    (["allocate", "--robot", "gao2023_7dof", "--criterion=paper", "--limit", "2mm"], ("dh",)),
+    (["calibrate", "--robot", "arm.URDF", "poses.csv"], ("urdf", "zonotope")),
+    (["jacobian", "--robot", "gao2023_7dof", "--q", "0,0,0,0,0,0,0"], ("dh", "zonotope")),
+])
+def test_a_cold_start_compiles_first_what_the_command_waits_for(argv, needs):
+    """The exact worst case compiles before the chain (2 s against 5 s, and its numpy path is the slower)
+    unless the command bounds no budget or its criterion has no worst case."""
+    assert kernel_needs(argv) == needs
+
+
+def test_a_yaml_robot_of_urdf_kind_needs_the_urdf_kernels(tmp_path):
+    robot = tmp_path / "arm.yaml"
+    robot.write_text("kind: urdf\nurdf: arm.urdf\n")
+    assert kernel_needs(["allocate", "--robot", str(robot), "--limit", "1mm"]) == ("zonotope", "urdf")
+    robot.write_text("kind: dh\n")
+    assert kernel_needs(["allocate", "--robot", str(robot), "--limit", "1mm"]) == ("zonotope", "dh")

@@ -84,25 +84,40 @@ def _fail(prog, code, message, as_json) -> int:
     return EXIT_INTERNAL if code == "internal" else EXIT_INPUT
 
 
+CHAIN_FIRST = ("calibrate", "compensate", "jacobian", "simulate", "plan-campaign")
+"""Commands whose work is the chain's kinematics, with no worst case of a budget to bound."""
+
+
 def kernel_needs(argv) -> tuple:
     """The compiled kernel families a command line needs first (``kernels.FAMILIES``), read from its robot
-    without loading it: a URDF chain, the 3-PUPS platform or a D-H chain, then the exact worst case."""
+    without loading it: the exact worst case first (it compiles in 2 s, and its numpy path is the costlier
+    one, 6x the kernel), then the robot's family: a URDF chain, the 3-PUPS platform or a D-H chain (5 s);
+    the chain first for the commands that bound no budget (``CHAIN_FIRST``) and alone when ``--criterion``
+    names a bound without the worst case."""
     argv = list(argv)
-    robot = next((argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--robot"), "")
-    robot = robot or next((a.split("=", 1)[1] for a in argv if a.startswith("--robot=")), "")
+    command = next((a for a in argv if not a.startswith("-")), "")
+
+    def value(option):
+        found = next((argv[i + 1] for i, a in enumerate(argv[:-1]) if a == option), "")
+        return found or next((a.split("=", 1)[1] for a in argv if a.startswith(option + "=")), "")
+    robot, criterion = value("--robot"), value("--criterion")
     text = robot.lower()
     if "rong2018" in argv or "pups" in text:
-        return ("pups", "zonotope")
-    if text.endswith(".urdf") or text.endswith(".xml"):
-        return ("urdf", "zonotope")
-    if text.endswith((".yaml", ".yml")):
-        try:
-            with open(robot, encoding="utf-8") as f:
-                if re.search(r"^kind:\s*urdf\b", f.read(20000), re.M):
-                    return ("urdf", "zonotope")
-        except OSError:
-            pass
-    return ("dh", "zonotope")
+        chain = "pups"
+    elif text.endswith((".urdf", ".xml")):
+        chain = "urdf"
+    else:
+        chain = "dh"
+        if text.endswith((".yaml", ".yml")):
+            try:
+                with open(robot, encoding="utf-8") as f:
+                    if re.search(r"^kind:\s*urdf\b", f.read(20000), re.M):
+                        chain = "urdf"
+            except OSError:
+                pass
+    if criterion in ("paper", "rss"):
+        return (chain,)
+    return (chain, "zonotope") if command in CHAIN_FIRST else ("zonotope", chain)
 
 
 def entry() -> int:
