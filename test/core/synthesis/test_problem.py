@@ -38,3 +38,20 @@ def test_cost_and_index_match_the_paper_units(gao):
 def test_bad_problems_name_the_cause(gao, kwargs, message):
     with pytest.raises(SynthesisError, match=message):
         build_problem(gao, samples=1000, **kwargs)
+
+
+def test_the_allocation_reports_progress_before_its_ceilings_search(gao, monkeypatch):
+    """The progress starts with the job (its heartbeat then moves through the ceilings' search, a few seconds
+    on a cold start), not after the ceilings."""
+    from tolerance_ros.core import synthesis
+    events = []
+    real = synthesis.build_problem
+
+    def build(*args, **kwargs):
+        events.append("ceilings")
+        return real(*args, **kwargs)
+    monkeypatch.setattr(synthesis, "build_problem", build)
+    monkeypatch.setattr(synthesis, "solve_active_set", lambda problem, *a, **k: events.append("solve") or {
+        "delta": problem.floors.copy(), "status": "converged", "message": "", "history": []})
+    synthesis.allocate(gao, 2e-3, progress=lambda done, total: events.append(("progress", done)), verify=False)
+    assert events[0] == ("progress", 0) and events.index("ceilings") < events.index("solve")

@@ -247,6 +247,8 @@ def _allocate(model, limit, model_type, solver, criterion, orientation_limit, fl
     if solver not in SOLVERS:
         raise SynthesisError(f"solver: expected one of {SOLVERS}, got {solver!r}")
     t0 = time.perf_counter()
+    if progress is not None:
+        progress(0, 10 ** 6)  # the job has started: the ceilings' search below takes a few seconds
     if problem is None:
         problem = build_problem(model, limit, orientation_limit, criterion, floors, k_sigma, seed=seed)
     # progress in millionths: the solve up to SOLVE_SHARE (all of it without the verification), then the
