@@ -235,9 +235,19 @@ the numpy path meanwhile (the nodes of a launch, a robot's own stack) keep the C
 
 
 def _lower_priority(by):
+    """Raise this process's niceness by ``by``; when it leads a session of its own (the child ``start`` spawns),
+    its Linux autogroup's too: with autogroups (``kernel.sched_autogroup_enabled``), a niceness only orders
+    the processes of one session, and the new session's child would otherwise share the CPU equally with
+    the command or node it serves."""
     try:
-        os.nice(by)
+        niceness = os.nice(by)
     except (AttributeError, OSError):  # no nice on this platform: compile at the parent's priority
+        return
+    try:
+        if os.getsid(0) == os.getpid():
+            with open("/proc/self/autogroup", "w", encoding="ascii") as f:
+                f.write(str(niceness))
+    except (AttributeError, OSError):  # no autogroups here: the niceness alone orders the processes
         pass
 
 
