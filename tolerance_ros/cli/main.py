@@ -84,16 +84,17 @@ def _fail(prog, code, message, as_json) -> int:
     return EXIT_INTERNAL if code == "internal" else EXIT_INPUT
 
 
-CHAIN_FIRST = ("calibrate", "compensate", "jacobian", "simulate", "plan-campaign")
+CHAIN_ONLY = ("calibrate", "compensate", "jacobian", "simulate", "plan-campaign")
 """Commands whose work is the chain's kinematics, with no worst case of a budget to bound."""
 
 
 def kernel_needs(argv) -> tuple:
-    """The compiled kernel families a command line needs first (``kernels.FAMILIES``), read from its robot
-    without loading it: the exact worst case first (it compiles in 2 s, and its numpy path is the costlier
-    one, 6x the kernel), then the robot's family: a URDF chain, the 3-PUPS platform or a D-H chain (5 s);
-    the chain first for the commands that bound no budget (``CHAIN_FIRST``) and alone when ``--criterion``
-    names a bound without the worst case."""
+    """(families the command waits for, families next) of ``kernels.FAMILIES`` for a cold start, read from the
+    command line without loading its robot. The chain's family (a URDF chain, the 3-PUPS platform or a D-H
+    chain) for the commands of ``CHAIN_ONLY`` and under a ``--criterion`` without the worst case; otherwise
+    the exact worst case (2 s to compile, and its numpy path is 6x the kernel), the chain next at the lowest
+    priority (5 s to compile, and its numpy path costs an allocation under 1 s: compiled at once, it only
+    takes the CPU from the job on a loaded machine)."""
     argv = list(argv)
     command = next((a for a in argv if not a.startswith("-")), "")
 
@@ -115,9 +116,9 @@ def kernel_needs(argv) -> tuple:
                         chain = "urdf"
             except OSError:
                 pass
-    if criterion in ("paper", "rss"):
-        return (chain,)
-    return (chain, "zonotope") if command in CHAIN_FIRST else ("zonotope", chain)
+    if command in CHAIN_ONLY or criterion in ("paper", "rss"):
+        return (chain,), ()
+    return ("zonotope",), (chain,)
 
 
 def entry() -> int:
@@ -125,8 +126,8 @@ def entry() -> int:
     kernels compile in a background child (said on stderr) while this call answers from the numpy path, the
     families the command needs first, each put in force as soon as it is ready."""
     from ..core.models import warmup
-    if not warmup.cached() and warmup.start(background=True, needs=kernel_needs(sys.argv[1:]),
-                                            nice=False) == "compiling":
+    needs, then = kernel_needs(sys.argv[1:])
+    if not warmup.cached() and warmup.start(background=True, needs=needs, then=then, nice=False) == "compiling":
         print("tolerance-ros: compiling the kernels in the background (the first run after an install); this "
               "call answers from the numpy path meanwhile and switches to them as they are ready", file=sys.stderr)
     return main()

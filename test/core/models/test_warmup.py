@@ -158,3 +158,21 @@ def test_the_compiling_child_of_its_own_session_lowers_its_autogroup_too(tmp_pat
     out = subprocess.run([sys.executable, "-c", code], env=_env(tmp_path), capture_output=True, text=True,
                          check=True)
     assert open("/proc/self/autogroup").read() == before
+
+
+def test_the_families_a_command_waits_for_compile_first_then_the_next_then_the_rest(monkeypatch):
+    """start(needs, then): the child compiles ``needs`` at the caller's priority (``--first``), then ``then``
+    and the other families at the lowest."""
+    from tolerance_ros.core.models import kernels
+    seen = []
+    monkeypatch.setattr(warmup, "status", dict(warmup.status, state="idle"))
+    monkeypatch.setattr(warmup, "cached", lambda: False)
+    monkeypatch.setattr(warmup, "_prepare", lambda warm, order, log, nice, first: seen.append((order, first)))
+    try:
+        assert warmup.start(background=True, needs=("zonotope",), then=("urdf", "zonotope"), nice=False) == "compiling"
+    finally:
+        kernels.set_pending(False)
+    deadline = time.monotonic() + 10
+    while not seen and time.monotonic() < deadline:  # _prepare runs in the background thread start() made
+        time.sleep(0.01)
+    assert seen == [(["zonotope", "urdf", "dh", "pups"], 1)]

@@ -98,12 +98,12 @@ def write_marker(path: str | None) -> None:
         pass
 
 
-def start(background: bool = True, log=None, needs=(), nice: bool = True) -> str:
+def start(background: bool = True, log=None, needs=(), nice: bool = True, then=()) -> str:
     """Make the compiled kernels available; returns the state: 'ready' (already, or loaded now without
     ``background``), 'loading' / 'compiling' (in the background: the numpy path answers until then),
     'unavailable' (no numba: the numpy path always). In the background the kernel families ``needs`` (of
-    ``kernels.FAMILIES``) come first, each ready for the callers as soon as it is compiled and loaded, the
-    others after; ``nice`` lowers the compiling child's priority (``BACKGROUND_NICENESS``: for nodes, whose
+    ``kernels.FAMILIES``) come first, each ready for the callers as soon as it is compiled and loaded, then
+    the families ``then`` and the others, at the lowest priority; ``nice`` lowers the compiling child's priority (``BACKGROUND_NICENESS``: for nodes, whose
     neighbours serve meanwhile; a one-shot command that waits for the answer passes False). ``log(text)``
     hears what happens in the background."""
     with _lock:
@@ -126,8 +126,10 @@ def start(background: bool = True, log=None, needs=(), nice: bool = True) -> str
         warm = cached()
         status.update(state="loading" if warm else "compiling", message="", seconds=None)
         kernels.set_pending(True)
-    order = [f for f in needs if f in kernels.FAMILIES] + [f for f in kernels.FAMILIES if f not in needs]
-    first = len([f for f in needs if f in kernels.FAMILIES]) or None
+    needs = [f for f in needs if f in kernels.FAMILIES]
+    ahead = needs + [f for f in then if f in kernels.FAMILIES and f not in needs]
+    order = ahead + [f for f in kernels.FAMILIES if f not in ahead]
+    first = len(needs) or None
     threading.Thread(target=_prepare, args=(warm, order, log or (lambda text: None), nice, first),
                      name="tolerance_ros-kernels", daemon=True).start()
     return status["state"]
