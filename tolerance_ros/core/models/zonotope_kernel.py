@@ -52,12 +52,6 @@ def zonotope_max(G, Gp, out, signs, want_signs):
             signs[k, bj] = bb
 
 
-_B64 = np.frombuffer(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/", dtype=np.uint8)
-# The two base64 characters of every 12-bit value, as one native-order uint16 (their bytes in order).
-B64_PAIRS = np.stack([_B64[np.arange(4096) >> 6], _B64[np.arange(4096) & 63]], axis=1).copy().view(np.uint16)[:, 0]
-
-
-
 def warm_up():
     """Compile, or load from the cache, zonotope_max in the signature ``worst_case_bound`` calls."""
     G = np.zeros((1, 3, 2))
