@@ -22,10 +22,18 @@ for subdir, pattern in (("config", "*.yaml"), ("config", "*.rviz"), ("config/rob
     if entry:
         data_files.append(entry)
 
+# The shipped configs and schemas, also package data: tolerance_ros/config and tolerance_ros/schemas once installed
+# (core/resources.py finds them with importlib.resources; in a source checkout they sit beside the package).
+PACKAGE_DATA = {f"{PACKAGE}.config": ["*.yaml", "*.rviz", "robots/*.*", "budgets/*.*", "campaigns/*.*", "data/*.*",
+                                      "security/*.xml"],
+                f"{PACKAGE}.schemas": ["*.json"]}
+
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+    packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]) + list(PACKAGE_DATA),
+    package_dir={f"{PACKAGE}.config": "config", f"{PACKAGE}.schemas": "schemas"},
+    package_data=PACKAGE_DATA,
     data_files=data_files,
     python_requires=">=3.10",
     # the floors: .ci/floors.txt, installed and tested by .ci/run on Python 3.12 (test/test_floors.py)

@@ -1,12 +1,14 @@
-"""Where the shipped configuration lives: a source checkout, a pip install or a colcon install."""
+"""Where the shipped configuration and schemas live: package data of ``tolerance_ros`` when installed (pip, or
+colcon, which also copies them to ``share/tolerance_ros`` for ``ros2 launch``), else the source checkout."""
 from __future__ import annotations
 
 import os
-import sys
-import sysconfig
+from importlib import resources
 from pathlib import Path
 
 PACKAGE = "tolerance_ros"
+DATA = ("config", "schemas")
+"""The shipped folders: at the top of the source tree, package data ``tolerance_ros/<folder>`` once installed."""
 
 
 class ConfigNotFound(FileNotFoundError):
@@ -17,35 +19,23 @@ class ConfigNotFound(FileNotFoundError):
         self.kind = kind
 
 
-def share_dirs() -> list[Path]:
-    """Candidate ``share/tolerance_ros`` roots, most specific first."""
-    here = Path(__file__).resolve()
-    dirs = [here.parents[2]]  # source checkout: <repo>/tolerance_ros/core/resources.py
-    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        if prefix:
-            dirs.append(Path(prefix) / "share" / PACKAGE)
-    for prefix in {sysconfig.get_path("data"), sys.prefix, getattr(sys, "base_prefix", sys.prefix)}:
-        dirs.append(Path(prefix) / "share" / PACKAGE)
-    try:
-        import site
-        dirs.append(Path(site.getuserbase()) / "share" / PACKAGE)
-    except Exception:  # pragma: no cover - site may be stripped in embedded interpreters
-        pass
-    # colcon/ament installs: <prefix>/lib/python3.x/site-packages/tolerance_ros -> <prefix>/share/...
-    for parent in here.parents:
-        if parent.name == "lib":
-            dirs.append(parent.parent / "share" / PACKAGE)
-            break
-    return [d for d in dirs]
+def data_dir(name: str) -> Path:
+    """The shipped folder ``name`` (one of ``DATA``): the installed package's data (``importlib.resources``),
+    else the source checkout's (``<repo>/<name>`` beside the package); FileNotFoundError names both."""
+    if name not in DATA:
+        raise ValueError(f"data_dir: expected one of {DATA}, got {name!r}")
+    packaged = Path(str(resources.files(PACKAGE) / name))
+    checkout = Path(__file__).resolve().parents[2] / name
+    for path in (packaged, checkout):
+        if path.is_dir():
+            return path
+    raise FileNotFoundError(f"cannot find the shipped {name!r} folder of {PACKAGE}: neither the package data "
+                            f"{packaged} nor the source checkout's {checkout} (reinstall the package)")
 
 
 def config_dir() -> Path:
     """The ``config`` directory shipped with the package."""
-    for d in share_dirs():
-        if (d / "config" / "robots").is_dir():
-            return d / "config"
-    raise FileNotFoundError("cannot find the tolerance_ros config directory; searched: "
-                            + ", ".join(str(d / "config") for d in share_dirs()))
+    return data_dir("config")
 
 
 def resolve(kind: str, spec: str | os.PathLike, suffixes=(".yaml", ".yml")) -> Path:

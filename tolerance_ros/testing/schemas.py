@@ -1,13 +1,11 @@
 """The shipped JSON Schemas of the services, for the tests and the benchmarks (jsonschema, a test dependency)."""
 import functools
 import json
-from pathlib import Path
-
 import jsonschema
 
-from ..core.resources import share_dirs
+from ..core.resources import data_dir
 
-SCHEMAS = next((d / "schemas" for d in share_dirs() if (d / "schemas").is_dir()), Path("schemas"))
+SCHEMAS = data_dir("schemas")
 
 
 def schema(name: str) -> dict:
