@@ -175,7 +175,7 @@ def _worst_case_numpy(Ga, Gp, out, signs, active, return_signs, max_chunk_bytes)
         V[..., 1] = A[..., 2] * B[..., 0] - A[..., 0] * B[..., 2]
         V[..., 2] = A[..., 0] * B[..., 1] - A[..., 1] * B[..., 0]
         S = np.matmul(V, Gp[a:b])                                   # (c, pairs, m)
-        S = np.copysign(1.0, S, out=S)
+        S = np.copysign(1.0, np.add(S, 0.0, out=S), out=S)     # -0.0 + 0.0 = +0.0: a zero counts +1 (the kernel)
         S[:, pairs, ii] = 0.0
         S[:, pairs, jj] = 0.0
         Z = np.matmul(S, g)                                         # (c, pairs, 3)
