@@ -6,8 +6,19 @@ from tolerance_ros.papers import gao2023
 
 
 @pytest.fixture(scope="module")
-def res():
-    return gao2023.reproduce(n_poses=10000, m_salience=1000)
+def progress():
+    return []
+
+
+@pytest.fixture(scope="module")
+def res(progress):
+    return gao2023.reproduce(n_poses=10000, m_salience=1000, progress=lambda done, total: progress.append((done, total)))
+
+
+def test_the_progress_starts_with_the_reproduction_and_ends_at_its_end(res, progress):
+    """Its first call comes before the first step (the heartbeat moves through a cold start's model loading)."""
+    assert progress[0] == (0, 4) and progress[-1] == (4, 4)
+    assert [d for d, _ in progress] == sorted(d for d, _ in progress)
 
 
 def test_fig2_salience(res):

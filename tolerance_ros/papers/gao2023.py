@@ -67,6 +67,8 @@ def _deviation(repro: dict, published: dict) -> float:
 
 def reproduce(n_poses: int = 10000, m_salience: int = 1000, seed: int = 2023, progress=None) -> dict:
     """Every figure of the analysis next to its published value (SI: m and rad; the paper prints mm)."""
+    if progress:
+        progress(0, 4)  # started: the progress's heartbeat moves through the first step
     model = load_robot(ROBOT)
     deltas = {k: load_budget(v, model).vector_for(model) for k, v in SETS.items()}
     limit = LIMIT
