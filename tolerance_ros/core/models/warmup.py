@@ -236,17 +236,17 @@ BACKGROUND_NICENESS = 10
 the numpy path meanwhile (the nodes of a launch, a robot's own stack) keep the CPU."""
 
 
-def _lower_priority(by):
-    """Raise this process's niceness by ``by``; when it leads a session of its own (the child ``start`` spawns),
-    its Linux autogroup's too: with autogroups (``kernel.sched_autogroup_enabled``), a niceness only orders
-    the processes of one session, and the new session's child would otherwise share the CPU equally with
-    the command or node it serves."""
+def _lower_priority(by, group=False):
+    """Raise this process's niceness by ``by``; with ``group``, when it leads a session of its own (the child
+    ``start`` spawns), its Linux autogroup's too. With autogroups (``kernel.sched_autogroup_enabled``) a
+    niceness only orders the processes of one session: the child's own niceness leaves it an equal share of
+    the CPU beside the command or node it serves; its autogroup's takes it back."""
     try:
         niceness = os.nice(by)
     except (AttributeError, OSError):  # no nice on this platform: compile at the parent's priority
         return
     try:
-        if os.getsid(0) == os.getpid():
+        if group and os.getsid(0) == os.getpid():
             with open("/proc/self/autogroup", "w", encoding="ascii") as f:
                 f.write(str(niceness))
     except (AttributeError, OSError):  # no autogroups here: the niceness alone orders the processes
@@ -256,15 +256,16 @@ def _lower_priority(by):
 def fill_cache(order=kernels.FAMILIES, nice=True, first=None) -> int:
     """The child process: compile every kernel family into the cache, ``order`` first, saying "ready <family>"
     on stdout after each (and choose the Jacobian writer), at a lower priority with ``nice``
-    (``BACKGROUND_NICENESS``); after the ``first`` families (those a waiting command needs), at the lowest
-    priority, so that the rest never slows the command down; 0 on success."""
+    (``BACKGROUND_NICENESS``, within its session: the families its callers wait for still get their share of
+    a loaded machine, for the numpy path meanwhile costs more CPU); after the ``first`` families, at the lowest
+    priority, its autogroup's too, so that the rest never slows a command or node down; 0 on success."""
     if nice:
         _lower_priority(BACKGROUND_NICENESS)
     order = list(order) + [f for f in kernels.FAMILIES if f not in order]
     listening = True
     for k, family in enumerate(order):
         if first is not None and k == first:
-            _lower_priority(19)
+            _lower_priority(19, group=True)
         kernels.warm_up((family,))
         if listening:
             try:
