@@ -142,22 +142,50 @@ def test_the_compiling_child_runs_at_a_lower_priority(tmp_path):
 
 
 @pytest.mark.skipif(not os.path.exists("/proc/self/autogroup"), reason="no Linux autogroups on this machine")
-def test_the_compiling_child_of_its_own_session_lowers_its_autogroup_after_the_families_waited_for(tmp_path):
-    """With autogroups a niceness only orders one session's processes: the child, a session of its own, keeps
-    its autogroup's share while it compiles the families its callers wait for (niced only within its session:
-    their numpy path meanwhile costs more CPU), then sets its autogroup's niceness to its own, 19, for the
-    rest; a process in its caller's session leaves that session's autogroup alone."""
+@pytest.mark.parametrize("nice", [False, True])
+def test_the_compiling_child_of_a_command_lowers_its_autogroup_after_the_families_waited_for(tmp_path, nice):
+    """With autogroups a niceness only orders one session's processes. The child, a session of its own, keeps
+    its autogroup's share while it compiles the families its callers wait for; for a one-shot command
+    (``nice`` False) it then sets its autogroup's niceness to its own, 19, for the rest (the next run's); for
+    nodes (``nice``) the rest keeps the share, so that every family comes on a loaded machine too. A process
+    in its caller's session leaves that session's autogroup alone."""
     code = ("import os, sys; from tolerance_ros.core.models import kernels, warmup; "
             "kernels.warm_up = lambda *a, **k: print(open('/proc/self/autogroup').read().split()[-1], os.nice(0)); "
-            "warmup.fill_cache(['dh', 'zonotope'], True, 1)")
+            f"warmup.fill_cache(['dh', 'zonotope'], {nice}, 1)")
     out = subprocess.run([sys.executable, "-c", code], env=_env(tmp_path), capture_output=True, text=True,
                          check=True, start_new_session=True)
     lines = [[int(v) for v in line.split()] for line in out.stdout.splitlines() if not line.startswith("ready")]
-    own = min(19, os.nice(0) + warmup.BACKGROUND_NICENESS)
-    assert lines[0] == [0, own] and lines[1] == [19, 19], lines  # a new session's autogroup starts at 0
+    own = min(19, os.nice(0) + warmup.BACKGROUND_NICENESS) if nice else os.nice(0)
+    assert lines[0] == [0, own] and lines[1] == [0 if nice else 19, 19], lines  # a session's autogroup starts at 0
     before = open("/proc/self/autogroup").read()
     subprocess.run([sys.executable, "-c", code], env=_env(tmp_path), capture_output=True, text=True, check=True)
     assert open("/proc/self/autogroup").read() == before
+
+
+def test_a_process_waiting_for_another_to_fill_the_cache_loads_each_family_as_it_comes(tmp_path, monkeypatch):
+    """While another process holds the cache's lock (its child compiling), a family whose marker the child has
+    written is loaded at once; the lock is taken when the other process lets it go."""
+    import fcntl
+    import threading
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    loaded = []
+    monkeypatch.setattr(warmup, "_load", loaded.append)
+    holder = open(os.path.join(warmup.cache_dir(), warmup.LOCK), "a")
+    fcntl.flock(holder, fcntl.LOCK_EX)
+    got = []
+    waiter = threading.Thread(target=lambda: got.append(warmup._lock_cache(["zonotope", "dh"])))
+    waiter.start()
+    time.sleep(0.5)
+    assert loaded == [] and not got
+    warmup.write_marker(warmup.cache_dir(), warmup.family_marker("dh"))
+    deadline = time.monotonic() + 10
+    while not loaded and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert loaded == ["dh"] and not got and waiter.is_alive()
+    holder.close()  # the filling process ends
+    waiter.join(10)
+    assert got and got[0] is not None and loaded == ["dh"]
+    got[0].close()
 
 
 def test_the_families_a_command_waits_for_compile_first_then_the_next_then_the_rest(monkeypatch):

@@ -85,15 +85,16 @@ def cached() -> bool:
         return False
 
 
-def write_marker(path: str | None) -> None:
-    """Record in ``path`` (the kernel cache's directory) that it holds this source's compiled kernels."""
+def write_marker(path: str | None, name: str = MARKER) -> None:
+    """Record in ``path`` (the kernel cache's directory) that it holds this source's compiled kernels: all of
+    them (``MARKER``), or one family (``family_marker``)."""
     if path is None:
         return
     try:
-        tmp = os.path.join(path, f"{MARKER}.{os.getpid()}.tmp")
+        tmp = os.path.join(path, f"{name}.{os.getpid()}.tmp")
         with open(tmp, "w", encoding="utf-8") as f:
             json.dump({"stamp": source_stamp(), "written": time.time()}, f)
-        os.replace(tmp, os.path.join(path, MARKER))
+        os.replace(tmp, os.path.join(path, name))
     except OSError:
         pass
 
@@ -103,9 +104,9 @@ def start(background: bool = True, log=None, needs=(), nice: bool = True, then=(
     ``background``), 'loading' / 'compiling' (in the background: the numpy path answers until then),
     'unavailable' (no numba: the numpy path always). In the background the kernel families ``needs`` (of
     ``kernels.FAMILIES``) come first, each ready for the callers as soon as it is compiled and loaded, then
-    the families ``then`` and the others, at the lowest priority; ``nice`` lowers the compiling child's priority (``BACKGROUND_NICENESS``: for nodes, whose
-    neighbours serve meanwhile; a one-shot command that waits for the answer passes False). ``log(text)``
-    hears what happens in the background."""
+    the families ``then`` and the others, at the lowest priority; ``nice`` lowers the compiling child's
+    priority (``BACKGROUND_NICENESS``: for nodes, whose neighbours serve meanwhile; a one-shot command that
+    waits for the answer passes False). ``log(text)`` hears what happens in the background."""
     with _lock:
         if status["state"] in ("ready", "loading", "compiling", "unavailable"):
             return status["state"]
@@ -144,9 +145,9 @@ def _prepare(warm: bool, order, log, nice=True, first=None):
     """Background thread of ``start``: fill the cache in a child process when it is cold, each family loaded
     here and put in force as soon as the child has compiled it (in ``order``); a warm cache loads family by
     family. One process at a time fills a cache (a lock beside it): the nodes of a launch started together on
-    a cold cache compile once, the others wait for it."""
+    a cold cache compile once, the others wait for it, loading each family as soon as it is in the cache."""
     t0 = time.perf_counter()
-    lock = None if warm else _lock_cache()
+    lock = None if warm else _lock_cache(order)
     try:
         if not warm and not cached():
             status["filled"] = True
@@ -171,9 +172,10 @@ def _prepare(warm: bool, order, log, nice=True, first=None):
     log(status["message"])
 
 
-def _lock_cache():
-    """An exclusive lock on ``LOCK`` in the cache's directory (waits while another process holds it), or None
-    where there is no cache directory or no flock."""
+def _lock_cache(order=()):
+    """An exclusive lock on ``LOCK`` in the cache's directory, or None where there is no cache directory or no
+    flock. While another process holds it (its child fills the cache), each family of ``order`` is loaded
+    here as soon as that child has it in the cache (its ``family_marker``)."""
     path = cache_dir()
     if path is None:
         return None
@@ -182,12 +184,37 @@ def _lock_cache():
         f = open(os.path.join(path, LOCK), "a")
     except (ImportError, OSError):
         return None
+    waiting = list(order)
+    while True:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return f
+        except BlockingIOError:  # another process fills the cache: take each family it has finished
+            for family in [fam for fam in waiting if family_cached(fam)]:
+                try:
+                    _load(family)
+                except Exception:  # noqa: BLE001 - loaded again, or given up on, after the lock
+                    pass
+                waiting.remove(family)
+            time.sleep(0.2)
+        except OSError:
+            f.close()
+            return None
+
+
+def family_marker(family: str) -> str:
+    """The file name that says ``family``'s kernels of this source are in the cache (written by the child)."""
+    return f"tolerance_ros-kernels-{family}.json"
+
+
+def family_cached(family: str) -> bool:
+    """True when the kernel cache holds ``family`` compiled from this source (its marker is current)."""
+    path = cache_dir()
     try:
-        fcntl.flock(f, fcntl.LOCK_EX)
-    except OSError:
-        f.close()
-        return None
-    return f
+        with open(os.path.join(path, family_marker(family)), encoding="utf-8") as f:
+            return json.load(f).get("stamp") == source_stamp()
+    except (OSError, TypeError, ValueError, AttributeError):
+        return False
 
 
 def _fill_in_child(order, nice=True, first=None):
@@ -258,15 +285,17 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None) -> int:
     on stdout after each (and choose the Jacobian writer), at a lower priority with ``nice``
     (``BACKGROUND_NICENESS``, within its session: the families its callers wait for still get their share of
     a loaded machine, for the numpy path meanwhile costs more CPU); after the ``first`` families, at the lowest
-    priority, its autogroup's too, so that the rest never slows a command or node down; 0 on success."""
+    priority; without ``nice`` (a one-shot command, which waits for its own families only) its autogroup's
+    too, so that the rest, for the next run, never slows the command down; 0 on success."""
     if nice:
         _lower_priority(BACKGROUND_NICENESS)
     order = list(order) + [f for f in kernels.FAMILIES if f not in order]
     listening = True
     for k, family in enumerate(order):
         if first is not None and k == first:
-            _lower_priority(19, group=True)
+            _lower_priority(19, group=not nice)
         kernels.warm_up((family,))
+        write_marker(cache_dir(), family_marker(family))
         if listening:
             try:
                 print(f"ready {family}", flush=True)
