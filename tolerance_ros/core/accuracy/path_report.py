@@ -25,6 +25,7 @@ from . import path as P
 from .latency import estimate_latency
 from .checks import PLAUSIBLE_RESIDUAL, robot_reach, units_problem
 from .registration import kabsch
+from .targets import at_point
 
 LATENCY_SHARE = 0.1   # of the design limit: the most the latency's uncertainty (2 u x speed) may move the path
 
@@ -32,10 +33,10 @@ LATENCY_SHARE = 0.1   # of the design limit: the most the latency's uncertainty 
 def command_points(model, joints, chunk: int = 100_000, offset=None) -> np.ndarray:
     """(k, 3) nominal points (m) of joints (k, dof): the tool point, or the point ``offset`` (3,) m of the tool
     frame (a target's)."""
+    target = at_point(model, offset)
     out = np.empty((len(joints), 3))
     for i in range(0, len(joints), chunk):
-        T = model.fk(joints[i:i + chunk])
-        out[i:i + chunk] = T[:, :3, 3] if offset is None else T[:, :3, :3] @ np.asarray(offset, float) + T[:, :3, 3]
+        out[i:i + chunk] = target.fk(joints[i:i + chunk])[:, :3, 3]
     return out
 
 
@@ -170,26 +171,17 @@ def _check(model, tm, pm, tj, qj, sample: int = 2000):
             raise ValueError(problem)
 
 
-def target_jacobian(model, q, offset=None) -> np.ndarray:
-    """(n, 3, p) position rows of the parameter-error Jacobian at the point ``offset`` (3,) m of the tool frame
-    (None: its origin): dp + dphi x (R offset), the orientation rows being base-frame rotations."""
-    jac = model.error_jacobian(q)
-    if offset is None:
-        return jac.position
-    r = model.fk(q)[:, :3, :3] @ np.asarray(offset, float)
-    return jac.position + np.cross(jac.orientation.transpose(0, 2, 1), r[:, None, :]).transpose(0, 2, 1)
-
-
 def _judge(doc, model, budget, ref, tj, qj, v_max, offset=None):
     """The bound tube along the first cycle's stations (at the target) and the verdicts against the budget
     (into ``doc``)."""
     from ..errors import criterion_bound
     delta = budget.vector_for(model)
+    target = at_point(model, offset)
     for seg in doc["segments"]:
         sig = np.asarray(seg["along"]["s_m"])
         ts = np.interp(sig, ref.s, ref.t)
         q = P.interp_columns(ts, tj, qj)
-        b = criterion_bound(target_jacobian(model, q, offset), delta, budget.criterion)
+        b = criterion_bound(target.error_jacobian(q).position, delta, budget.criterion)
         seg["along"]["bound_m"] = b.tolist()
         seg["bound_max_m"] = float(b.max())
         seg["stations_outside_bound"] = int(np.sum(np.asarray(seg["along"]["AT_m"]) > b))

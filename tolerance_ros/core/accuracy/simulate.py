@@ -15,6 +15,7 @@ import numpy as np
 from ..analysis import sample_errors
 from ..geometry import exp_so3
 from ..models.base import Mechanism
+from .targets import at_point
 
 
 def as_built_errors(delta, seed=0, distribution="uniform") -> np.ndarray:
@@ -162,11 +163,11 @@ def path_streams(model: Mechanism, jp, dx=None, T_tracker_base=None, joint_rate:
     tt = t0 - lead + (rng.uniform() + np.arange(int(span * tracker_rate))) / tracker_rate
     jitter = rng.standard_normal((jp.cycles, model.dof)) * repeatability
     true = np.empty((len(tt), 3))
+    target = at_point(model, offset)
     for i in range(0, len(tt), 100_000):
         tr = tt[i:i + 100_000] - t0
         cyc = np.clip(np.floor(tr / jp.period), 0, jp.cycles - 1).astype(int)
-        T = model.fk(jp.at(tr) + jitter[cyc], dx)
-        true[i:i + 100_000] = T[:, :3, 3] if offset is None else T[:, :3, :3] @ np.asarray(offset, float) + T[:, :3, 3]
+        true[i:i + 100_000] = target.fk(jp.at(tr) + jitter[cyc], dx)[:, :3, 3]
     meas = true + rng.standard_normal(true.shape) * noise
     A = np.eye(4) if T_tracker_base is None else np.asarray(T_tracker_base, float)
     return PathStreams(joint_stamps=tj, joints=jp.at(tj - t0), stamps=tt + latency, points=meas @ A[:3, :3].T + A[:3, 3],

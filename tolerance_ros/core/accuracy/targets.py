@@ -121,6 +121,15 @@ def check_offsets(targets: Targets, what="registration"):
                          f"frame (more than {MAX_OFFSET:g} m): are the measurement units right?")
 
 
+def at_point(model: Mechanism, offset=None) -> Mechanism:
+    """``model`` with its tool point moved to ``offset`` (3,) m of the tool frame (an ``AtTarget``): its poses'
+    origins are that point and its Jacobian's position rows that point's; ``model`` itself for None."""
+    if offset is None:
+        return model
+    X = np.eye(4)
+    X[:3, 3] = np.asarray(offset, float)
+    return AtTarget(model, X)
+
 
 class AtTarget(Mechanism):
     """A mechanism whose tool frame is moved to a target frame ``X`` (4x4, m, in the tool frame): poses
