@@ -14,6 +14,7 @@ kernels it compiled; a changed kernels module, numba or Python makes the marker 
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import json
@@ -36,8 +37,10 @@ status = {"state": "idle", "message": "", "seconds": None, "filled": False}  # s
 # ready | failed; filled: this process's child filled the cache
 
 
+@functools.lru_cache(maxsize=1)
 def source_stamp() -> str:
-    """Digest of what the cached code depends on: the kernel modules' text, numba's and Python's versions."""
+    """Digest of what the cached code depends on: the kernel modules' text, numba's and Python's versions (read
+    once: the code this process runs)."""
     from importlib.metadata import PackageNotFoundError, version
     h = hashlib.sha256()
     for name in KERNEL_MODULES:
@@ -73,13 +76,19 @@ def cache_dir() -> str | None:
     return None
 
 
-def cached() -> bool:
-    """True when the kernel cache holds the compiled kernels of this source (the marker is current)."""
+def family_marker(family: str) -> str:
+    """The file name that says ``family``'s kernels of this source are in the cache (written by the child)."""
+    return f"tolerance_ros-kernels-{family}.json"
+
+
+def cached(family: str | None = None) -> bool:
+    """True when the kernel cache holds this source's compiled kernels: all of them (``MARKER`` is current), or
+    the one ``family`` (its ``family_marker``)."""
     path = cache_dir()
     if path is None:
         return False
     try:
-        with open(os.path.join(path, MARKER), encoding="utf-8") as f:
+        with open(os.path.join(path, MARKER if family is None else family_marker(family)), encoding="utf-8") as f:
             return json.load(f).get("stamp") == source_stamp()
     except (OSError, ValueError, AttributeError):
         return False
@@ -175,7 +184,7 @@ def _prepare(warm: bool, order, log, nice=True, first=None):
 def _lock_cache(order=()):
     """An exclusive lock on ``LOCK`` in the cache's directory, or None where there is no cache directory or no
     flock. While another process holds it (its child fills the cache), each family of ``order`` is loaded
-    here as soon as that child has it in the cache (its ``family_marker``)."""
+    here as soon as that child has it in the cache (``cached(family)``)."""
     path = cache_dir()
     if path is None:
         return None
@@ -190,7 +199,7 @@ def _lock_cache(order=()):
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
             return f
         except BlockingIOError:  # another process fills the cache: take each family it has finished
-            for family in [fam for fam in waiting if family_cached(fam)]:
+            for family in [fam for fam in waiting if cached(fam)]:
                 try:
                     _load(family)
                 except Exception:  # noqa: BLE001 - loaded again, or given up on, after the lock
@@ -200,21 +209,6 @@ def _lock_cache(order=()):
         except OSError:
             f.close()
             return None
-
-
-def family_marker(family: str) -> str:
-    """The file name that says ``family``'s kernels of this source are in the cache (written by the child)."""
-    return f"tolerance_ros-kernels-{family}.json"
-
-
-def family_cached(family: str) -> bool:
-    """True when the kernel cache holds ``family`` compiled from this source (its marker is current)."""
-    path = cache_dir()
-    try:
-        with open(os.path.join(path, family_marker(family)), encoding="utf-8") as f:
-            return json.load(f).get("stamp") == source_stamp()
-    except (OSError, TypeError, ValueError, AttributeError):
-        return False
 
 
 def _fill_in_child(order, nice=True, first=None):
