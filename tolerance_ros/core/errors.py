@@ -135,23 +135,24 @@ def worst_case_bound(J, delta, return_signs: bool = False, max_chunk_bytes: floa
     scale = np.abs(Ga).max(axis=(1, 2), keepdims=True)
     Gp = Ga + _PERTURB * np.where(scale > 0, scale, 1.0) * _perturbation(n, m)
     kernels = compiled.get("zonotope") if backend == "numba" else None
+    best_s = np.ones((n, m))
     if kernels is not None:
-        best_s = np.empty((n, m))
         for a in range(0, n, 256):
             interrupt.check()
             b = min(n, a + 256)
             kernels.zonotope_max(np.ascontiguousarray(Ga[a:b]), np.ascontiguousarray(Gp[a:b]), out[a:b],
                                  best_s[a:b], return_signs)
-        if return_signs:
-            signs[:, active] = best_s
-            return out, signs
-        return out
-    return _worst_case_numpy(Ga, Gp, out, signs, active, return_signs, max_chunk_bytes)
+    else:
+        _worst_case_numpy(Ga, Gp, out, best_s, return_signs, max_chunk_bytes)
+    if return_signs:
+        signs[:, active] = best_s
+        return out, signs
+    return out
 
 
-def _worst_case_numpy(Ga, Gp, out, signs, active, return_signs, max_chunk_bytes):
-    """The numpy reference of ``worst_case_bound`` (same candidates as the compiled kernel), in chunks of
-    poses small enough for the cache. For each line ``v = gp_i x gp_j`` the other generators' signs are
+def _worst_case_numpy(Ga, Gp, out, best_s, return_signs, max_chunk_bytes):
+    """The numpy reference of ``worst_case_bound`` into ``out`` (n,) and, with ``return_signs``, ``best_s``
+    (n, m): the compiled kernel's candidates, in chunks of poses small enough for the cache. For each line ``v = gp_i x gp_j`` the other generators' signs are
     ``sign(v . gp_l)``; of the four corners ``z + a g_i + b g_j`` the largest norm is chosen from
     ``|z|^2 + |g_i|^2 + |g_j|^2 + 2 (a z.g_i + b z.g_j + a b g_i.g_j)``, and the value is the norm of the
     chosen corner, computed from its coordinates."""
@@ -163,7 +164,6 @@ def _worst_case_numpy(Ga, Gp, out, signs, active, return_signs, max_chunk_bytes)
     chunk = int(max(1, min(WORST_CASE_CHUNK, max_chunk_bytes // (8 * npairs * (m + 8)))))
     g_all = np.ascontiguousarray(Ga.transpose(0, 2, 1))            # (n, m, 3)
     gp_all = np.ascontiguousarray(Gp.transpose(0, 2, 1))
-    best_s = np.ones((n, m))
     for a in range(0, n, chunk):
         interrupt.check()  # a long evaluation stops at the caller's deadline (a no-op outside interrupt.watching)
         b = min(n, a + chunk)
@@ -196,10 +196,6 @@ def _worst_case_numpy(Ga, Gp, out, signs, active, return_signs, max_chunk_bytes)
             s[rows, ii[qbest]] = combos[rbest, 0]
             s[rows, jj[qbest]] = combos[rbest, 1]
             best_s[a:b] = s
-    if return_signs:
-        signs[:, active] = best_s
-        return out, signs
-    return out
 
 
 CRITERIA = ("paper", "worst-case", "per-axis", "rss")
