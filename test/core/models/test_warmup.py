@@ -148,18 +148,22 @@ def test_the_compiling_child_of_a_command_lowers_its_autogroup_after_the_familie
     its autogroup's share while it compiles the families its callers wait for; for a one-shot command
     (``nice`` False) it then sets its autogroup's niceness to its own, 19, for the rest (the next run's); for
     nodes (``nice``) the rest keeps the share, so that every family comes on a loaded machine too. A process
-    in its caller's session leaves that session's autogroup alone."""
+    in its caller's session leaves that session's autogroup alone, the init session's too (which is no
+    autogroup: its file reads empty, as in a CI container whose processes never left PID 1's session)."""
     code = ("import os, sys; from tolerance_ros.core.models import kernels, warmup; "
-            "kernels.warm_up = lambda *a, **k: print(open('/proc/self/autogroup').read().split()[-1], os.nice(0)); "
-            f"warmup.fill_cache(['dh', 'zonotope'], {nice}, 1)")
+            "kernels.warm_up = lambda *a, **k: print((open('/proc/self/autogroup').read().split() or ['-'])[-1], "
+            f"os.nice(0)); warmup.fill_cache(['dh', 'zonotope'], {nice}, 1)")
     out = subprocess.run([sys.executable, "-c", code], env=_env(tmp_path), capture_output=True, text=True,
                          check=True, start_new_session=True)
     lines = [[int(v) for v in line.split()] for line in out.stdout.splitlines() if not line.startswith("ready")]
     own = min(19, os.nice(0) + warmup.BACKGROUND_NICENESS) if nice else os.nice(0)
     assert lines[0] == [0, own] and lines[1] == [0 if nice else 19, 19], lines  # a session's autogroup starts at 0
     before = open("/proc/self/autogroup").read()
-    subprocess.run([sys.executable, "-c", code], env=_env(tmp_path), capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", code], env=_env(tmp_path), capture_output=True, text=True,
+                         check=True)
     assert open("/proc/self/autogroup").read() == before
+    nices = [int(line.split()[-1]) for line in out.stdout.splitlines() if not line.startswith("ready")]
+    assert nices == [own] + [19] * (len(nices) - 1) and len(nices) == len(lines), nices
 
 
 def test_a_process_waiting_for_another_to_fill_the_cache_loads_each_family_as_it_comes(tmp_path, monkeypatch):
