@@ -117,8 +117,8 @@ def read_points(path):
     """(stamps (n,) s, points (n, 3) m, source) of a tracker's stream: a points-only CSV read vectorised, any
     other measurement file (CSV with more columns, campaign log, rosbag2) by ``read_measurements``."""
     from . import read_measurements
-    p = Path(path)
     from .rosbag import is_recording, read_rosbag_streams
+    p = Path(path)
     if is_recording(p):  # a recording: the points as they streamed, unpaired
         stamps, points, _, _ = read_rosbag_streams(p)
         return stamps, points, str(path)
