@@ -136,14 +136,15 @@ def test_publisher_tracker_monitor_loop_and_markers(graph, ns, tmp_path):
     from tolerance_ros.nodes.joint_state_source import JointStateSource
     from tolerance_ros.nodes.simulated_tracker import SimulatedTrackerNode
     base = [1.5, 0.2, 0.0, 0.0, 0.0, 0.5]
-    graph.start(AccuracyMonitor, ns, budget="gao2023_delta2", campaign="gao2023_iso_cube", tracker_to_base=base,
-                log_dir=str(tmp_path), report_period=0.5, marker_period=0.2)
-    graph.start(SimulatedTrackerNode, ns, tracker_to_base=base, measure_every=5)
-    graph.start(JointStateSource, ns, mode="campaign", campaign="gao2023_iso_cube", dwell=0.2, loop=True)
+    # Subscribed before the monitor starts: its first marker array (DELETE_ALL first) is sent once, volatile.
     listener = graph.node("listener", ns)
     reports = collect(graph, listener, String, "tolerance/accuracy_report")
     markers = collect(graph, listener, MarkerArray, "tolerance/markers")
     diags = collect(graph, listener, DiagnosticArray, "/diagnostics")
+    graph.start(AccuracyMonitor, ns, budget="gao2023_delta2", campaign="gao2023_iso_cube", tracker_to_base=base,
+                log_dir=str(tmp_path), report_period=0.5, marker_period=0.2)
+    graph.start(SimulatedTrackerNode, ns, tracker_to_base=base, measure_every=5)
+    graph.start(JointStateSource, ns, mode="campaign", campaign="gao2023_iso_cube", dwell=0.2, loop=True)
     assert wait_for(lambda: reports and json.loads(reports[-1].data)["counts"]["paired"] >= 20 and diags
                     and len(markers) > 3, 30)
     rep = json.loads(reports[-1].data)
