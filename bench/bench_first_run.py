@@ -6,9 +6,11 @@ starts on the numpy path and switches to each kernel family as it is ready), the
 filled the cache, again on the warm cache. Printed side by side: the seconds of each, their ratio, and the
 longest time the progress on stderr stood still in each run. Target: the first run within 1.3x of the
 second, and the progress never still for more than 2 s; exits 1 when a job misses either. ``--busy N``
-runs N busy loops beside the jobs, each a session of its own (a loaded machine, reproducibly).
+runs N busy loops beside the jobs, each a session of its own (a loaded machine, reproducibly);
+``--repeat N`` measures each job N times, each from a new empty cache, and prints the medians (a VM's speed
+drifts by 10-20 % between runs).
 
-    python bench/bench_first_run.py [--jobs paper,allocate,rong2018] [--busy 1]
+    python bench/bench_first_run.py [--jobs paper,allocate,rong2018] [--busy 1] [--repeat 3]
 """
 import argparse
 import os
@@ -18,6 +20,8 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import load_average, machine  # noqa: E402
@@ -69,20 +73,24 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--jobs", default=",".join(DEFAULT_JOBS), help=f"comma-separated, of {list(JOBS)}")
     ap.add_argument("--busy", type=int, default=0, help="busy loops beside the jobs, each a session of its own")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of each job (each from an empty cache); medians")
     args = ap.parse_args()
     names = args.jobs.split(",")
     unknown = [n for n in names if n not in JOBS]
     if unknown:
         ap.error(f"--jobs: unknown {unknown}; expected some of {list(JOBS)}")
+    if args.busy < 0 or args.repeat < 1:
+        ap.error("--busy: expected 0 or more; --repeat: expected 1 or more")
     print(f"machine: {machine()}, {load_average()}, {args.busy} busy loop(s) beside")
     busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"], start_new_session=True)
             for _ in range(args.busy)]
     try:
-        rows, missed = measure(names)
+        rows, missed = measure(names, args.repeat)
     finally:
         for proc in busy:
             proc.kill()
             proc.wait()
+    print(f"medians of {args.repeat} run(s) each" if args.repeat > 1 else "one run each")
     print("| job | first run s (empty cache) | second run s | ratio | progress still, first / second s | exit |")
     print("|---|---|---|---|---|---|")
     for job, cold, warm, ratio, cs, ws, c1, c2 in rows:
@@ -94,16 +102,22 @@ def main():
     return 1 if missed else 0
 
 
-def measure(names):
-    """Rows (job, cold s, warm s, ratio, still cold, still warm, exit codes) and the targets missed."""
+def measure(names, repeat=1):
+    """Rows (job, cold s, warm s, ratio, still cold, still warm, exit codes) and the targets missed; with
+    ``repeat`` the median seconds and ratio, the longest stillness and the worst exit codes."""
     rows, missed = [], []
     for name in names:
-        with tempfile.TemporaryDirectory() as cache:
-            cold, cold_still, c1 = run(JOBS[name], cache)
-            if not wait_filled(cache):
-                raise SystemExit("the background child did not fill the cache")
-            warm, warm_still, c2 = run(JOBS[name], cache)
-        ratio = cold / warm
+        runs = []
+        for _ in range(repeat):
+            with tempfile.TemporaryDirectory() as cache:
+                cold, cold_still, c1 = run(JOBS[name], cache)
+                if not wait_filled(cache):
+                    raise SystemExit("the background child did not fill the cache")
+                warm, warm_still, c2 = run(JOBS[name], cache)
+            runs.append((cold, warm, cold / warm, cold_still, warm_still, c1, c2))
+        cold, warm, ratio = (float(np.median([r[k] for r in runs])) for k in range(3))
+        cold_still, warm_still = max(r[3] for r in runs), max(r[4] for r in runs)
+        c1, c2 = max(r[5] for r in runs), max(r[6] for r in runs)
         rows.append((" ".join(JOBS[name]), cold, warm, ratio, cold_still, warm_still, c1, c2))
         if ratio > RATIO:
             missed.append(f"{name}: first run {ratio:.2f}x the second (target {RATIO}x)")
