@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from helpers import example_urdf, random_dh
 from tolerance_ros.core.geometry import rpy_to_matrix
-from tolerance_ros.core.models import ModelError, URDFChain, base, chain_kernels, jit, kernels, load_robot
+from tolerance_ros.core.models import ModelError, URDFChain, chain_kernels, jit, kernels, load_robot
 from tolerance_ros.core.models import jacobian_writers as writers
 from tolerance_ros.core.models.dh import SMALL_BATCH
 
@@ -350,10 +350,11 @@ def test_backend_choice_and_fallback(gao, monkeypatch):
     _assert_same(fresh.fk_and_jacobian(q)[1].J, model.fk_and_jacobian(q)[1].J)
 
 
-def _run_fresh(code, timeout):
-    """Runs ``code`` in a fresh Python process from the repository root; fails with its stderr."""
+def _run_fresh(code, timeout, env=None):
+    """Runs ``code`` in a fresh Python process from the repository root (``env``: variables set for it); fails
+    with its stderr."""
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout,
-                         cwd=Path(__file__).resolve().parents[3])
+                         cwd=Path(__file__).resolve().parents[3], env=dict(os.environ, **(env or {})))
     assert out.returncode == 0, out.stderr
 
 
@@ -381,6 +382,20 @@ def test_warm_up_kernels_readies_the_kernels_named_in_a_fresh_process():
             "warm_up_kernels()\n"
             "assert all(len(f.signatures) == 1 for f in every), [f.signatures for f in every]\n")
     _run_fresh(code, timeout=300)
+
+
+def test_prime_imports_numba_and_its_registries_without_compiling_a_kernel(tmp_path):
+    """What a cold start does while its child compiles: afterwards a family loads with nothing left to import."""
+    code = ("import sys\n"
+            "from tolerance_ros.core.models import kernels\n"
+            "assert 'numba' not in sys.modules\n"
+            "kernels.prime(('zonotope',))\n"
+            "from tolerance_ros.core.models import zonotope_kernel\n"
+            "assert 'numba.np.arraymath' in sys.modules\n"
+            "assert 'tolerance_ros.core.models.chain_kernels' not in sys.modules\n"
+            "assert not zonotope_kernel.zonotope_max.signatures\n")
+    _run_fresh(code, timeout=120, env={"NUMBA_CACHE_DIR": str(tmp_path)})
+    assert not list(tmp_path.rglob("*.nbi")), "prime compiled a kernel"
 
 
 def test_warm_up_loads_the_kernels(gao, urdf_chains):

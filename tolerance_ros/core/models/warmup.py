@@ -212,8 +212,9 @@ def _lock_cache(order=()):
 
 
 def _fill_in_child(order, nice=True, first=None):
-    """Run ``fill_cache`` in a child process; each family it reports ready is loaded here at once. None on
-    success, else the reason."""
+    """Run ``fill_cache`` in a child process; meanwhile import numba here (``kernels.prime``: the families
+    waited for then load in milliseconds, not a second); each family it reports ready is loaded here at once.
+    None on success, else the reason."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(_HERE.parents[2])] + [p for p in [env.get("PYTHONPATH")] if p])
     args = [sys.executable, "-m", "tolerance_ros.core.models.warmup"] + (["--nice"] if nice else []) + list(order)
@@ -224,6 +225,7 @@ def _fill_in_child(order, nice=True, first=None):
                                  stderr=subprocess.PIPE, text=True, start_new_session=True)
     except OSError as exc:
         return str(exc)
+    kernels.prime(order[:first or len(order)])
     for line in child.stdout:
         word, _, family = line.strip().partition(" ")
         if word == "ready" and family in kernels.FAMILIES:
