@@ -94,9 +94,11 @@ def kernel_needs(argv) -> tuple:
     chain) for the commands of ``CHAIN_ONLY`` and under a ``--criterion`` without the worst case; otherwise
     the exact worst case (2 s to compile, and its numpy path is 6x the kernel), the chain next at the lowest
     priority (5 s to compile, and its numpy path costs an allocation under 1 s: compiled at once, it only
-    takes the CPU from the job on a loaded machine). A paper's reproduction waits for both, its chain first:
-    it starts with the chain's Jacobians over 10,000 poses, and on numpy its chain costs more than its
-    worst cases (``paper gao2023`` +7.5 s against +4.9 s on 13.3 s, ``paper rong2018`` +26 s on 10 s)."""
+    takes the CPU from the job on a loaded machine). A paper's reproduction waits for both: the worst case
+    first for a serial chain (it compiles in 0.8 s against the chain's 1.9 s, and in the first seconds of
+    ``paper gao2023`` its numpy path costs more than the chain's: ``bench/bench_first_run_replay.py``
+    estimates the first run at 1.09-1.12x the second, against 1.16-1.19x chain first), the 3-PUPS platform
+    first for ``paper rong2018`` (on numpy it costs +26 s on 10 s)."""
     argv = list(argv)
     command = next((a for a in argv if not a.startswith("-")), "")
 
@@ -121,7 +123,7 @@ def kernel_needs(argv) -> tuple:
     if command in CHAIN_ONLY or criterion in ("paper", "rss"):
         return (chain,), ()
     if command == "paper":
-        return (chain, "zonotope"), ()
+        return ((chain, "zonotope") if chain == "pups" else ("zonotope", chain)), ()
     return ("zonotope",), (chain,)
 
 
