@@ -34,12 +34,16 @@ DEFAULT_JOBS = ("paper", "allocate")
 RATIO, STILL_S = 1.3, 2.0
 
 
+def child_env(cache):
+    """This environment with ``cache`` as the kernel cache and this checkout first on the import path."""
+    return dict(os.environ, NUMBA_CACHE_DIR=str(cache),
+                PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+
+
 def run(argv, cache):
     """(seconds, longest gap between progress lines on stderr, exit code) of one command in a fresh process."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache),
-               PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "tolerance_ros.cli", *argv], env=env, stdout=subprocess.DEVNULL,
+    proc = subprocess.Popen([sys.executable, "-m", "tolerance_ros.cli", *argv], env=child_env(cache), stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
     stamps = []
 
@@ -59,11 +63,9 @@ def run(argv, cache):
 def wait_filled(cache, timeout=600):
     """Wait until the background child of the first run has filled ``cache`` (its marker is current)."""
     code = "from tolerance_ros.core.models import warmup; import sys; sys.exit(0 if warmup.cached() else 1)"
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache),
-               PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
     t0 = time.perf_counter()
     while time.perf_counter() - t0 < timeout:
-        if subprocess.run([sys.executable, "-c", code], env=env).returncode == 0:
+        if subprocess.run([sys.executable, "-c", code], env=child_env(cache)).returncode == 0:
             return True
         time.sleep(2.0)
     return False
