@@ -82,14 +82,19 @@ def test_fk_and_joint_columns_match_pinocchio(seed):
             assert np.allclose(Jp[:, i], col, atol=1e-12)
 
 
-def test_small_and_large_batches_agree():
-    """Few poses and many poses take different code paths; both give the same columns."""
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+@pytest.mark.parametrize("convention", ["standard", "modified"])
+def test_small_and_large_batches_agree(backend, convention):
+    """Few poses and many poses take different code paths (on numpy: 4x4 link products against a walk on axis
+    arrays); both give the same poses and columns."""
     rng = np.random.default_rng(12)
-    model = random_dh(rng, dof=6)
+    model = random_dh(rng, dof=6, convention=convention)
+    model.backend = backend
     q = model.sample_joints(300, rng)
-    J = model.error_jacobian(q).J
-    pieces = np.concatenate([model.error_jacobian(q[a:a + 7]).J for a in range(0, 300, 7)])
-    assert np.allclose(J, pieces, atol=1e-15)
+    T, J = model.fk_and_jacobian(q)
+    pieces = [model.fk_and_jacobian(q[a:a + 7]) for a in range(0, 300, 7)]
+    assert np.allclose(T, np.concatenate([t for t, _ in pieces]), rtol=0, atol=1e-14)
+    assert np.allclose(J.J, np.concatenate([j.J for _, j in pieces]), rtol=0, atol=1e-14)
 
 
 def test_perturbed_pinocchio_model_matches_perturbed_fk():

@@ -20,7 +20,7 @@ from ..geometry import cross3
 from .base import PRISMATIC, REVOLUTE, CompiledChain, ErrorJacobian, ModelError
 
 CONVENTIONS = ("standard", "modified")
-SMALL_BATCH = 64  # up to this many poses the Jacobian columns are built all at once
+SMALL_BATCH = 128  # up to this many poses the numpy path multiplies 4x4 link transforms (faster below, slower above)
 KINDS = ("a", "d", "alpha", "theta")
 
 
@@ -117,11 +117,15 @@ class DHChain(CompiledChain):
                                 self.tool, T, J, jacobian)
 
     def _fk_and_jacobian_numpy(self, q, dx=None, jacobian=True):
-        """The numpy reference implementation of ``fk_and_jacobian``."""
+        """The numpy reference implementation of ``fk_and_jacobian``: up to ``SMALL_BATCH`` poses a product of
+        4x4 link transforms (fewer numpy calls), beyond it a walk along the chain on (3, n) axis arrays (no
+        stacked 4x4 products, slow in numpy for many poses)."""
         q = self.check_joints(q)
         n, dof = q.shape
         dx = self.check_dx(dx, n)
         p = self.nominal if dx is None else self.nominal + dx
+        if n <= SMALL_BATCH:
+            return self._few_poses_numpy(q, p, jacobian)
         # Per-joint parameters: scalars, or (n,) columns when dx varies per pose.
         P = p.T if p.ndim == 2 else p
         a, d, alpha, theta = (P[k * dof:(k + 1) * dof] for k in range(4))
@@ -170,26 +174,55 @@ class DHChain(CompiledChain):
         if not jacobian:
             return T, None
         Jt = np.zeros((4 * dof, 6, n))
-        if n > SMALL_BATCH:
-            # Many poses: one column at a time keeps the arrays contiguous and the copies few.
-            for k, kind in enumerate(KINDS):
-                for i, (u, o) in enumerate(lines[kind]):
-                    col = Jt[k * dof + i]
-                    if kind in ("a", "d"):
-                        col[:3] = u
-                    else:
-                        col[:3] = cross3(u, Pend - o)
-                        col[3:] = u
-        else:
-            # Few poses (a live monitor, one request): all columns at once, fewer numpy calls.
-            Jt[:2 * dof, :3] = [u for kind in ("a", "d") for u, _ in lines[kind]]
-            U = np.array([u for kind in ("alpha", "theta") for u, _ in lines[kind]])            # (2 dof, 3, n)
-            arm = Pend - np.array([o for kind in ("alpha", "theta") for _, o in lines[kind]])  # (2 dof, 3, n)
-            Jt[2 * dof:, 0] = U[:, 1] * arm[:, 2] - U[:, 2] * arm[:, 1]
-            Jt[2 * dof:, 1] = U[:, 2] * arm[:, 0] - U[:, 0] * arm[:, 2]
-            Jt[2 * dof:, 2] = U[:, 0] * arm[:, 1] - U[:, 1] * arm[:, 0]
-            Jt[2 * dof:, 3:] = U
+        for k, kind in enumerate(KINDS):  # one column at a time keeps the arrays contiguous and the copies few
+            for i, (u, o) in enumerate(lines[kind]):
+                col = Jt[k * dof + i]
+                if kind in ("a", "d"):
+                    col[:3] = u
+                else:
+                    col[:3] = cross3(u, Pend - o)
+                    col[3:] = u
         return T, ErrorJacobian(Jt.transpose(2, 1, 0), self.param_names, self.param_units)
+
+    def _few_poses_numpy(self, q, p, jacobian):
+        """``_fk_and_jacobian_numpy`` for a few poses (a service request, a search's batch of 15): the link
+        transforms of every joint and pose at once, (dof, n, 4, 4), multiplied along the chain; the same
+        screws as the walk (a, alpha about the x axis and origin of the frame after each joint's table row
+        in standard D-H, before it in modified; d, theta along the z axis of the other frame)."""
+        n, dof = q.shape
+        P = p.T if p.ndim == 2 else p[:, None]
+        a, d, alpha, theta = (P[k * dof:(k + 1) * dof] for k in range(4))
+        revolute = self._revolute[:, None]
+        th = np.where(revolute, q.T + theta, theta)
+        di = np.where(revolute, d, q.T + d)
+        ct, st, ca, sa = np.cos(th), np.sin(th), np.cos(alpha), np.sin(alpha)
+        A = np.zeros((dof, n, 4, 4))
+        A[..., 3, 3] = 1.0
+        standard = self.convention == "standard"
+        if standard:  # Trans_z(d) Rot_z(theta) Trans_x(a) Rot_x(alpha)
+            rows = ((ct, -st * ca, st * sa, a * ct), (st, ct * ca, -ct * sa, a * st), (0.0, sa, ca, di))
+        else:  # Rot_x(alpha) Trans_x(a) Rot_z(theta) Trans_z(d)
+            rows = ((ct, -st, 0.0, a), (st * ca, ct * ca, -sa, -sa * di), (st * sa, ct * sa, ca, ca * di))
+        for r, row in enumerate(rows):
+            for c, value in enumerate(row):
+                A[..., r, c] = value
+        F = np.empty((dof + 1, n, 4, 4))  # the frames along the chain, base first
+        F[0] = self.base
+        for i in range(dof):
+            np.matmul(F[i], A[i], out=F[i + 1])
+        T = F[dof] @ self.tool
+        if not jacobian:
+            return T, None
+        along_z, about_x = (F[:-1], F[1:]) if standard else (F[1:], F[:-1])
+        U = np.concatenate([about_x[..., :3, 0], along_z[..., :3, 2]])  # (2 dof, n, 3): alpha's axes, theta's
+        arm = T[:, :3, 3] - np.concatenate([about_x[..., :3, 3], along_z[..., :3, 3]])
+        J = np.zeros((n, 6, 4 * dof))
+        J[:, :3, :2 * dof] = U.transpose(1, 2, 0)  # a along alpha's axis, d along theta's
+        J[:, 0, 2 * dof:] = (U[..., 1] * arm[..., 2] - U[..., 2] * arm[..., 1]).T
+        J[:, 1, 2 * dof:] = (U[..., 2] * arm[..., 0] - U[..., 0] * arm[..., 2]).T
+        J[:, 2, 2 * dof:] = (U[..., 0] * arm[..., 1] - U[..., 1] * arm[..., 0]).T
+        J[:, 3:, 2 * dof:] = U.transpose(1, 2, 0)
+        return T, ErrorJacobian(J, self.param_names, self.param_units)
 
     def to_pinocchio(self, dx=None):
         """An equivalent pinocchio model (one RZ/PZ joint per D-H joint) and the id of its 'tool' frame.
