@@ -232,6 +232,8 @@ def _solve_program(x0, cons, objective, K, alpha, tau, unit, w, scale, ceil, che
     """The convex program on the constraints so far, from x0 (scaled tolerances); with ``cheapest`` (optimal
     precision) the cheapest of the sets within ``TIE`` of its best precision."""
     Ms = np.concatenate([c.M for c in cons.values()], axis=0)
+    m, p = Ms.shape[:2]
+    flat = Ms.reshape(m * p, p)  # one matrix product per call (an einsum over three operands is 3-5x slower)
     hi = np.minimum(ceil / tau, 1e6)
     bounds = list(zip(np.ones_like(hi), hi))
     if objective == "optimal-precision":
@@ -242,10 +244,10 @@ def _solve_program(x0, cons, objective, K, alpha, tau, unit, w, scale, ceil, che
         return _objective(x, objective, K, alpha, tau, unit, w, scale)
 
     def cfun(x):
-        return 1.0 - np.einsum("p,mpq,q->m", x, Ms, x)
+        return 1.0 - (flat @ x).reshape(m, p) @ x
 
     def cjac(x):
-        return -2.0 * np.einsum("mpq,q->mp", Ms, x)
+        return -2.0 * (flat @ x).reshape(m, p)
 
     x = _minimize(fun, cfun, cjac, x0, hi, bounds)
     if objective == "optimal-precision" and cheapest:
