@@ -117,6 +117,8 @@ def measure(names, repeat=1):
                     raise SystemExit("the background child did not fill the cache")
                 warm, warm_still, c2 = run(JOBS[name], cache)
             runs.append((cold, warm, cold / warm, cold_still, warm_still, c1, c2))
+            print(f"  {name} run {len(runs)}: first {cold:.1f} s, second {warm:.1f} s, ratio {cold / warm:.2f}",
+                  flush=True)
         cold, warm, ratio = (float(np.median([r[k] for r in runs])) for k in range(3))
         cold_still, warm_still = max(r[3] for r in runs), max(r[4] for r in runs)
         c1, c2 = max(r[5] for r in runs), max(r[6] for r in runs)
