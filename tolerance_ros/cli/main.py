@@ -97,7 +97,7 @@ def kernel_needs(argv) -> tuple:
     takes the CPU from the job on a loaded machine). A paper's reproduction waits for both: the worst case
     first for a serial chain (it compiles in 0.8 s against the chain's 1.9 s, and in the first seconds of
     ``paper gao2023`` its numpy path costs more than the chain's: ``bench/bench_first_run_replay.py``
-    estimates the first run at 1.09-1.12x the second, against 1.16-1.19x chain first), the 3-PUPS platform
+    estimates the first run at 1.09-1.15x the second, against 1.16-1.21x chain first), the 3-PUPS platform
     first for ``paper rong2018`` (on numpy it costs +26 s on 10 s)."""
     argv = list(argv)
     command = next((a for a in argv if not a.startswith("-")), "")
