@@ -320,7 +320,7 @@ def calibration_robot(path) -> Mechanism:
             return load_robot(cand, **chain)
     try:
         return load_robot(str(doc.get("robot")))
-    except (ConfigNotFound, ModelError, OSError) as exc:
+    except (ConfigNotFound, ModelError, OSError):
         if not src:
             raise
         where = "relative to the calibration file" if not Path(src).is_absolute() else "absolute"
