@@ -631,3 +631,32 @@ def test_a_node_on_an_empty_kernel_cache_answers_within_2_s_and_loses_no_request
         os.killpg(node.pid, signal.SIGINT)
         out = node.communicate(timeout=60)[0]
     assert "compiling the kernels in the background" in out, out
+
+
+def test_a_measurement_stream_keeps_a_second_of_1khz_while_its_callback_runs_late():
+    """MEASUREMENT_QOS: 800 tracker points published while the subscriber's callbacks wait (a monitor busy
+    for 0.8 s at 1 kHz) are all delivered, in order, once it takes them again."""
+    from geometry_msgs.msg import PointStamped
+    from rclpy.executors import SingleThreadedExecutor
+    g = Graph(spin=False)
+    try:
+        sub_node, pub_node = g.node(f"late_{uuid.uuid4().hex[:6]}"), g.node(f"tracker_{uuid.uuid4().hex[:6]}")
+        topic = f"points_{uuid.uuid4().hex[:6]}"
+        got = []
+        sub_node.create_subscription(PointStamped, topic, lambda m: got.append(m.header.stamp.nanosec), MEASUREMENT_QOS)
+        pub = pub_node.create_publisher(PointStamped, topic, MEASUREMENT_QOS)
+        assert wait_for(lambda: pub.get_subscription_count() > 0, 20)
+        for k in range(800):
+            msg = PointStamped()
+            msg.header.stamp.nanosec = k
+            pub.publish(msg)
+        time.sleep(1.0)
+        executor = SingleThreadedExecutor(context=g.context)
+        executor.add_node(sub_node)
+        deadline = time.monotonic() + 20
+        while len(got) < 800 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        executor.shutdown()
+        assert got == list(range(800)), f"{len(got)} of 800 delivered, first {got[:1]}"
+    finally:
+        g.close()
