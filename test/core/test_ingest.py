@@ -86,3 +86,50 @@ def test_state_buffer_keeps_order_and_the_newest_states():
     np.testing.assert_array_equal(np.diff(buf.stamps[:len(buf)]) > 0, True)
     assert buf.nearest(19.0, 0.0)[1].tolist() == [19.0, -19.0]
     assert StateBuffer(dof=1).newest == -np.inf
+
+
+def _stream(rate, seconds, jitter=0.0, seed=0):
+    """Stamps (s) of a stream at ``rate`` Hz for ``seconds``, each off its tick by up to ``jitter`` periods."""
+    rng = np.random.default_rng(seed)
+    n = int(rate * seconds)
+    return 100.0 + (np.arange(n) + rng.uniform(-jitter, jitter, n)) / rate
+
+
+def test_stamp_gaps_counts_the_messages_lost_from_a_regular_stream_one_at_a_time_or_in_batches():
+    from tolerance_ros.core.ingest import StampGaps
+    t = _stream(1000, 3.0, jitter=0.2)
+    lost = np.r_[1200:2400, 2500:2510]          # a 1.2 s backlog lost, then ten messages
+    kept = np.delete(t, lost)
+    for batches in ([kept], np.array_split(kept, 37), [kept[i:i + 1] for i in range(len(kept))]):
+        g = StampGaps()
+        found = sum(g.add(b) for b in batches)
+        s = g.summary()
+        assert found == s["gaps"] == 2
+        assert abs(s["missing"] - len(lost)) <= 0.01 * len(lost)   # "about": the period is estimated
+        assert abs(s["longest_gap_s"] - 1.201) < 1e-3
+        assert abs(s["period_s"] - 1e-3) < 5e-5 and s["regular"]
+        assert s["last_gap_end_s"] == kept[2500 - 1200]
+        assert "2 gap(s)" in g.describe("joint_states") and f"{s['missing']:,} message(s)" in g.describe("joint_states")
+
+
+def test_stamp_gaps_finds_nothing_in_a_jittery_but_complete_stream_nor_in_an_irregular_one():
+    from tolerance_ros.core.ingest import StampGaps
+    g = StampGaps()
+    g.add(_stream(1000, 2.0, jitter=0.45))
+    assert g.summary()["gaps"] == 0 and g.describe("joint_states") is None
+    single = StampGaps()                        # one measurement now and then: nothing to judge
+    single.add(np.cumsum(np.random.default_rng(1).exponential(2.0, 200)))
+    assert not single.summary()["regular"] and single.summary()["gaps"] == 0
+
+
+def test_stamp_gaps_judges_the_learning_intervals_and_starts_again_after_a_clock_restart():
+    from tolerance_ros.core.ingest import StampGaps
+    t = _stream(100, 1.0)
+    g = StampGaps()
+    g.add(np.delete(t, np.r_[5:15]))            # ten lost before the period was known
+    assert g.summary()["gaps"] == 1 and g.summary()["missing"] == 10
+    g.add(t[:50] - 50.0)                         # a clock that restarted: not a gap, not a negative interval
+    assert g.summary()["restarts"] == 1 and g.summary()["gaps"] == 1
+    g.add(t[60:70] - 50.0)
+    assert g.summary()["gaps"] == 2 and g.summary()["missing"] == 20
+    assert g.add([np.nan]) == 0 and g.add([]) == 0

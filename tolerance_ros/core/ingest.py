@@ -3,7 +3,8 @@
 - ``stamp_seconds``: a ``builtin_interfaces/Time`` (sec, nanosec) as float seconds;
 - ``JointOrder``: joint readings named in any order -> the model's joint order (extra joints ignored);
 - ``pose_from_values``: a measured position (m) and quaternion (x, y, z, w) -> a validated 4x4 pose;
-- ``StateBuffer`` and ``pair_by_stamp``: the joint state nearest in time to a measurement, within a slop.
+- ``StateBuffer`` and ``pair_by_stamp``: the joint state nearest in time to a measurement, within a slop;
+- ``StampGaps``: the gaps in a regular stream's stamps (messages lost on the way, or never sent).
 Every check raises ``IngestError`` with a message that says what is wrong; nothing is dropped here.
 """
 from __future__ import annotations
@@ -181,3 +182,107 @@ class StateBuffer:
     def distance(self, t: float) -> float:
         """Distance (s) from ``t`` to the nearest stored stamp (inf when empty)."""
         return float(np.min(np.abs(self.stamps[:self.n] - t))) if self.n else math.inf
+
+
+class StampGaps:
+    """The gaps in the stamps of a regular stream (joint states at 1 kHz, a tracker's points): messages lost on
+    the way (a reader's queue that overflowed while its callbacks ran late, a network) or never sent (a late
+    publisher, a tracker that lost its beam); what a reader cannot otherwise count, since it never got them.
+
+    The period is the median of the latest ``window`` intervals (refreshed every ``refresh``); an interval longer
+    than ``factor`` periods is a gap, worth ``round(interval / period) - 1`` missing messages. Judged only once
+    ``learn`` intervals are in and while the stream is regular (nine in ten of the latest intervals within twice
+    the period): a stream of single measurements, sent when taken, has no gaps to find. A stamp earlier than
+    the previous one (a restarted clock) starts the intervals again. ``add`` takes one stamp or an array (s)."""
+
+    def __init__(self, factor: float = 5.0, learn: int = 20, window: int = 256, refresh: int = 32):
+        self.factor, self.learn, self.window, self.refresh = float(factor), int(learn), int(window), int(refresh)
+        self.intervals = np.zeros(0)    # the latest ``window`` intervals, s
+        self.last = None                # the previous stamp, s
+        self.seen = 0                   # intervals taken in
+        self.unsorted = 0               # intervals taken in since the period was last computed
+        self.period = None              # s, once learned
+        self.regular = False
+        self.gaps = 0
+        self.missing = 0
+        self.longest = 0.0              # s
+        self.last_gap = None            # (stamp at the gap's end s, its length s)
+        self.restarts = 0
+        self._learning = (np.zeros(0), np.zeros(0))  # (intervals, their end stamps) before the period is known
+
+    def add(self, stamps) -> int:
+        """Take the next stamp(s) in arrival order; returns how many new gaps they show."""
+        t = np.asarray(stamps, dtype=float).reshape(-1)
+        t = t[np.isfinite(t)]
+        if t.size == 0:
+            return 0
+        if t.size == 1 and self.period is not None and self.last is not None and self.unsorted + 1 < self.refresh:
+            d = float(t[0]) - self.last     # one message, the common live case: little array work
+            if d >= 0:
+                self.last = float(t[0])
+                self.seen += 1
+                self.unsorted += 1
+                self.intervals = np.append(self.intervals[1 - self.window:], d)
+                return self._judge(np.array([d]), t) if self.regular and d > self.factor * self.period else 0
+        d = np.diff(np.concatenate([[self.last], t])) if self.last is not None else np.diff(t)
+        back = np.flatnonzero(d < 0)
+        if back.size:                       # a clock that restarted: judge up to it, start again from it
+            head = t[:back[0] + (0 if self.last is not None else 1)]
+            found = self.add(head) if head.size else 0
+            self.restarts += 1
+            self.last = None
+            return found + self.add(t[head.size:])
+        ends = t[t.size - d.size:]
+        self.last = float(t[-1])
+        self.intervals = np.concatenate([self.intervals, d])[-self.window:]
+        self.seen += d.size
+        self.unsorted += d.size
+        if self.period is None:
+            d = np.concatenate([self._learning[0], d])
+            ends = np.concatenate([self._learning[1], ends])
+            if self.seen < self.learn:
+                self._learning = (d, ends)  # fewer than ``learn``
+                return 0
+            self._learning = (np.zeros(0), np.zeros(0))
+            self._update()                  # the learning intervals are judged too
+        elif self.unsorted >= self.refresh:
+            self._update()
+        return self._judge(d, ends) if self.regular else 0
+
+    def _update(self):
+        self.period = float(np.median(self.intervals))
+        self.regular = self.period > 0 and float(np.quantile(self.intervals, 0.9)) <= 2.0 * self.period
+        self.unsorted = 0
+
+    def _judge(self, d, ends) -> int:
+        big = d > self.factor * self.period
+        if not big.any():
+            return 0
+        gap = d[big]
+        self.gaps += int(gap.size)
+        self.missing += int(np.maximum(np.rint(gap / self.period) - 1, 0).sum())
+        self.longest = max(self.longest, float(gap.max()))
+        self.last_gap = (float(ends[big][-1]), float(gap[-1]))
+        return int(gap.size)
+
+    def hole(self, stamps) -> float | None:
+        """The longest interval (s) of ``stamps`` (a stretch of this stream) that is a gap by this stream's
+        standard, or None (none, or the stream not judged)."""
+        t = np.asarray(stamps, dtype=float).reshape(-1)
+        if self.period is None or not self.regular or t.size < 2:
+            return None
+        longest = float(np.max(np.diff(t)))
+        return longest if longest > self.factor * self.period else None
+
+    def summary(self) -> dict:
+        """JSON-ready: gaps, missing (about), longest_gap_s, period_s, regular, last_gap_end_s, restarts."""
+        return {"gaps": self.gaps, "missing": self.missing, "longest_gap_s": self.longest, "period_s": self.period,
+                "regular": self.regular, "last_gap_end_s": None if self.last_gap is None else self.last_gap[0],
+                "restarts": self.restarts}
+
+    def describe(self, stream: str) -> str | None:
+        """One line for a status message, or None without gaps."""
+        if not self.gaps:
+            return None
+        return (f"{stream}: {self.gaps} gap(s) in the stamps, the longest {self.longest:.3g} s (about {self.missing:,} "
+                f"message(s) at {self.period:.3g} s each lost on the way, or never sent)")
