@@ -212,3 +212,25 @@ def test_the_monitors_target_parameters_are_checked(args, message):
         return
     with pytest.raises(ValueError, match=message):
         monitor_targets(*args)
+
+
+def test_the_messages_a_stream_lost_are_seen_in_its_stamps_and_warned_of(gao, setup):
+    """A 1 kHz joint-state stream whose reader lost 1.2 s of it (its queue overflowed): the status warns, names
+    the stream and says about how many messages never came; the same stream complete is not warned of."""
+    mon, sim, qk, clock, log = setup
+    t = 100.0 + np.arange(3000) * 1e-3
+    for k in np.r_[0:1000, 2200:3000]:
+        mon.on_joint_state_msg(joint_state(t[k], gao.joint_names, qk[0]))
+    mon.on_pose_msg(pose_stamped(t[2500], sim.measure_at(qk[0])))
+    mon.resolve()
+    d = mon.diagnostic()
+    assert d["level"] == WARN and "joint_states: 1 gap(s)" in d["message"] and "about 1,200 message(s)" in d["message"]
+    assert d["values"]["joint_states_gaps"] == "1" and d["values"]["measured_pose_gaps"] == "0"
+    gaps = json.loads(dumps_fast(mon.report()))["stream_gaps"]
+    assert gaps["joint_states"]["missing"] == 1200 and abs(gaps["joint_states"]["longest_gap_s"] - 1.201) < 1e-9
+    assert mon.counts["paired"] == 1
+
+    complete = MonitorLogic(gao, None, None, slop=0.01, max_wait=0.5, T_tracker_base=T_TB)
+    for k in range(3000):
+        complete.on_joint_state(t[k], gao.joint_names, qk[0])
+    assert "gap" not in complete.diagnostic()["message"] and complete.report()["stream_gaps"]["joint_states"]["gaps"] == 0

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from path_runs import T_TB, run
-from tolerance_ros.core.accuracy.path_report import path_report
+from tolerance_ros.core.accuracy import path as P
+from tolerance_ros.core.accuracy.path_report import command_points, path_report
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.services.path_monitor import ERROR, OK, WARN, PathMonitor
 
@@ -120,3 +121,39 @@ def test_the_simulated_tracker_streams_and_the_monitor_finds_its_latency(gao):
             reports += mon.add_points(np.array([s for s, _ in readings]), np.array([T[:3, 3] for _, T in readings]))
     assert abs(mon.latency - 0.008) < 0.5e-3
     assert reports and reports[-1]["cycles"] == 3 and reports[-1]["overall"]["AT_p_m"] < 1e-3
+
+
+def _without(st, joints=None, points=None):
+    """The streams of ``st`` with the joint states in ``joints`` (s, s) and the points in ``points`` lost."""
+    from tolerance_ros.core.accuracy.simulate import PathStreams
+    keep_j = np.ones(len(st.joint_stamps), bool) if joints is None else \
+        ~((st.joint_stamps >= joints[0]) & (st.joint_stamps < joints[1]))
+    keep_m = np.ones(len(st.stamps), bool) if points is None else ~((st.stamps >= points[0]) & (st.stamps < points[1]))
+    return PathStreams(**dict(vars(st), joint_stamps=st.joint_stamps[keep_j], joints=st.joints[keep_j],
+                              stamps=st.stamps[keep_m], points=st.points[keep_m]))
+
+
+@pytest.mark.parametrize("lost", ["joints", "points"])
+def test_a_motion_with_lost_messages_is_not_judged_and_the_loss_is_warned_of(gao, rect, lost):
+    """0.3 s of one stream lost in the middle of the second cycle: the other three cycles are judged, the second's
+    points are counted as not judged with the reason, and the status names the stream's gap."""
+    full = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
+    motions = []
+    for a, b in P.motions(rect.joint_stamps, command_points(gao, rect.joints), 1e-3, 0.05, step=0.002):
+        motions.append((rect.joint_stamps[a], rect.joint_stamps[b]))
+    start, end = motions[1]
+    hole = ((start + end) / 2, (start + end) / 2 + 0.3)
+    st = _without(rect, **{lost: hole})
+    mon = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
+    reports = feed(mon, st)
+    whole = feed(full, rect)
+    assert [r["cycles"] for r in reports] == [1, 2, 3]
+    assert mon.counts["motions"] == full.counts["motions"] and mon.counts["not_judged"] > 0
+    stream = "joint_states" if lost == "joints" else "points"
+    assert reports[-1]["stream_gaps"][stream]["gaps"] == 1
+    assert abs(reports[-1]["stream_gaps"][stream]["missing"] - (0.3 / (0.002 if lost == "joints" else 0.001))) <= 2
+    assert "not judged" in reports[-1]["not_judged"][0] and f"{start:.3f} s" in reports[-1]["not_judged"][0]
+    level, words = mon.status()
+    assert level == WARN and f"{stream}: 1 gap(s)" in words and "not judged" in words, words
+    assert mon.diagnostic()["values"][f"{stream}_gaps"] == "1"
+    assert whole[-1]["cycles"] == 4 and full.status()[0] == OK

@@ -6,7 +6,8 @@ known), or until it is ``max_wait`` seconds old; then it is paired or counted as
 measurement is written to the campaign log the moment it arrives, and its pairing (joints, test pose,
 verdict) when it is decided, so that a crash loses nothing and ``accuracy.io.read_log`` rebuilds the data.
 Nothing is dropped silently: rejected messages and unpaired measurements are counted, logged and
-reported.
+reported, and what never arrived is seen in the stamps: each stream's gaps (``ingest.StampGaps``: the messages a
+late reader's queue or a network lost, or a publisher never sent) are a warning on /diagnostics and in the report.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.geometry import matrices_to_quat
-from ..core.ingest import IngestError, JointOrder, StateBuffer, pose_from_values, stamp_seconds
+from ..core.ingest import IngestError, JointOrder, StampGaps, StateBuffer, pose_from_values, stamp_seconds
 from ..core.jsonio import dumps_fast
 from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
@@ -60,6 +61,9 @@ class MonitorLogic:
         self.counts = {"received": 0, "paired": 0, "unpaired": 0, "rejected": 0, "joint_states": 0,
                        "joint_states_rejected": 0, "not_judged": 0}
         self.check = StreamCheck(model)
+        topic = "measured_pose" if self.orientation else "measured_point"
+        self.streams = ["joint_states"] + [f"{topic}/{n}" if n else topic for n in self.targets.names]
+        self.gaps = {name: StampGaps() for name in self.streams}   # what never arrived, seen in the stamps
         self.last = None
         self.last_reasons = deque(maxlen=20)
         self.log = None
@@ -127,6 +131,7 @@ class MonitorLogic:
             self.last_reasons.append(f"joint state rejected: {exc}")
             return []
         self.counts["joint_states"] += 1
+        self.gaps["joint_states"].add(t)
         self.states.add(t, q)
         return self.resolve()
 
@@ -159,6 +164,7 @@ class MonitorLogic:
             self._write({**rec, "rejected": str(exc)})
             return []
         self._write(rec)
+        self.gaps[self.streams[k + 1]].add(t)
         self.pending.append((seq, t, T, self.clock(), k))
         return self.resolve()
 
@@ -246,6 +252,10 @@ class MonitorLogic:
             level, msg = ERROR, f"{v['over limit']} measurement(s) above the design limit"
         if c["received"] == 0:
             msg = "waiting for measured poses" if level == OK else msg
+        lost = [line for line in (g.describe(name) for name, g in self.gaps.items()) if line]
+        if lost:
+            msg = "; ".join(lost) if level == OK else "; ".join([msg] + lost)
+            level = max(level, WARN)
         pe = self.acc.position.to_dict()
         values = {"received": c["received"], "paired": c["paired"], "unpaired": c["unpaired"],
                   "rejected": c["rejected"], "pending": len(self.pending), "within": v.get("within", 0),
@@ -254,6 +264,8 @@ class MonitorLogic:
                   "last_position_error_m": self.last["position_error"] if self.last else None,
                   "last_bound_m": self.last["bound"] if self.last else None,
                   "budget": (self.budget.source or self.budget.robot) if self.budget else "none"}
+        for name, g in self.gaps.items():
+            values[f"{name}_gaps"], values[f"{name}_missing"] = g.gaps, g.missing
         return {"level": level, "name": self.name, "message": msg,
                 "hardware_id": self.model.name, "values": {k: _fmt(val) for k, val in values.items()}}
 
@@ -275,6 +287,7 @@ class MonitorLogic:
         problem = self.check.problem
         return {"robot": self.model.name, "calibration": self.calibration, "before": self.before,
                 "counts": dict(self.counts), "pending": len(self.pending), "problems": [problem] if problem else [],
+                "stream_gaps": {name: g.summary() for name, g in self.gaps.items()},
                 "recent_issues": list(self.last_reasons), "summary": None if problem else self.acc.summary(),
                 "last": None if problem else last,
                 "budget": None if self.budget is None else {"source": self.budget.source,

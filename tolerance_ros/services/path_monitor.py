@@ -13,14 +13,16 @@ placement of each report (CR and CO keep the placement of their cycle). Motions 
 (``path.cycles_of``): start, end and length; each group keeps its last ``max_cycles`` cycles; the report of a
 path is its group's. Nothing is dropped silently: the points are counted as on a path, at rest, during other
 motions, or outside the joint states' time span, and samples no motion could use within ``max_buffer`` s
-(the robot never rests) are counted as not judged.
+(the robot never rests) are counted as not judged. What never arrived is seen in the stamps
+(``ingest.StampGaps``): each stream's gaps are a warning, and a motion with a gap in its joint states or in the
+tracker's points across it is not judged (interpolated across lost messages, its figures would be wrong).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..core.accuracy import path as P
-from ..core.ingest import IngestError, JointOrder, stamp_seconds
+from ..core.ingest import IngestError, JointOrder, StampGaps, stamp_seconds
 from ..core.accuracy.latency import estimate_latency
 from ..core.accuracy.path_report import LATENCY_SHARE, command_points
 from ..core.accuracy.registration import KabschAccumulator, kabsch
@@ -79,6 +81,8 @@ class PathMonitor:
         self.counts = {"points": 0, "joint_states": 0, "on_path": 0, "at_rest": 0, "other_motions": 0,
                        "outside_joint_states": 0, "not_judged": 0, "motions": 0, "rejected": 0}
         self.last = None
+        self.gaps = {"joint_states": StampGaps(), "points": StampGaps()}  # what never arrived, seen in the stamps
+        self.holes = []                              # why the latest motions were not judged
 
     # -- input ---------------------------------------------------------------------------------------------
     def add_joint_states(self, stamps, joints) -> list:
@@ -96,6 +100,7 @@ class PathMonitor:
             if self.step is None:
                 self.step = float(np.median(np.diff(t))) if len(t) > 2 else 0.002
         self.counts["joint_states"] += len(t)
+        self.gaps["joint_states"].add(t)
         self.tj = np.concatenate([self.tj, t])
         self.qj = np.vstack([self.qj, q])
         self.pc = np.vstack([self.pc, command_points(self.model, q, offset=self.offset)])
@@ -111,6 +116,7 @@ class PathMonitor:
         if np.any(np.diff(t) < 0) or (len(self.tm) and len(t) and t[0] < self.tm[-1]):
             raise ValueError("points: stamps must not decrease")
         self.counts["points"] += len(t)
+        self.gaps["points"].add(t)
         self.tm = np.concatenate([self.tm, t])
         self.pm = np.vstack([self.pm, p])
         return self._process()
@@ -167,6 +173,10 @@ class PathMonitor:
             values.update({k: "" if v is None else f"{v:.9g}" for k, v in self.last["overall"].items()})
         if self.reasons:
             values["last_rejected"] = self.reasons[-1]
+        if self.holes:
+            values["last_not_judged"] = self.holes[-1]
+        for stream, g in self.gaps.items():
+            values[f"{stream}_gaps"], values[f"{stream}_missing"] = str(g.gaps), str(g.missing)
         return {"level": level, "name": self.name, "hardware_id": "", "message": message, "values": values}
 
     def finish(self) -> list:
@@ -245,6 +255,17 @@ class PathMonitor:
         tau = self.latency
         ta = self.tm - tau
         j0, j1 = np.searchsorted(ta, [self.tj[i0], self.tj[i1]])
+        hole = self._hole(i0, i1, j0, j1)
+        if hole is not None:                           # interpolated across lost messages: not judged
+            before = ta[:j0] < self.first_joint
+            self.counts["outside_joint_states"] += int(before.sum())
+            self.counts["at_rest"] += int((~before).sum())
+            self.counts["motions"] += 1
+            self.counts["not_judged"] += int(j1 - j0)
+            self.holes = (self.holes + [hole])[-10:]
+            self.tm, self.pm = self.tm[j1:], self.pm[j1:]
+            self.tj, self.qj, self.pc = self.tj[i1:], self.qj[i1:], self.pc[i1:]
+            return []
         sel = slice(int(np.searchsorted(ta, self.first_joint)), j1)
         self.pairs.add(P.interp_columns(ta[sel], self.tj, self.pc), self.pm[sel])
         if not self.given_A and self.pairs.n >= 3:
@@ -285,6 +306,18 @@ class PathMonitor:
         self.tj, self.qj, self.pc = self.tj[i1:], self.qj[i1:], self.pc[i1:]
         return report
 
+    def _hole(self, i0, i1, j0, j1) -> str | None:
+        """Why the motion [i0, i1] (its points [j0, j1)) cannot be judged: a gap in its joint states or in the
+        tracker's points across it (``StampGaps.hole``), or None."""
+        span = f"the motion from {self.tj[i0]:.3f} s to {self.tj[i1]:.3f} s"
+        joints = self.gaps["joint_states"].hole(self.tj[i0:i1 + 1])
+        if joints is not None:
+            return f"{span} was not judged: a gap of {joints:.3g} s in its joint states (messages lost, or never sent)"
+        points = self.gaps["points"].hole(self.tm[max(j0 - 1, 0):min(j1 + 1, len(self.tm))])
+        if points is not None:
+            return f"{span} was not judged: a gap of {points:.3g} s in the tracker's points across it"
+        return None
+
     def _bound_memory(self):
         """Samples older than ``max_buffer`` s that no motion took (the robot never rested) are dropped and
         counted as not judged."""
@@ -309,7 +342,8 @@ class PathMonitor:
                "registration": {"method": self.registration, "T_tracker_base": self.A.tolist()},
                "path": self.groups.index(group), "cycles": len(group.per), "cycles_seen": group.cycles,
                "path_length_m": group.length, "speed_m_s": max(s["v_c_m_s"] for s in segs), "segments": segs,
-               "overall": P.overall(segs), "counts": dict(self.counts), "refused": None, "missed": []}
+               "overall": P.overall(segs), "counts": dict(self.counts), "refused": None, "missed": [],
+               "stream_gaps": {s: g.summary() for s, g in self.gaps.items()}, "not_judged": list(self.holes)}
         if self.budget is not None and self.budget.limit_position is not None:
             limit = self.budget.limit_position
             shift = 2.0 * (doc["latency_std_s"] or 0.0) * doc["speed_m_s"]
@@ -324,7 +358,14 @@ class PathMonitor:
         return doc
 
     def status(self) -> tuple:
-        """(level OK/WARN/ERROR, message) for /diagnostics."""
+        """(level OK/WARN/ERROR, message) for /diagnostics; the streams' gaps make an OK a WARN."""
+        level, message = self._status()
+        lost = [line for line in (g.describe(s) for s, g in self.gaps.items()) if line]
+        if lost:
+            level, message = max(level, WARN), "; ".join([message] + lost + self.holes[-1:])
+        return level, message
+
+    def _status(self) -> tuple:
         if self.last is None:
             return WARN, (f"no path judged yet ({self.counts['motions']} motions, {self.counts['points']} points)")
         if self.last["refused"]:
