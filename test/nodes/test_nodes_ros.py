@@ -660,3 +660,48 @@ def test_a_measurement_stream_keeps_a_second_of_1khz_while_its_callback_runs_lat
         assert got == list(range(800)), f"{len(got)} of 800 delivered, first {got[:1]}"
     finally:
         g.close()
+
+
+def test_the_monitor_warns_of_the_joint_states_its_queue_lost_while_its_callbacks_waited(ns, tmp_path):
+    """A monitor that does not take its joint states for a while (1,500 published at 1 kHz stamps, its queue
+    keeps 1,000): DDS drops the oldest 500 without a word; the monitor sees the hole in the stamps, says so on
+    its status and counts about 500 missing."""
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
+    g = Graph(spin=False)
+    try:
+        mon = g.start(AccuracyMonitor, ns, log_dir=str(tmp_path), report_period=3600.0, marker_period=3600.0)
+        pub_node = g.node(f"controller_{uuid.uuid4().hex[:6]}", ns)
+        pub = pub_node.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+        assert wait_for(lambda: pub.get_subscription_count() > 0, 20)
+        executor = SingleThreadedExecutor(context=g.context)
+        executor.add_node(mon)
+        names = list(mon.logic.model.joint_names)
+
+        def publish(ks):
+            for k in ks:
+                msg = JointState(name=names, position=Q)
+                msg.header.stamp.sec, msg.header.stamp.nanosec = 100 + k // 1000, (k % 1000) * 1_000_000
+                pub.publish(msg)
+
+        def take(n):
+            deadline = time.monotonic() + 20
+            while mon.logic.counts["joint_states"] < n and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.05)
+            return mon.logic.counts["joint_states"]
+
+        publish(range(300))
+        assert take(300) == 300
+        publish(range(300, 1800))                   # while the monitor's callbacks wait
+        time.sleep(1.0)
+        assert take(1300) == 1300
+        for _ in range(20):
+            executor.spin_once(timeout_sec=0.01)
+        executor.shutdown()
+        assert mon.logic.counts["joint_states"] == 1300
+        d = mon.diagnostic()
+        assert d["values"]["joint_states_gaps"] == "1" and d["values"]["joint_states_missing"] == "500", d
+        assert "joint_states: 1 gap(s)" in d["message"], d["message"]
+    finally:
+        g.close()
