@@ -163,3 +163,24 @@ def test_a_target_off_the_tool_is_judged_at_its_offset_and_its_tube(capsys, stre
     assert at["budget"]["bound_max_m"] != pytest.approx(tool["budget"]["bound_max_m"], rel=1e-3)
     code, _, err = run(capsys, *base, d / "target.csv", "--target-offset", "0,0,300mm")
     assert code == 2 and "--target-offset" in err and "unit" in err
+
+
+def test_a_cycle_with_lost_tracker_points_is_not_judged_and_the_report_says_so(capsys, streams, tmp_path):
+    """0.3 s of the tracker's points lost in the first cycle: the report judges the other three, counts the
+    first's points as not judged, and names the gap and the cycle."""
+    lines = (streams / "path.csv").read_text().splitlines()
+    kept = [l for l in lines if not (l[:1].isdigit() and 1001.0 <= float(l.split(",")[0]) < 1001.3)]
+    assert len(lines) - len(kept) == 300
+    holed = tmp_path / "holed.csv"
+    holed.write_text("\n".join(kept) + "\n")
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", holed,
+                         "--joint-states", streams / "path.joints.csv", "--json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["cycles"] == 3 and doc["stream_gaps"]["points"]["gaps"] == 1
+    assert doc["stream_gaps"]["points"]["missing"] == 300 and doc["outside"]["not_judged"] > 3000
+    assert len(doc["not_judged"]) == 1 and "the tracker's points" in doc["not_judged"][0]
+    code, out, _ = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", holed,
+                       "--joint-states", streams / "path.joints.csv")
+    assert code == 0 and "points: 1 gap(s) in the stamps" in out and "was not judged" in out
+    assert "in cycles not judged" in out

@@ -135,8 +135,9 @@ def _without(st, joints=None, points=None):
 
 @pytest.mark.parametrize("lost", ["joints", "points"])
 def test_a_motion_with_lost_messages_is_not_judged_and_the_loss_is_warned_of(gao, rect, lost):
-    """0.3 s of one stream lost in the middle of the second cycle: the other three cycles are judged, the second's
-    points are counted as not judged with the reason, and the status names the stream's gap."""
+    """0.3 s of one stream lost in the middle of the second cycle: the other three cycles are judged, on line as
+    offline (the same figures), the second's points are counted as not judged with the reason, and the status
+    names the stream's gap."""
     full = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
     motions = []
     for a, b in P.motions(rect.joint_stamps, command_points(gao, rect.joints), 1e-3, 0.05, step=0.002):
@@ -157,3 +158,10 @@ def test_a_motion_with_lost_messages_is_not_judged_and_the_loss_is_warned_of(gao
     assert level == WARN and f"{stream}: 1 gap(s)" in words and "not judged" in words, words
     assert mon.diagnostic()["values"][f"{stream}_gaps"] == "1"
     assert whole[-1]["cycles"] == 4 and full.status()[0] == OK
+    offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints, latency=0.008, T_tracker_base=T_TB,
+                          step=0.002)
+    assert offline["cycles"] == 3 and offline["not_judged"] == reports[-1]["not_judged"]
+    assert offline["outside"]["not_judged"] == mon.counts["not_judged"]
+    assert offline["stream_gaps"][stream]["gaps"] == 1
+    for on, off in zip(reports[-1]["segments"], offline["segments"]):
+        assert on["AT_p_m"] == pytest.approx(off["AT_p_m"], rel=1e-9) and on["RT_p_m"] == pytest.approx(off["RT_p_m"], rel=1e-9)

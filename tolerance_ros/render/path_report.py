@@ -51,7 +51,14 @@ def summary_lines(doc) -> list:
                      f"uncertainty; the tracker stamps late by this against the joint states); registration residual "
                      f"RMS {doc['registration']['residual_rms_m'] * 1e3:.4f} mm")
     lines.append(f"not on the test path: {out['points']} points ({out['at_rest']} at rest, {out['other_motions']} "
-                 f"during other motions, {out['outside_joint_states']} outside the joint states' time span)")
+                 f"during other motions, "
+                 + (f"{out['not_judged']} in cycles not judged, " if out.get("not_judged") else "")
+                 + f"{out['outside_joint_states']} outside the joint states' time span)")
+    for name, g in (doc.get("stream_gaps") or {}).items():
+        if g["gaps"]:
+            lines.append(f"{name}: {g['gaps']} gap(s) in the stamps, the longest {g['longest_gap_s']:.3g} s (about "
+                         f"{g['missing']:,} message(s) lost, or never sent)")
+    lines += doc.get("not_judged") or []
     b = doc.get("budget")
     if b:
         lines.append(f"budget ({b['criterion']} bound): the bound along the path reaches {b['bound_max_m'] * 1e3:.4f} mm"

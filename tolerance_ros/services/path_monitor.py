@@ -255,7 +255,7 @@ class PathMonitor:
         tau = self.latency
         ta = self.tm - tau
         j0, j1 = np.searchsorted(ta, [self.tj[i0], self.tj[i1]])
-        hole = self._hole(i0, i1, j0, j1)
+        hole = P.hole_in_motion(self.gaps, self.tj, i0, i1, self.tm, j0, j1)
         if hole is not None:                           # interpolated across lost messages: not judged
             before = ta[:j0] < self.first_joint
             self.counts["outside_joint_states"] += int(before.sum())
@@ -305,18 +305,6 @@ class PathMonitor:
         self.tm, self.pm = self.tm[j1:], self.pm[j1:]
         self.tj, self.qj, self.pc = self.tj[i1:], self.qj[i1:], self.pc[i1:]
         return report
-
-    def _hole(self, i0, i1, j0, j1) -> str | None:
-        """Why the motion [i0, i1] (its points [j0, j1)) cannot be judged: a gap in its joint states or in the
-        tracker's points across it (``StampGaps.hole``), or None."""
-        span = f"the motion from {self.tj[i0]:.3f} s to {self.tj[i1]:.3f} s"
-        joints = self.gaps["joint_states"].hole(self.tj[i0:i1 + 1])
-        if joints is not None:
-            return f"{span} was not judged: a gap of {joints:.3g} s in its joint states (messages lost, or never sent)"
-        points = self.gaps["points"].hole(self.tm[max(j0 - 1, 0):min(j1 + 1, len(self.tm))])
-        if points is not None:
-            return f"{span} was not judged: a gap of {points:.3g} s in the tracker's points across it"
-        return None
 
     def _bound_memory(self):
         """Samples older than ``max_buffer`` s that no motion took (the robot never rested) are dropped and

@@ -84,6 +84,20 @@ def motions(t, p, rest_speed: float = 1e-3, min_rest: float = 0.05, min_length: 
     return out
 
 
+def hole_in_motion(gaps, tj, i0: int, i1: int, tm, j0: int, j1: int) -> str | None:
+    """Why the motion ``tj[i0..i1]`` cannot be judged, or None: a gap (``gaps``: ``{"joint_states": StampGaps,
+    "points": StampGaps}``) in its joint states, or in the tracker's stamps ``tm`` across its points ``[j0, j1)``
+    (one more on each side): interpolated across lost messages, its figures would be wrong."""
+    span = f"the motion from {tj[i0]:.3f} s to {tj[i1]:.3f} s"
+    joints = gaps["joint_states"].hole(tj[i0:i1 + 1])
+    if joints is not None:
+        return f"{span} was not judged: a gap of {joints:.3g} s in its joint states (messages lost, or never sent)"
+    points = gaps["points"].hole(tm[max(j0 - 1, 0):min(j1 + 1, len(tm))])
+    if points is not None:
+        return f"{span} was not judged: a gap of {points:.3g} s in the tracker's points across it"
+    return None
+
+
 def cycles_of(p, runs, same: float = SAME):
     """(indices of the runs that are cycles of the test path, indices of the other motions): the test path is
     the most frequent motion (start, end within ``same`` m, length within 1 %)."""

@@ -15,13 +15,16 @@
    the time alignment alone could then move the path by that much).
 
 Nothing measured is dropped silently: the points outside the test path's cycles are counted by why (the
-robot at rest, another motion, outside the joint states' time span). SI throughout.
+robot at rest, another motion, a cycle not judged, outside the joint states' time span). A cycle with a gap in
+its joint states or in the tracker's points across it (``ingest.StampGaps``: messages lost, or never sent) is
+not judged, its reason in ``not_judged``: interpolated across the gap, its figures would be wrong. SI throughout.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from . import path as P
+from ..ingest import StampGaps
 from .latency import estimate_latency
 from .checks import PLAUSIBLE_RESIDUAL, robot_reach, units_problem
 from .registration import kabsch
@@ -82,6 +85,18 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
     picked, others = P.cycles_of(p_c, runs)
     if not picked:
         raise ValueError("the command never moves: no path to judge (joint states at rest)")
+    gaps = {"joint_states": StampGaps(), "points": StampGaps()}
+    gaps["joint_states"].add(tj)
+    gaps["points"].add(tm)
+    holes = {}
+    for k in picked:
+        j0, j1 = np.searchsorted(tm - center, [tj[runs[k][0]], tj[runs[k][1]]])
+        why = P.hole_in_motion(gaps, tj, runs[k][0], runs[k][1], tm, int(j0), int(j1))
+        if why is not None:
+            holes[k] = why
+    if len(holes) == len(picked):
+        raise ValueError(f"every cycle of the path has a gap in its streams: {holes[picked[0]]}")
+    picked = [k for k in picked if k not in holes]
     _check(model, tm, pm, tj, qj)
     groups = [np.arange(*np.searchsorted(tm - center, [tj[runs[k][0]], tj[runs[k][1]]])) for k in picked]
     i0, i1 = runs[picked[0]]
@@ -129,12 +144,16 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
     segs = P.path_characteristics(cycles, bounds, stations, speed_window)
     in_cycle = np.zeros(len(tm), bool)
     in_other = np.zeros(len(tm), bool)
+    in_hole = np.zeros(len(tm), bool)
     for k, (i0, i1) in enumerate(runs):
         j0, j1 = np.searchsorted(ta, [tj[i0], tj[i1]])
-        (in_cycle if k in picked else in_other)[j0:j1] = True
-    in_other &= ~in_cycle
-    outside = {"points": int(len(tm) - in_cycle.sum()), "at_rest": int((inside & ~in_cycle & ~in_other).sum()),
-               "other_motions": int(in_other.sum()), "outside_joint_states": int((~inside).sum())}
+        (in_cycle if k in picked else in_hole if k in holes else in_other)[j0:j1] = True
+    in_hole &= ~in_cycle
+    in_other &= ~(in_cycle | in_hole)
+    outside = {"points": int(len(tm) - in_cycle.sum()),
+               "at_rest": int((inside & ~in_cycle & ~in_other & ~in_hole).sum()),
+               "other_motions": int(in_other.sum()), "not_judged": int(in_hole.sum()),
+               "outside_joint_states": int((~inside).sum())}
     v_max = max(s["v_c_m_s"] for s in segs)
     doc = {"robot": model.name, "source": source, "points": int(len(tm)), "joint_states": int(len(tj)),
            "latency_s": tau, "latency_std_s": lat_doc["std_s"], "latency": lat_doc,
@@ -143,7 +162,8 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
            "target_offset_m": None if offset is None else offset.tolist(),
            "cycles": len(picked), "other_motions": len(others), "path_length_m": float(ref.s[-1]),
            "speed_m_s": v_max, "segments": segs, "overall": P.overall(segs), "outside": outside,
-           "stations_per_segment": stations, "budget": None, "refused": None, "missed": []}
+           "stations_per_segment": stations, "budget": None, "refused": None, "missed": [],
+           "stream_gaps": {name: g.summary() for name, g in gaps.items()}, "not_judged": list(holes.values())}
     if budget is not None:
         _judge(doc, model, budget, ref, tj, qj, v_max, offset)
     return doc
