@@ -30,6 +30,10 @@ from numba.extending import intrinsic
 
 from .jit import NO_DX, NO_J, njit
 
+__all__ = ["BLOCK", "NO_DX", "NO_J", "SINCOS_LIMIT", "dh_chain", "sincos", "urdf_chain", "warm_up"]
+"""What ``base.CompiledChain`` and the tests read from this module (``NO_DX`` and ``NO_J``: the kernels' empty
+arrays, read here so that ``base`` imports no numba)."""
+
 BLOCK = 64  # poses per block: their joint angles' sines and cosines are computed together (SIMD)
 
 # sin and cos: reduction by pi/2 in three parts (Cody-Waite) and the fdlibm kernels' polynomials on
