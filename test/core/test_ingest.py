@@ -133,3 +133,15 @@ def test_stamp_gaps_judges_the_learning_intervals_and_starts_again_after_a_clock
     g.add(t[60:70] - 50.0)
     assert g.summary()["gaps"] == 2 and g.summary()["missing"] == 20
     assert g.add([np.nan]) == 0 and g.add([]) == 0
+
+
+def test_stamp_gaps_shorter_than_min_gap_are_a_late_timer_not_counted():
+    from tolerance_ros.core.ingest import StampGaps
+    t = _stream(50, 10.0)
+    late = np.concatenate([t[:100], t[105:300], t[350:]])    # a timer 0.1 s late, then 1 s of messages lost
+    strict, lenient = StampGaps(), StampGaps(min_gap=0.5)
+    strict.add(late)
+    lenient.add(late)
+    assert strict.summary()["gaps"] == 2 and strict.summary()["missing"] == 55
+    assert lenient.summary()["gaps"] == 1 and lenient.summary()["missing"] == 50
+    assert lenient.hole(late[95:110]) is None and strict.hole(late[95:110]) == pytest.approx(0.12)

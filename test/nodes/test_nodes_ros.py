@@ -151,7 +151,7 @@ def test_publisher_tracker_monitor_loop_and_markers(graph, ns, tmp_path):
     assert rep["counts"]["paired"] >= 20 and rep["counts"]["unpaired"] == 0
     assert rep["summary"]["verdicts"]["within"] == rep["counts"]["paired"]
     st = [s for d in diags for s in d.status if s.name == f"{ns}/tolerance_ros: accuracy monitor"][-1]
-    assert st.level == b"\x00" and any(kv.key == "paired" for kv in st.values)
+    assert st.level == b"\x00" and any(kv.key == "paired" for kv in st.values), st.message
     assert markers[0].markers[0].action == Marker.DELETEALL
     last = {(m.ns, m.id): m for m in markers[-1].markers}
     assert {("bound", 0), ("bound", 1), ("bound", 2)} <= set(last) and any(k[0] == "measurements" for k in last)
@@ -663,9 +663,9 @@ def test_a_measurement_stream_keeps_a_second_of_1khz_while_its_callback_runs_lat
 
 
 def test_the_monitor_warns_of_the_joint_states_its_queue_lost_while_its_callbacks_waited(ns, tmp_path):
-    """A monitor that does not take its joint states for a while (1,500 published at 1 kHz stamps, its queue
-    keeps 1,000): DDS drops the oldest 500 without a word; the monitor sees the hole in the stamps, says so on
-    its status and counts about 500 missing."""
+    """A monitor that does not take its joint states for a while (2,000 published at 1 kHz stamps, its queue
+    keeps 1,000): DDS drops the oldest 1,000 without a word; the monitor sees the hole in the stamps, says so on
+    its status and counts about 1,000 missing."""
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
     from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
@@ -693,7 +693,7 @@ def test_the_monitor_warns_of_the_joint_states_its_queue_lost_while_its_callback
 
         publish(range(300))
         assert take(300) == 300
-        publish(range(300, 1800))                   # while the monitor's callbacks wait
+        publish(range(300, 2300))                   # while the monitor's callbacks wait
         time.sleep(1.0)
         assert take(1300) == 1300
         for _ in range(20):
@@ -701,7 +701,7 @@ def test_the_monitor_warns_of_the_joint_states_its_queue_lost_while_its_callback
         executor.shutdown()
         assert mon.logic.counts["joint_states"] == 1300
         d = mon.diagnostic()
-        assert d["values"]["joint_states_gaps"] == "1" and d["values"]["joint_states_missing"] == "500", d
+        assert d["values"]["joint_states_gaps"] == "1" and d["values"]["joint_states_missing"] == "1000", d
         assert "joint_states: 1 gap(s)" in d["message"], d["message"]
     finally:
         g.close()

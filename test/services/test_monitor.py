@@ -234,3 +234,7 @@ def test_the_messages_a_stream_lost_are_seen_in_its_stamps_and_warned_of(gao, se
     for k in range(3000):
         complete.on_joint_state(t[k], gao.joint_names, qk[0])
     assert "gap" not in complete.diagnostic()["message"] and complete.report()["stream_gaps"]["joint_states"]["gaps"] == 0
+    late = MonitorLogic(gao, None, None, slop=0.01, max_wait=0.5, T_tracker_base=T_TB)   # a timer 0.1 s late once
+    for k in np.r_[0:1000, 1100:3000]:
+        late.on_joint_state(t[k], gao.joint_names, qk[0])
+    assert "gap" not in late.diagnostic()["message"] and late.report()["stream_gaps"]["joint_states"]["gaps"] == 0

@@ -165,3 +165,13 @@ def test_a_motion_with_lost_messages_is_not_judged_and_the_loss_is_warned_of(gao
     assert offline["stream_gaps"][stream]["gaps"] == 1
     for on, off in zip(reports[-1]["segments"], offline["segments"]):
         assert on["AT_p_m"] == pytest.approx(off["AT_p_m"], rel=1e-9) and on["RT_p_m"] == pytest.approx(off["RT_p_m"], rel=1e-9)
+
+
+def test_a_short_gap_while_the_robot_rests_is_counted_but_judges_every_motion(gao, rect):
+    """20 ms of joint states missing before the first motion (a timer late once): every cycle is judged and the
+    status stays OK; the gap is counted in the report."""
+    st = _without(rect, joints=(rect.joint_stamps[0] + 0.1, rect.joint_stamps[0] + 0.12))
+    mon = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
+    reports = feed(mon, st)
+    assert [r["cycles"] for r in reports] == [1, 2, 3, 4] and mon.counts["not_judged"] == 0
+    assert reports[-1]["stream_gaps"]["joint_states"]["gaps"] == 1 and mon.status()[0] == OK

@@ -190,13 +190,16 @@ class StampGaps:
     publisher, a tracker that lost its beam); what a reader cannot otherwise count, since it never got them.
 
     The period is the median of the latest ``window`` intervals (refreshed every ``refresh``); an interval longer
-    than ``factor`` periods is a gap, worth ``round(interval / period) - 1`` missing messages. Judged only once
+    than ``factor`` periods and than ``min_gap`` s is a gap, worth ``round(interval / period) - 1`` missing
+    messages (``min_gap``: a publisher's timer that fires late stamps a gap too, of a few periods). Judged only once
     ``learn`` intervals are in and while the stream is regular (nine in ten of the latest intervals within twice
     the period): a stream of single measurements, sent when taken, has no gaps to find. A stamp earlier than
     the previous one (a restarted clock) starts the intervals again. ``add`` takes one stamp or an array (s)."""
 
-    def __init__(self, factor: float = 5.0, learn: int = 20, window: int = 256, refresh: int = 32):
+    def __init__(self, factor: float = 5.0, learn: int = 20, window: int = 256, refresh: int = 32,
+                 min_gap: float = 0.0):
         self.factor, self.learn, self.window, self.refresh = float(factor), int(learn), int(window), int(refresh)
+        self.min_gap = float(min_gap)
         self.intervals = np.zeros(0)    # the latest ``window`` intervals, s
         self.last = None                # the previous stamp, s
         self.seen = 0                   # intervals taken in
@@ -223,7 +226,7 @@ class StampGaps:
                 self.seen += 1
                 self.unsorted += 1
                 self.intervals = np.append(self.intervals[1 - self.window:], d)
-                return self._judge(np.array([d]), t) if self.regular and d > self.factor * self.period else 0
+                return self._judge(np.array([d]), t) if self.regular and d > self._threshold() else 0
         d = np.diff(np.concatenate([[self.last], t])) if self.last is not None else np.diff(t)
         back = np.flatnonzero(d < 0)
         if back.size:                       # a clock that restarted: judge up to it, start again from it
@@ -254,8 +257,11 @@ class StampGaps:
         self.regular = self.period > 0 and float(np.quantile(self.intervals, 0.9)) <= 2.0 * self.period
         self.unsorted = 0
 
+    def _threshold(self) -> float:
+        return max(self.factor * self.period, self.min_gap)
+
     def _judge(self, d, ends) -> int:
-        big = d > self.factor * self.period
+        big = d > self._threshold()
         if not big.any():
             return 0
         gap = d[big]
@@ -272,7 +278,7 @@ class StampGaps:
         if self.period is None or not self.regular or t.size < 2:
             return None
         longest = float(np.max(np.diff(t)))
-        return longest if longest > self.factor * self.period else None
+        return longest if longest > self._threshold() else None
 
     def summary(self) -> dict:
         """JSON-ready: gaps, missing (about), longest_gap_s, period_s, regular, last_gap_end_s, restarts."""

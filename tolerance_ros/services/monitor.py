@@ -29,6 +29,10 @@ from .contracts import check_budget
 from .guards import summary
 
 OK, WARN, ERROR = 0, 1, 2
+MIN_GAP_S = 0.5
+"""The shortest gap in a stream's stamps the monitor warns of: a publisher's timer late by a tenth of a second
+(a node starting beside it) stamps a gap of a few periods though nothing was lost; the static measurements
+this monitor judges lose nothing to it. (The path monitor holds every gap of 5 periods against a motion.)"""
 MAX_FRAME_CHARS = 100  # of a measurement's frame_id in the campaign log
 
 
@@ -63,7 +67,7 @@ class MonitorLogic:
         self.check = StreamCheck(model)
         topic = "measured_pose" if self.orientation else "measured_point"
         self.streams = ["joint_states"] + [f"{topic}/{n}" if n else topic for n in self.targets.names]
-        self.gaps = {name: StampGaps() for name in self.streams}   # what never arrived, seen in the stamps
+        self.gaps = {name: StampGaps(min_gap=MIN_GAP_S) for name in self.streams}   # what never arrived
         self.last = None
         self.last_reasons = deque(maxlen=20)
         self.log = None

@@ -26,6 +26,7 @@ from ..core.ingest import IngestError, JointOrder, StampGaps, stamp_seconds
 from ..core.accuracy.latency import estimate_latency
 from ..core.accuracy.path_report import LATENCY_SHARE, command_points
 from ..core.accuracy.registration import KabschAccumulator, kabsch
+from .monitor import MIN_GAP_S
 
 OK, WARN, ERROR = 0, 1, 2
 
@@ -346,10 +347,11 @@ class PathMonitor:
         return doc
 
     def status(self) -> tuple:
-        """(level OK/WARN/ERROR, message) for /diagnostics; the streams' gaps make an OK a WARN."""
+        """(level OK/WARN/ERROR, message) for /diagnostics; a motion not judged, or a gap of ``MIN_GAP_S`` in a
+        stream, makes an OK a WARN (a timer late once, away from the motions, does not)."""
         level, message = self._status()
-        lost = [line for line in (g.describe(s) for s, g in self.gaps.items()) if line]
-        if lost:
+        lost = [g.describe(s) for s, g in self.gaps.items() if g.gaps and (self.holes or g.longest > MIN_GAP_S)]
+        if lost or self.holes:
             level, message = max(level, WARN), "; ".join([message] + lost + self.holes[-1:])
         return level, message
 
