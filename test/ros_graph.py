@@ -27,6 +27,18 @@ class Graph:
             self.thread = threading.Thread(target=self._spin, daemon=True)
             self.thread.start()
 
+    def _finish_callbacks(self, timeout):
+        """Wait for the callbacks the executor's pool still runs, and raise what they raised, before the nodes
+        are destroyed: Jazzy's ``Executor.shutdown`` does not wait for them (it tests ``_is_shutdown`` just after
+        setting it), and a timer callback that runs after its node's destruction fails with "cannot use
+        Destroyable", printed as an exception never retrieved."""
+        deadline = time.monotonic() + timeout
+        for task in list(getattr(self.executor, "_futures", [])):
+            while not task.done() and time.monotonic() < deadline:
+                time.sleep(0.01)
+            if task.done():
+                task.result()
+
     def _spin(self):
         """``executor.spin()`` until close(): the thread has left the executor before close() shuts it down
         (``Executor.shutdown`` destroys the guard condition a spinning thread still waits on)."""
@@ -56,6 +68,7 @@ class Graph:
         if self.executor is not None:
             self._stop.set()
             self.thread.join(timeout=5.0)
+            self._finish_callbacks(5.0)
             self.executor.shutdown(timeout_sec=5.0)
         for n in self.nodes:
             if hasattr(n, "close"):
