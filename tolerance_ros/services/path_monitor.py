@@ -252,60 +252,60 @@ class PathMonitor:
         return True
 
     def _take(self, i0, i1) -> list:
-        """Judge the motion [i0, i1] of the buffer, count the points before it, drop the buffer up to its end."""
-        tau = self.latency
-        ta = self.tm - tau
+        """Judge the motion [i0, i1] of the buffer, unless a gap in its streams leaves it not judged; count the
+        points before it, drop the buffer up to its end."""
+        ta = self.tm - self.latency
         j0, j1 = np.searchsorted(ta, [self.tj[i0], self.tj[i1]])
         hole = P.hole_in_motion(self.gaps, self.tj, i0, i1, self.tm, j0, j1)
-        if hole is not None:                           # interpolated across lost messages: not judged
-            before = ta[:j0] < self.first_joint
-            self.counts["outside_joint_states"] += int(before.sum())
-            self.counts["at_rest"] += int((~before).sum())
-            self.counts["motions"] += 1
-            self.counts["not_judged"] += int(j1 - j0)
-            self.holes = (self.holes + [hole])[-10:]
-            self.tm, self.pm = self.tm[j1:], self.pm[j1:]
-            self.tj, self.qj, self.pc = self.tj[i1:], self.qj[i1:], self.pc[i1:]
-            return []
-        sel = slice(int(np.searchsorted(ta, self.first_joint)), j1)
-        self.pairs.add(P.interp_columns(ta[sel], self.tj, self.pc), self.pm[sel])
-        if not self.given_A and self.pairs.n >= 3:
-            try:
-                self.A = self.pairs.result()
-            except ValueError:
-                pass
-        before = ta[:j0]
-        early = before < self.first_joint
+        if hole is None:                               # the placement learns from the motions judged only
+            sel = slice(int(np.searchsorted(ta, self.first_joint)), j1)
+            self.pairs.add(P.interp_columns(ta[sel], self.tj, self.pc), self.pm[sel])
+            if not self.given_A and self.pairs.n >= 3:
+                try:
+                    self.A = self.pairs.result()
+                except ValueError:
+                    pass
+        early = ta[:j0] < self.first_joint
         self.counts["outside_joint_states"] += int(early.sum())
         self.counts["at_rest"] += int((~early).sum())
-        tc, pc = self.tj[i0:i1 + 1], self.pc[i0:i1 + 1]
         self.counts["motions"] += 1
+        if hole is None:
+            report = self._judge(i0, i1, j0, j1, ta)
+        else:                                          # interpolated across lost messages: not judged
+            self.counts["not_judged"] += int(j1 - j0)
+            self.holes = (self.holes + [hole])[-10:]
+            report = []
+        self.tm, self.pm = self.tm[j1:], self.pm[j1:]
+        self.tj, self.qj, self.pc = self.tj[i1:], self.qj[i1:], self.pc[i1:]
+        return report
+
+    def _judge(self, i0, i1, j0, j1, ta) -> list:
+        """The stations of the motion [i0, i1] (its points [j0, j1), ``ta`` their aligned stamps) added to its
+        path's group; the group's report, or none (no group left for a new path, or no stations)."""
+        tc, pc = self.tj[i0:i1 + 1], self.pc[i0:i1 + 1]
         group = next((g for g in self.groups if g.matches(pc)), None)
-        report = []
         if group is None and len(self.groups) < self.max_groups:
             group = _Group(pc, P.segment_bounds(P.arc_length(pc)[-1], P.corners(pc)))
             self.groups.append(group)
         if group is None:
             self.counts["not_judged"] += j1 - j0
-        else:
-            R, t = self.A[:3, :3], self.A[:3, 3]
-            a = (self.pm[j0:j1] - t) @ R
-            cyc = P.Cycle(tc, pc, P.arc_length(pc), ta[j0:j1], a)
-            try:
-                st = P.cycle_stations(cyc, group.bounds, self.stations, self.speed_window)
-                st["x"] = st["x"] @ R.T + t                # kept in the tracker's frame
-                group.per.append(st)
-                group.cycles += 1
-                group.per = group.per[-self.max_cycles:]
-                group.points = getattr(group, "points", 0) + (j1 - j0)
-                self.last = self._report(group)
-                report.append(self.last)
-                self.counts["on_path" if group is self.best() else "other_motions"] += j1 - j0
-            except ValueError:
-                self.counts["not_judged"] += j1 - j0
-        self.tm, self.pm = self.tm[j1:], self.pm[j1:]
-        self.tj, self.qj, self.pc = self.tj[i1:], self.qj[i1:], self.pc[i1:]
-        return report
+            return []
+        R, t = self.A[:3, :3], self.A[:3, 3]
+        a = (self.pm[j0:j1] - t) @ R
+        cyc = P.Cycle(tc, pc, P.arc_length(pc), ta[j0:j1], a)
+        try:
+            st = P.cycle_stations(cyc, group.bounds, self.stations, self.speed_window)
+            st["x"] = st["x"] @ R.T + t                # kept in the tracker's frame
+            group.per.append(st)
+            group.cycles += 1
+            group.per = group.per[-self.max_cycles:]
+            group.points = getattr(group, "points", 0) + (j1 - j0)
+            self.last = self._report(group)
+        except ValueError:
+            self.counts["not_judged"] += j1 - j0
+            return []
+        self.counts["on_path" if group is self.best() else "other_motions"] += j1 - j0
+        return [self.last]
 
     def _bound_memory(self):
         """Samples older than ``max_buffer`` s that no motion took (the robot never rested) are dropped and
