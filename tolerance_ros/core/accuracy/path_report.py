@@ -85,12 +85,13 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
     picked, others = P.cycles_of(p_c, runs)
     if not picked:
         raise ValueError("the command never moves: no path to judge (joint states at rest)")
+    tm_c = tm - center                      # the tracker's stamps about aligned (before the latency is known)
     gaps = {"joint_states": StampGaps(), "points": StampGaps()}
     gaps["joint_states"].add(tj)
     gaps["points"].add(tm)
     holes = {}
     for k in picked:
-        j0, j1 = np.searchsorted(tm - center, [tj[runs[k][0]], tj[runs[k][1]]])
+        j0, j1 = np.searchsorted(tm_c, [tj[runs[k][0]], tj[runs[k][1]]])
         why = P.hole_in_motion(gaps, tj, runs[k][0], runs[k][1], tm, int(j0), int(j1))
         if why is not None:
             holes[k] = why
@@ -98,7 +99,7 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
         raise ValueError(f"every cycle of the path has a gap in its streams: {holes[picked[0]]}")
     picked = [k for k in picked if k not in holes]
     _check(model, tm, pm, tj, qj)
-    groups = [np.arange(*np.searchsorted(tm - center, [tj[runs[k][0]], tj[runs[k][1]]])) for k in picked]
+    groups = [np.arange(*np.searchsorted(tm_c, [tj[runs[k][0]], tj[runs[k][1]]])) for k in picked]
     i0, i1 = runs[picked[0]]
     s_ref = P.arc_length(p_c[i0:i1 + 1])
     bounds = P.segment_bounds(s_ref[-1], P.corners(p_c[i0:i1 + 1]))
@@ -109,7 +110,7 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
         s_k = P.arc_length(p_c[a:b + 1])
         t_b = np.interp(cuts * s_k[-1] / cuts[-1], s_k, tj[a:b + 1])
         for j in range(len(cuts) - 1):
-            parts[j].append(np.arange(*np.searchsorted(tm - center, [t_b[j], t_b[j + 1]])))
+            parts[j].append(np.arange(*np.searchsorted(tm_c, [t_b[j], t_b[j + 1]])))
     parts = [np.concatenate(p) for p in parts]
     if latency is None:
         lat = estimate_latency(tm, pm, tj, p_c, window, center, reg, groups, parts)
