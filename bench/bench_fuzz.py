@@ -33,6 +33,7 @@ for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 import argparse  # noqa: E402
+import importlib  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import multiprocessing  # noqa: E402
@@ -66,7 +67,7 @@ SOLVES = "(a solve of this batch)"  # what the answers of the allocator's solves
 
 def ros_available() -> bool:
     try:
-        import rclpy  # noqa: F401
+        importlib.import_module("rclpy")
     except ImportError:
         return False
     return True

@@ -9,7 +9,9 @@ import numpy as np
 
 from tolerance_ros.core.models import DHChain
 from tolerance_ros.core.geometry import matrix_log_vec, transform
-from tolerance_ros.testing.example_robots import example_urdf  # noqa: F401  (the tests import it from here)
+from tolerance_ros.testing import example_robots
+
+example_urdf = example_robots.example_urdf  # the tests import it from here
 
 
 def pose_difference(Tp, Tm):
