@@ -3,8 +3,9 @@
 Each job runs as a user runs it (``python -m tolerance_ros.cli ...``, a fresh process): first on an empty
 kernel cache (``NUMBA_CACHE_DIR`` a new folder: the kernels compile in a background child while the job
 starts on the numpy path and switches to each kernel family as it is ready), then, once that child has
-filled the cache, again on the warm cache. Printed side by side: the seconds of each, their ratio, and the
-longest time the progress on stderr stood still in each run. Target: the first run within 1.3x of the
+filled the cache, again on the warm cache. Printed side by side: the seconds of each, the ratio of the first
+run to the mean of the second runs just before and just after it (``measure``), and the longest time the
+progress on stderr stood still in each run. Target: the first run within 1.3x of the
 second, and the progress never still for more than 2 s; exits 1 when a job misses either. ``--busy N``
 runs N busy loops beside the jobs, each a session of its own (a loaded machine, reproducibly);
 ``--repeat N`` measures each job N times, each from a new empty cache, and prints the medians (a VM's speed
@@ -112,22 +113,42 @@ def main():
     return 1 if missed else 0
 
 
+def fill(cache, busy=()):
+    """Fill ``cache`` with every kernel family (the background child's work, in the foreground), the ``busy``
+    loops stopped meanwhile."""
+    for proc in busy:
+        proc.send_signal(signal.SIGSTOP)
+    try:
+        subprocess.run([sys.executable, "-m", "tolerance_ros.core.models.warmup"], env=child_env(cache),
+                       stdout=subprocess.DEVNULL, check=True)
+    finally:
+        for proc in busy:
+            proc.send_signal(signal.SIGCONT)
+
+
 def measure(names, repeat=1, busy=()):
     """Rows (job, cold s, warm s, ratio, still cold, still warm, exit codes) and the targets missed; with
-    ``repeat`` the median seconds and ratio, the longest stillness and the worst exit codes; the ``busy``
-    loops are stopped while the cache fills between the two runs of a pair."""
+    ``repeat`` the median seconds and ratio, the longest stillness and the worst exit codes. Each first run
+    is bracketed by two second runs, the one before it and its own after it (on the cache its child
+    filled), and its ratio is to their mean: a VM whose speed drifts between runs moves both sides alike.
+    The ``busy`` loops are stopped while a cache fills."""
     rows, missed = [], []
     for name in names:
         runs = []
+        with tempfile.TemporaryDirectory() as cache:
+            fill(cache, busy)
+            before, before_still, c0 = run(JOBS[name], cache)
         for _ in range(repeat):
             with tempfile.TemporaryDirectory() as cache:
                 cold, cold_still, c1 = run(JOBS[name], cache)
                 if not wait_filled(cache, busy):
                     raise SystemExit("the background child did not fill the cache")
                 warm, warm_still, c2 = run(JOBS[name], cache)
-            runs.append((cold, warm, cold / warm, cold_still, warm_still, c1, c2))
-            print(f"  {name} run {len(runs)}: first {cold:.1f} s, second {warm:.1f} s, ratio {cold / warm:.2f}",
-                  flush=True)
+            ratio = cold / (0.5 * (before + warm))
+            runs.append((cold, warm, ratio, cold_still, max(warm_still, before_still), c1, max(c0, c2)))
+            print(f"  {name} run {len(runs)}: first {cold:.1f} s, second runs {before:.1f} s before and {warm:.1f} s "
+                  f"after, ratio {ratio:.2f}", flush=True)
+            before, before_still, c0 = warm, warm_still, c2
         cold, warm, ratio = (float(np.median([r[k] for r in runs])) for k in range(3))
         cold_still, warm_still = max(r[3] for r in runs), max(r[4] for r in runs)
         c1, c2 = max(r[5] for r in runs), max(r[6] for r in runs)
@@ -137,7 +158,6 @@ def measure(names, repeat=1, busy=()):
         if max(cold_still, warm_still) > STILL_S:
             missed.append(f"{name}: the progress stood still for {max(cold_still, warm_still):.1f} s (target {STILL_S} s)")
     return rows, missed
-
 
 if __name__ == "__main__":
     sys.exit(main())
