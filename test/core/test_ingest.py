@@ -145,3 +145,47 @@ def test_stamp_gaps_shorter_than_min_gap_are_a_late_timer_not_counted():
     assert strict.summary()["gaps"] == 2 and strict.summary()["missing"] == 55
     assert lenient.summary()["gaps"] == 1 and lenient.summary()["missing"] == 50
     assert lenient.hole(late[95:110]) is None and strict.hole(late[95:110]) == pytest.approx(0.12)
+
+
+def _reader(t, stall_from, stall_s, depth, latency=2e-4, clock_offset=0.0):
+    """What a reader with a keep-last queue of ``depth`` takes of a live stream stamped ``t`` (s) when its callbacks
+    stop from ``stall_from`` (s) for ``stall_s``: (stamps taken, the reader's clock when it took each)."""
+    taken, received, queue, now = [], [], [], 0.0
+    for k, stamp in enumerate(t):
+        queue.append(stamp)
+        queue = queue[-depth:]                      # DDS keep-last drops the oldest without a word
+        now = stamp + latency
+        if not stall_from <= now < stall_from + stall_s:
+            while queue:                            # the reader takes its backlog, quickly
+                taken.append(queue.pop(0))
+                received.append(now + clock_offset)
+                now += 1e-6
+    return np.array(taken), np.array(received)
+
+
+def test_stamp_gaps_shorter_than_min_gap_are_counted_when_the_reader_was_behind_and_its_queue_overflowed():
+    """A 1 kHz stream, a queue of 1,000, a reader stalled for 1.3 s: 300 messages dropped, a 0.3 s hole, under
+    ``min_gap``; the message after it was 1 s old when taken, so the hole is counted (and said to be the reader's),
+    in any clock offset and in batches alike. The same hole from a publisher that paused is not."""
+    from tolerance_ros.core.ingest import StampGaps
+    t = _stream(1000, 4.0, jitter=0.1)
+    taken, received = _reader(t, 101.0, 1.3, 1000)
+    assert abs(len(t) - len(taken) - 300) <= 1
+    for offset in (0.0, -1.7e9, 3.5):                 # the reader's clock: ROS time, or any other time base
+        for split in (1, 7, len(taken)):
+            g = StampGaps(min_gap=0.5)
+            found = sum(g.add(a, b) for a, b in zip(np.array_split(taken, split), np.array_split(received + offset, split)))
+            s = g.summary()
+            assert found == s["gaps"] == 1 and s["behind"] == 1 and abs(s["missing"] - 300) <= 3, (offset, split, s)
+            assert "while this reader was behind" in g.describe("joint_states")
+    without = StampGaps(min_gap=0.5)                  # no reader's clock: the hole is under min_gap
+    without.add(taken)
+    assert without.summary()["gaps"] == 0
+    paused = np.delete(t, np.r_[1000:1300])           # the publisher sent nothing for 0.3 s; the reader kept up
+    g = StampGaps(min_gap=0.5)
+    for stamp in paused:
+        g.add(stamp, stamp + 2e-4)
+    assert g.summary()["gaps"] == 0 and g.summary()["behind"] == 0
+    g.add(paused[-1] + 0.8, paused[-1] + 0.8 + 2e-4)  # a 0.8 s pause is a gap by min_gap, not the reader's
+    assert g.summary()["gaps"] == 1 and g.summary()["behind"] == 0
+    assert "behind" not in g.describe("joint_states")

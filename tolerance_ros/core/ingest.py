@@ -194,7 +194,17 @@ class StampGaps:
     messages (``min_gap``: a publisher's timer that fires late stamps a gap too, of a few periods). Judged only once
     ``learn`` intervals are in and while the stream is regular (nine in ten of the latest intervals within twice
     the period): a stream of single measurements, sent when taken, has no gaps to find. A stamp earlier than
-    the previous one (a restarted clock) starts the intervals again. ``add`` takes one stamp or an array (s)."""
+    the previous one (a restarted clock) starts the intervals again. ``add`` takes one stamp or an array (s).
+
+    With ``received`` (the reader's clock when it took each message, s, in the stamps' time base: ROS time) a
+    gap shorter than ``min_gap`` is a gap too when the message after it waited in the reader's queue: its lag
+    (received - stamp) more than ``factor`` periods and ``BEHIND_S`` over the previous message's. That is how
+    a queue that overflowed looks (DDS keeps the latest ``depth`` and drops the older ones, so the message
+    after the hole is ``depth`` periods old when taken), and not how a late publisher looks; ``behind``
+    counts such gaps."""
+
+    BEHIND_S = 0.05
+    """s: a lag this much above the previous message's (and ``factor`` periods) means the message waited."""
 
     def __init__(self, factor: float = 5.0, learn: int = 20, window: int = 256, refresh: int = 32,
                  min_gap: float = 0.0):
@@ -211,12 +221,21 @@ class StampGaps:
         self.longest = 0.0              # s
         self.last_gap = None            # (stamp at the gap's end s, its length s)
         self.restarts = 0
-        self._learning = (np.zeros(0), np.zeros(0))  # (intervals, their end stamps) before the period is known
+        self.behind = 0                 # gaps found while the reader was behind (its queue overflowed)
+        self.last_lag = None            # received - stamp of the previous message, s (with ``received``)
+        self._learning = (np.zeros(0), np.zeros(0), np.zeros(0))  # (intervals, their end stamps, lag rises) before
+        # the period is known
 
-    def add(self, stamps) -> int:
-        """Take the next stamp(s) in arrival order; returns how many new gaps they show."""
+    def add(self, stamps, received=None) -> int:
+        """Take the next stamp(s) in arrival order, with the reader's clock when it took each (``received``, s,
+        optional); returns how many new gaps they show."""
         t = np.asarray(stamps, dtype=float).reshape(-1)
-        t = t[np.isfinite(t)]
+        r = None if received is None else np.broadcast_to(np.asarray(received, dtype=float).reshape(-1), t.shape)
+        if r is not None:
+            keep = np.isfinite(t) & np.isfinite(r)
+            t, r = t[keep], r[keep]
+        else:
+            t = t[np.isfinite(t)]
         if t.size == 0:
             return 0
         if t.size == 1 and self.period is not None and self.last is not None and self.unsorted + 1 < self.refresh:
@@ -226,31 +245,43 @@ class StampGaps:
                 self.seen += 1
                 self.unsorted += 1
                 self.intervals = np.append(self.intervals[1 - self.window:], d)
-                return self._judge(np.array([d]), t) if self.regular and d > self._threshold() else 0
+                waited = None
+                if r is not None:
+                    lag = float(r[0]) - self.last
+                    waited = None if self.last_lag is None else np.array([lag - self.last_lag])
+                    self.last_lag = lag
+                if self.regular and d > self.factor * self.period and (d > self.min_gap or waited is not None):
+                    return self._judge(np.array([d]), t, waited)
+                return 0
         d = np.diff(np.concatenate([[self.last], t])) if self.last is not None else np.diff(t)
         back = np.flatnonzero(d < 0)
         if back.size:                       # a clock that restarted: judge up to it, start again from it
-            head = t[:back[0] + (0 if self.last is not None else 1)]
-            found = self.add(head) if head.size else 0
+            cut = back[0] + (0 if self.last is not None else 1)
+            found = self.add(t[:cut], None if r is None else r[:cut]) if cut else 0
             self.restarts += 1
-            self.last = None
-            return found + self.add(t[head.size:])
+            self.last = self.last_lag = None
+            return found + self.add(t[cut:], None if r is None else r[cut:])
         ends = t[t.size - d.size:]
+        waited = np.full(d.size, -np.inf)  # how much each interval's end lag rose over its start's; unknown: -inf
+        if r is not None:
+            lags = r - t
+            rise = np.diff(np.concatenate([[self.last_lag], lags]) if self.last_lag is not None else lags)
+            waited[d.size - rise.size:] = rise
+            self.last_lag = float(lags[-1])
         self.last = float(t[-1])
         self.intervals = np.concatenate([self.intervals, d])[-self.window:]
         self.seen += d.size
         self.unsorted += d.size
         if self.period is None:
-            d = np.concatenate([self._learning[0], d])
-            ends = np.concatenate([self._learning[1], ends])
+            d, ends, waited = (np.concatenate([a, b]) for a, b in zip(self._learning, (d, ends, waited)))
             if self.seen < self.learn:
-                self._learning = (d, ends)  # fewer than ``learn``
+                self._learning = (d, ends, waited)  # fewer than ``learn``
                 return 0
-            self._learning = (np.zeros(0), np.zeros(0))
+            self._learning = (np.zeros(0), np.zeros(0), np.zeros(0))
             self._update()                  # the learning intervals are judged too
         elif self.unsorted >= self.refresh:
             self._update()
-        return self._judge(d, ends) if self.regular else 0
+        return self._judge(d, ends, waited) if self.regular else 0
 
     def _update(self):
         self.period = float(np.median(self.intervals))
@@ -260,8 +291,14 @@ class StampGaps:
     def _threshold(self) -> float:
         return max(self.factor * self.period, self.min_gap)
 
-    def _judge(self, d, ends) -> int:
+    def _judge(self, d, ends, waited=None) -> int:
+        """Count the gaps among the intervals ``d`` ending at the stamps ``ends``; ``waited``: how much the lag of
+        each interval's end rose over its start's (s; None without ``received``)."""
         big = d > self._threshold()
+        if waited is not None and waited.size and waited.max() > self.BEHIND_S:
+            queued = (d > self.factor * self.period) & (waited > max(self.factor * self.period, self.BEHIND_S))
+            self.behind += int(np.count_nonzero(queued))
+            big |= queued
         if not big.any():
             return 0
         gap = d[big]
@@ -281,14 +318,16 @@ class StampGaps:
         return longest if longest > self._threshold() else None
 
     def summary(self) -> dict:
-        """JSON-ready: gaps, missing (about), longest_gap_s, period_s, regular, last_gap_end_s, restarts."""
+        """JSON-ready: gaps, missing (about), longest_gap_s, period_s, regular, last_gap_end_s, restarts, behind."""
         return {"gaps": self.gaps, "missing": self.missing, "longest_gap_s": self.longest, "period_s": self.period,
                 "regular": self.regular, "last_gap_end_s": None if self.last_gap is None else self.last_gap[0],
-                "restarts": self.restarts}
+                "restarts": self.restarts, "behind": self.behind}
 
     def describe(self, stream: str) -> str | None:
         """One line for a status message, or None without gaps."""
         if not self.gaps:
             return None
+        where = (f"; {self.behind} while this reader was behind: its queue overflowed, raise its depth or "
+                 f"lighten its callbacks" if self.behind else "")
         return (f"{stream}: {self.gaps} gap(s) in the stamps, the longest {self.longest:.3g} s (about {self.missing:,} "
-                f"message(s) at {self.period:.3g} s each lost on the way, or never sent)")
+                f"message(s) at {self.period:.3g} s each lost on the way, or never sent{where})")
