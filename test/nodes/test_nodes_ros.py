@@ -705,3 +705,50 @@ def test_the_monitor_warns_of_the_joint_states_its_queue_lost_while_its_callback
         assert "joint_states: 1 gap(s)" in d["message"], d["message"]
     finally:
         g.close()
+
+
+def test_the_monitor_warns_of_a_short_hole_its_overflowing_queue_made_in_a_live_stream(ns, tmp_path):
+    """A live 1 kHz joint-state stream (stamped with the time it is sent) whose monitor stops taking it for 1.3 s:
+    its queue keeps the latest 1,000, DDS drops 300 (a 0.3 s hole, under the 0.5 s a late publisher is allowed);
+    the message after the hole is 1 s old when taken, so the monitor counts the hole and says it was behind."""
+    from builtin_interfaces.msg import Time
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Header
+    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
+    g = Graph(spin=False)
+    try:
+        mon = g.start(AccuracyMonitor, ns, log_dir=str(tmp_path), report_period=3600.0, marker_period=3600.0)
+        pub_node = g.node(f"controller_{uuid.uuid4().hex[:6]}", ns)
+        pub = pub_node.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+        assert wait_for(lambda: pub.get_subscription_count() > 0, 20)
+        executor = SingleThreadedExecutor(context=g.context)
+        executor.add_node(mon)
+        names = list(mon.logic.model.joint_names)
+        t0 = mon.get_clock().now().nanoseconds * 1e-9 + 0.1
+
+        def send(k):                                # at its stamp's time, as a controller does
+            stamp = t0 + k * 1e-3
+            while mon.get_clock().now().nanoseconds * 1e-9 < stamp:
+                pass
+            sec = int(stamp)
+            header = Header(stamp=Time(sec=sec, nanosec=int((stamp - sec) * 1e9)))
+            pub.publish(JointState(header=header, name=names, position=Q))
+
+        for k in range(300):                        # taken as they come
+            send(k)
+            executor.spin_once(timeout_sec=0.0)
+        while mon.logic.counts["joint_states"] < 300:
+            executor.spin_once(timeout_sec=0.05)
+        for k in range(300, 1600):                  # 1.3 s while the monitor's callbacks wait
+            send(k)
+        deadline = time.monotonic() + 20
+        while mon.logic.counts["joint_states"] < 1300 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        executor.shutdown()
+        assert mon.logic.counts["joint_states"] == 1300
+        d = mon.diagnostic()
+        assert d["values"]["joint_states_gaps"] == "1" and abs(int(d["values"]["joint_states_missing"]) - 300) <= 5, d
+        assert "joint_states: 1 gap(s)" in d["message"] and "while this reader was behind" in d["message"], d["message"]
+    finally:
+        g.close()

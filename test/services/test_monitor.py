@@ -238,3 +238,23 @@ def test_the_messages_a_stream_lost_are_seen_in_its_stamps_and_warned_of(gao, se
     for k in np.r_[0:1000, 1100:3000]:
         late.on_joint_state(t[k], gao.joint_names, qk[0])
     assert "gap" not in late.diagnostic()["message"] and late.report()["stream_gaps"]["joint_states"]["gaps"] == 0
+
+
+def test_a_short_hole_is_warned_of_when_the_monitor_was_behind_and_its_queue_overflowed(gao, setup):
+    """0.3 s of a 1 kHz stream lost while the monitor's callbacks waited (a queue of 1,000: the message after
+    the hole is 1 s old when taken): under the 0.5 s of a late publisher, yet warned of, as the monitor's own
+    loss, with the ROS time each message was taken; without it (offline) the hole is a late timer."""
+    mon, sim, qk, clock, log = setup
+    t = 100.0 + np.arange(3000) * 1e-3
+    taken = np.r_[0:1000, 1300:3000]
+    received = np.where(taken < 2300, t[2300] + (taken - 1300) * 1e-6, t[taken] + 2e-4)
+    received[taken < 1000] = t[taken[taken < 1000]] + 2e-4
+    offline = MonitorLogic(gao, None, None, slop=0.01, max_wait=0.5, T_tracker_base=T_TB)
+    for k, r in zip(taken, received):
+        mon.on_joint_state_msg(joint_state(t[k], gao.joint_names, qk[0]), received=r)
+        offline.on_joint_state(t[k], gao.joint_names, qk[0])
+    d = mon.diagnostic()
+    assert d["level"] == WARN and "joint_states: 1 gap(s)" in d["message"] and "about 300 message(s)" in d["message"]
+    assert "while this reader was behind" in d["message"]
+    assert mon.report()["stream_gaps"]["joint_states"]["behind"] == 1
+    assert "gap" not in offline.diagnostic()["message"]

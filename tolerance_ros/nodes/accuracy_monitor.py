@@ -211,10 +211,11 @@ class AccuracyMonitor(Node):
             if self.logic is None:
                 self.waiting["measurements"] += 1
                 return
+            received = self.get_clock().now().nanoseconds * 1e-9
             if self.measurement == "point":
-                self.logic.on_point_msg(msg, target)
+                self.logic.on_point_msg(msg, target, received)
             else:
-                self.logic.on_pose_msg(msg, target)
+                self.logic.on_pose_msg(msg, target, received)
             if self.path is not None and target == self.targets.names[0]:
                 (self.path.on_point_msg if self.measurement == "point" else self.path.on_pose_msg)(msg)
         on_measurement.__name__ = f"on_measurement{'_' + target if target else ''}"
@@ -224,7 +225,7 @@ class AccuracyMonitor(Node):
         if self.logic is None:
             self.waiting["joint_states"] += 1
             return
-        self.logic.on_joint_state_msg(msg)
+        self.logic.on_joint_state_msg(msg, self.get_clock().now().nanoseconds * 1e-9)
         if self.path is not None:
             self.path.on_joint_state_msg(msg)
 

@@ -125,8 +125,10 @@ class MonitorLogic:
             self.log.close()
             self.log = None
 
-    def on_joint_state(self, stamp, names, positions) -> list:
-        """Store a joint state (names in any order; extra joints ignored); returns newly decided results."""
+    def on_joint_state(self, stamp, names, positions, received=None) -> list:
+        """Store a joint state (names in any order; extra joints ignored); returns newly decided results.
+        ``received``: the reader's ROS time when it took the message (s), which tells a queue that overflowed
+        (``StampGaps``)."""
         try:
             t = stamp_seconds(stamp)
             q = self.joint_order(names, positions)
@@ -135,13 +137,14 @@ class MonitorLogic:
             self.last_reasons.append(f"joint state rejected: {exc}")
             return []
         self.counts["joint_states"] += 1
-        self.gaps["joint_states"].add(t)
+        self.gaps["joint_states"].add(t, received)
         self.states.add(t, q)
         return self.resolve()
 
-    def on_pose(self, stamp, frame_id, position, quaternion=None, target="") -> list:
+    def on_pose(self, stamp, frame_id, position, quaternion=None, target="", received=None) -> list:
         """A measured pose (position m, quaternion x y z w; None for a measured point, and ignored when the
-        monitor measures points) of the target named ``target``; returns the results decided by it."""
+        monitor measures points) of the target named ``target``, taken at ``received`` (as for joint states);
+        returns the results decided by it."""
         self.counts["received"] += 1
         seq = self.seq
         self.seq += 1
@@ -168,23 +171,24 @@ class MonitorLogic:
             self._write({**rec, "rejected": str(exc)})
             return []
         self._write(rec)
-        self.gaps[self.streams[k + 1]].add(t)
+        self.gaps[self.streams[k + 1]].add(t, received)
         self.pending.append((seq, t, T, self.clock(), k))
         return self.resolve()
 
-    def on_pose_msg(self, msg, target="") -> list:
+    def on_pose_msg(self, msg, target="", received=None) -> list:
         """Duck-typed geometry_msgs/PoseStamped of the target ``target``."""
         p, o = msg.pose.position, msg.pose.orientation
-        return self.on_pose(msg.header.stamp, msg.header.frame_id, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w), target)
+        return self.on_pose(msg.header.stamp, msg.header.frame_id, (p.x, p.y, p.z), (o.x, o.y, o.z, o.w), target,
+                            received)
 
-    def on_point_msg(self, msg, target="") -> list:
+    def on_point_msg(self, msg, target="", received=None) -> list:
         """Duck-typed geometry_msgs/PointStamped of the target ``target`` (a measured point)."""
         p = msg.point
-        return self.on_pose(msg.header.stamp, msg.header.frame_id, (p.x, p.y, p.z), None, target)
+        return self.on_pose(msg.header.stamp, msg.header.frame_id, (p.x, p.y, p.z), None, target, received)
 
-    def on_joint_state_msg(self, msg) -> list:
+    def on_joint_state_msg(self, msg, received=None) -> list:
         """Duck-typed sensor_msgs/JointState."""
-        return self.on_joint_state(msg.header.stamp, msg.name, msg.position)
+        return self.on_joint_state(msg.header.stamp, msg.name, msg.position, received)
 
     def resolve(self, now=None) -> list:
         """Decide pending measurements whose neighbours are known or whose wait is over."""
