@@ -189,3 +189,16 @@ def test_stamp_gaps_shorter_than_min_gap_are_counted_when_the_reader_was_behind_
     g.add(paused[-1] + 0.8, paused[-1] + 0.8 + 2e-4)  # a 0.8 s pause is a gap by min_gap, not the reader's
     assert g.summary()["gaps"] == 1 and g.summary()["behind"] == 0
     assert "behind" not in g.describe("joint_states")
+
+
+def test_stamp_gaps_without_a_finite_readers_clock_still_takes_every_stamp():
+    from tolerance_ros.core.ingest import StampGaps
+    t = _stream(1000, 1.0)
+    kept = np.delete(t, np.r_[500:520])
+    for received in (np.full(kept.size, np.nan), np.full(kept.size, np.inf)):
+        one, batch = StampGaps(), StampGaps()
+        for a, b in zip(kept, received):
+            one.add(float(a), float(b))
+        batch.add(kept, received)
+        assert one.summary() == batch.summary() and one.summary()["gaps"] == 1 and one.summary()["behind"] == 0
+        assert one.summary()["missing"] == 20 and one.seen == batch.seen == kept.size - 1

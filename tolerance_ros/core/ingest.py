@@ -210,7 +210,8 @@ class StampGaps:
                  min_gap: float = 0.0):
         self.factor, self.learn, self.window, self.refresh = float(factor), int(learn), int(window), int(refresh)
         self.min_gap = float(min_gap)
-        self.intervals = np.zeros(0)    # the latest ``window`` intervals, s
+        self.intervals = np.zeros(0)    # the latest ``window`` intervals, s (but those of ``_recent``)
+        self._recent = []               # intervals of single stamps taken since the last batch
         self.last = None                # the previous stamp, s
         self.seen = 0                   # intervals taken in
         self.unsorted = 0               # intervals taken in since the period was last computed
@@ -229,30 +230,16 @@ class StampGaps:
     def add(self, stamps, received=None) -> int:
         """Take the next stamp(s) in arrival order, with the reader's clock when it took each (``received``, s,
         optional); returns how many new gaps they show."""
+        if isinstance(stamps, float) and (received is None or isinstance(received, float)) and self._one(stamps):
+            return self._add_one(stamps, received)  # one message, the common live case: no array work
         t = np.asarray(stamps, dtype=float).reshape(-1)
         r = None if received is None else np.broadcast_to(np.asarray(received, dtype=float).reshape(-1), t.shape)
-        if r is not None:
-            keep = np.isfinite(t) & np.isfinite(r)
-            t, r = t[keep], r[keep]
-        else:
-            t = t[np.isfinite(t)]
+        keep = np.isfinite(t)
+        t, r = t[keep], None if r is None else r[keep]   # a reader's clock that is not finite tells nothing
         if t.size == 0:
             return 0
-        if t.size == 1 and self.period is not None and self.last is not None and self.unsorted + 1 < self.refresh:
-            d = float(t[0]) - self.last     # one message, the common live case: little array work
-            if d >= 0:
-                self.last = float(t[0])
-                self.seen += 1
-                self.unsorted += 1
-                self.intervals = np.append(self.intervals[1 - self.window:], d)
-                waited = None
-                if r is not None:
-                    lag = float(r[0]) - self.last
-                    waited = None if self.last_lag is None else np.array([lag - self.last_lag])
-                    self.last_lag = lag
-                if self.regular and d > self.factor * self.period and (d > self.min_gap or waited is not None):
-                    return self._judge(np.array([d]), t, waited)
-                return 0
+        if t.size == 1 and self._one(float(t[0])):
+            return self._add_one(float(t[0]), None if r is None else float(r[0]))
         d = np.diff(np.concatenate([[self.last], t])) if self.last is not None else np.diff(t)
         back = np.flatnonzero(d < 0)
         if back.size:                       # a clock that restarted: judge up to it, start again from it
@@ -264,12 +251,14 @@ class StampGaps:
         ends = t[t.size - d.size:]
         waited = np.full(d.size, -np.inf)  # how much each interval's end lag rose over its start's; unknown: -inf
         if r is not None:
-            lags = r - t
-            rise = np.diff(np.concatenate([[self.last_lag], lags]) if self.last_lag is not None else lags)
+            with np.errstate(invalid="ignore"):     # a reader's clock of inf: no evidence (nan)
+                lags = r - t
+                rise = np.diff(np.concatenate([[self.last_lag], lags]) if self.last_lag is not None else lags)
             waited[d.size - rise.size:] = rise
             self.last_lag = float(lags[-1])
         self.last = float(t[-1])
-        self.intervals = np.concatenate([self.intervals, d])[-self.window:]
+        self.intervals = np.concatenate([self.intervals, self._recent, d])[-self.window:]
+        self._recent = []
         self.seen += d.size
         self.unsorted += d.size
         if self.period is None:
@@ -282,6 +271,29 @@ class StampGaps:
         elif self.unsorted >= self.refresh:
             self._update()
         return self._judge(d, ends, waited) if self.regular else 0
+
+    def _one(self, stamp: float) -> bool:
+        """Whether ``_add_one`` takes ``stamp``: finite, not before the previous one, the period known and not due
+        for its refresh."""
+        return (self.period is not None and self.last is not None and self.unsorted + 1 < self.refresh
+                and stamp >= self.last and math.isfinite(stamp))
+
+    def _add_one(self, stamp: float, received) -> int:
+        """``add`` of one stamp that ``_one`` takes, with the reader's clock then (s; not finite: no evidence)."""
+        d = stamp - self.last
+        self.last = stamp
+        self.seen += 1
+        self.unsorted += 1
+        self._recent.append(d)          # into ``intervals`` with the next batch, before the period is refreshed
+        queued = False
+        if received is not None:
+            lag = received - stamp
+            queued = self.last_lag is not None
+            rise = lag - self.last_lag if queued else 0.0
+            self.last_lag = lag
+        if self.regular and d > self.factor * self.period and (d > self.min_gap or queued):
+            return self._judge(np.array([d]), np.array([stamp]), np.array([rise]) if queued else None)
+        return 0
 
     def _update(self):
         self.period = float(np.median(self.intervals))
