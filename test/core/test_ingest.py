@@ -178,6 +178,14 @@ def test_stamp_gaps_shorter_than_min_gap_are_counted_when_the_reader_was_behind_
             s = g.summary()
             assert found == s["gaps"] == 1 and s["behind"] == 1 and abs(s["missing"] - 300) <= 3, (offset, split, s)
             assert "while this reader was behind" in g.describe("joint_states")
+    hole = int(np.argmax(np.diff(taken)))             # the last message before the hole
+    partly = received.copy()
+    partly[hole % 10::10] = np.nan                    # a clock that failed now and then, just before the hole too:
+    for split in (1, len(taken)):                     # the lag rose over the latest one known
+        g = StampGaps(min_gap=0.5)
+        for a, b in zip(np.array_split(taken, split), np.array_split(partly, split)):
+            g.add(a, b)
+        assert g.summary()["gaps"] == 1 and g.summary()["behind"] == 1, split
     without = StampGaps(min_gap=0.5)                  # no reader's clock: the hole is under min_gap
     without.add(taken)
     assert without.summary()["gaps"] == 0

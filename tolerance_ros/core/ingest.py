@@ -251,11 +251,22 @@ class StampGaps:
         ends = t[t.size - d.size:]
         waited = np.full(d.size, -np.inf)  # how much each interval's end lag rose over its start's; unknown: -inf
         if r is not None:
-            with np.errstate(invalid="ignore"):     # a reader's clock of inf: no evidence (nan)
+            with np.errstate(invalid="ignore"):     # a reader's clock that is not finite: no evidence (nan)
                 lags = r - t
-                rise = np.diff(np.concatenate([[self.last_lag], lags]) if self.last_lag is not None else lags)
-            waited[d.size - rise.size:] = rise
-            self.last_lag = float(lags[-1])
+                lags[~np.isfinite(lags)] = np.nan
+                known = np.flatnonzero(np.isfinite(lags))
+                prev = np.nan if self.last_lag is None else self.last_lag
+                if known.size == lags.size:
+                    before = np.concatenate([[prev], lags[:-1]])
+                elif known.size == 0:
+                    before = np.full(lags.size, prev)
+                else:                               # each rise over the latest finite lag before it
+                    at = np.searchsorted(known, np.arange(lags.size)) - 1
+                    before = np.where(at >= 0, lags[known[np.maximum(at, 0)]], prev)
+                rise = lags - before
+            waited[:] = rise[rise.size - d.size:]
+            if known.size:
+                self.last_lag = float(lags[known[-1]])
         self.last = float(t[-1])
         self.intervals = np.concatenate([self.intervals, self._recent, d])[-self.window:]
         self._recent = []
@@ -286,7 +297,7 @@ class StampGaps:
         self.unsorted += 1
         self._recent.append(d)          # into ``intervals`` with the next batch, before the period is refreshed
         queued = False
-        if received is not None:
+        if received is not None and math.isfinite(received):
             lag = received - stamp
             queued = self.last_lag is not None
             rise = lag - self.last_lag if queued else 0.0
@@ -307,10 +318,11 @@ class StampGaps:
         """Count the gaps among the intervals ``d`` ending at the stamps ``ends``; ``waited``: how much the lag of
         each interval's end rose over its start's (s; None without ``received``)."""
         big = d > self._threshold()
-        if waited is not None and waited.size and waited.max() > self.BEHIND_S:
-            queued = (d > self.factor * self.period) & (waited > max(self.factor * self.period, self.BEHIND_S))
-            self.behind += int(np.count_nonzero(queued))
-            big |= queued
+        if waited is not None:              # nan (no evidence) compares False
+            queued = (waited > max(self.factor * self.period, self.BEHIND_S)) & (d > self.factor * self.period)
+            if queued.any():
+                self.behind += int(np.count_nonzero(queued))
+                big |= queued
         if not big.any():
             return 0
         gap = d[big]
