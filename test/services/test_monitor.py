@@ -52,7 +52,8 @@ def setup(gao, tmp_path):
     clock = {"t": 0.0}
     mon = MonitorLogic(gao, budget, camp, slop=0.01, max_wait=0.5, T_tracker_base=T_TB,
                        log_path=tmp_path / "log.jsonl", clock=lambda: clock["t"])
-    return mon, sim, qk, clock, tmp_path / "log.jsonl"
+    yield mon, sim, qk, clock, tmp_path / "log.jsonl"
+    mon.close()                                     # its campaign log, for the tests that do not close it
 
 
 def test_pairs_measurements_and_rebuilds_from_the_log(gao, setup):
