@@ -662,21 +662,29 @@ def test_a_measurement_stream_keeps_a_second_of_1khz_while_its_callback_runs_lat
         g.close()
 
 
+def _monitor_spun_by_hand(g, ns, tmp_path):
+    """(accuracy monitor, a joint-state publisher it hears, an executor of the monitor alone) on the graph ``g``
+    (``spin=False``): the test decides when the monitor takes its messages."""
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
+    mon = g.start(AccuracyMonitor, ns, log_dir=str(tmp_path), report_period=3600.0, marker_period=3600.0)
+    pub_node = g.node(f"controller_{uuid.uuid4().hex[:6]}", ns)
+    pub = pub_node.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+    assert wait_for(lambda: pub.get_subscription_count() > 0, 20)
+    executor = SingleThreadedExecutor(context=g.context)
+    executor.add_node(mon)
+    return mon, pub, executor
+
+
 def test_the_monitor_warns_of_the_joint_states_its_queue_lost_while_its_callbacks_waited(ns, tmp_path):
     """A monitor that does not take its joint states for a while (2,000 published at 1 kHz stamps, its queue
     keeps 1,000): DDS drops the oldest 1,000 without a word; the monitor sees the hole in the stamps, says so on
     its status and counts about 1,000 missing."""
-    from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
-    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
     g = Graph(spin=False)
     try:
-        mon = g.start(AccuracyMonitor, ns, log_dir=str(tmp_path), report_period=3600.0, marker_period=3600.0)
-        pub_node = g.node(f"controller_{uuid.uuid4().hex[:6]}", ns)
-        pub = pub_node.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
-        assert wait_for(lambda: pub.get_subscription_count() > 0, 20)
-        executor = SingleThreadedExecutor(context=g.context)
-        executor.add_node(mon)
+        mon, pub, executor = _monitor_spun_by_hand(g, ns, tmp_path)
         names = list(mon.logic.model.joint_names)
 
         def publish(ks):
@@ -712,18 +720,11 @@ def test_the_monitor_warns_of_a_short_hole_its_overflowing_queue_made_in_a_live_
     its queue keeps the latest 1,000, DDS drops 300 (a 0.3 s hole, under the 0.5 s a late publisher is allowed);
     the message after the hole is 1 s old when taken, so the monitor counts the hole and says it was behind."""
     from builtin_interfaces.msg import Time
-    from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Header
-    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
     g = Graph(spin=False)
     try:
-        mon = g.start(AccuracyMonitor, ns, log_dir=str(tmp_path), report_period=3600.0, marker_period=3600.0)
-        pub_node = g.node(f"controller_{uuid.uuid4().hex[:6]}", ns)
-        pub = pub_node.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
-        assert wait_for(lambda: pub.get_subscription_count() > 0, 20)
-        executor = SingleThreadedExecutor(context=g.context)
-        executor.add_node(mon)
+        mon, pub, executor = _monitor_spun_by_hand(g, ns, tmp_path)
         names = list(mon.logic.model.joint_names)
         t0 = mon.get_clock().now().nanoseconds * 1e-9 + 0.1
 
