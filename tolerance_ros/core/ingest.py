@@ -4,7 +4,8 @@
 - ``JointOrder``: joint readings named in any order -> the model's joint order (extra joints ignored);
 - ``pose_from_values``: a measured position (m) and quaternion (x, y, z, w) -> a validated 4x4 pose;
 - ``StateBuffer`` and ``pair_by_stamp``: the joint state nearest in time to a measurement, within a slop;
-- ``StampGaps``: the gaps in a regular stream's stamps (messages lost on the way, or never sent).
+- ``StampGaps``: the gaps in a regular stream's stamps (messages lost on the way, or never sent), and
+  ``describe_gaps``, their line for a person.
 Every check raises ``IngestError`` with a message that says what is wrong; nothing is dropped here.
 """
 from __future__ import annotations
@@ -254,19 +255,14 @@ class StampGaps:
             with np.errstate(invalid="ignore"):     # a reader's clock that is not finite: no evidence (nan)
                 lags = r - t
                 lags[~np.isfinite(lags)] = np.nan
-                known = np.flatnonzero(np.isfinite(lags))
                 prev = np.nan if self.last_lag is None else self.last_lag
-                if known.size == lags.size:
-                    before = np.concatenate([[prev], lags[:-1]])
-                elif known.size == 0:
-                    before = np.full(lags.size, prev)
-                else:                               # each rise over the latest finite lag before it
-                    at = np.searchsorted(known, np.arange(lags.size)) - 1
-                    before = np.where(at >= 0, lags[known[np.maximum(at, 0)]], prev)
-                rise = lags - before
+                at = np.where(np.isfinite(lags), np.arange(lags.size), -1)
+                np.maximum.accumulate(at, out=at)   # each message's latest finite lag, carried forward
+                latest = np.where(at >= 0, lags[at], prev)
+                rise = lags - np.concatenate([[prev], latest[:-1]])   # over the latest finite lag before it
             waited[:] = rise[rise.size - d.size:]
-            if known.size:
-                self.last_lag = float(lags[known[-1]])
+            if np.isfinite(latest[-1]):
+                self.last_lag = float(latest[-1])
         self.last = float(t[-1])
         self.intervals = np.concatenate([self.intervals, self._recent, d])[-self.window:]
         self._recent = []
@@ -348,10 +344,17 @@ class StampGaps:
                 "restarts": self.restarts, "behind": self.behind}
 
     def describe(self, stream: str) -> str | None:
-        """One line for a status message, or None without gaps."""
-        if not self.gaps:
-            return None
-        where = (f"; {self.behind} while this reader was behind: its queue overflowed, raise its depth or "
-                 f"lighten its callbacks" if self.behind else "")
-        return (f"{stream}: {self.gaps} gap(s) in the stamps, the longest {self.longest:.3g} s (about {self.missing:,} "
-                f"message(s) at {self.period:.3g} s each lost on the way, or never sent{where})")
+        """One line for a status message, or None without gaps (``describe_gaps`` of the summary)."""
+        return describe_gaps(stream, self.summary())
+
+
+def describe_gaps(stream: str, summary: dict) -> str | None:
+    """One line for a person of a stream's ``StampGaps.summary`` (also as read back from a JSON report), or None
+    without gaps."""
+    if not summary["gaps"]:
+        return None
+    behind = summary.get("behind", 0)
+    where = (f"; {behind} while this reader was behind: its queue overflowed, raise its depth or lighten its "
+             f"callbacks" if behind else "")
+    return (f"{stream}: {summary['gaps']} gap(s) in the stamps, the longest {summary['longest_gap_s']:.3g} s (about "
+            f"{summary['missing']:,} message(s) at {summary['period_s']:.3g} s each lost on the way, or never sent{where})")
