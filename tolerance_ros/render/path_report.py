@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.ingest import describe_gaps
 from ..core.jsonio import dumps
 from .plots import _legend_beside, _plt, _save, _subplots, panels_plot
 from .text import table
@@ -54,10 +55,7 @@ def summary_lines(doc) -> list:
                  f"during other motions, "
                  + (f"{out['not_judged']} in cycles not judged, " if out.get("not_judged") else "")
                  + f"{out['outside_joint_states']} outside the joint states' time span)")
-    for name, g in (doc.get("stream_gaps") or {}).items():
-        if g["gaps"]:
-            lines.append(f"{name}: {g['gaps']} gap(s) in the stamps, the longest {g['longest_gap_s']:.3g} s (about "
-                         f"{g['missing']:,} message(s) lost, or never sent)")
+    lines += [line for line in (describe_gaps(name, g) for name, g in (doc.get("stream_gaps") or {}).items()) if line]
     lines += doc.get("not_judged") or []
     b = doc.get("budget")
     if b:
