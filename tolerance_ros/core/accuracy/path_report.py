@@ -89,17 +89,17 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, regist
     gaps = {"joint_states": StampGaps(), "points": StampGaps()}
     gaps["joint_states"].add(tj)
     gaps["points"].add(tm)
+    spans = {k: np.searchsorted(tm_c, [tj[runs[k][0]], tj[runs[k][1]]]) for k in picked}   # each cycle's points
     holes = {}
     for k in picked:
-        j0, j1 = np.searchsorted(tm_c, [tj[runs[k][0]], tj[runs[k][1]]])
-        why = P.hole_in_motion(gaps, tj, runs[k][0], runs[k][1], tm, int(j0), int(j1))
+        why = P.hole_in_motion(gaps, tj, runs[k][0], runs[k][1], tm, int(spans[k][0]), int(spans[k][1]))
         if why is not None:
             holes[k] = why
     if len(holes) == len(picked):
         raise ValueError(f"every cycle of the path has a gap in its streams: {holes[picked[0]]}")
     picked = [k for k in picked if k not in holes]
     _check(model, tm, pm, tj, qj)
-    groups = [np.arange(*np.searchsorted(tm_c, [tj[runs[k][0]], tj[runs[k][1]]])) for k in picked]
+    groups = [np.arange(*spans[k]) for k in picked]
     i0, i1 = runs[picked[0]]
     s_ref = P.arc_length(p_c[i0:i1 + 1])
     bounds = P.segment_bounds(s_ref[-1], P.corners(p_c[i0:i1 + 1]))
