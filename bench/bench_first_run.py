@@ -14,6 +14,7 @@ drifts by 10-20 % between runs).
     python bench/bench_first_run.py [--jobs paper,allocate,rong2018] [--busy 1] [--repeat 3]
 """
 import argparse
+import contextlib
 import os
 import signal
 import subprocess
@@ -62,22 +63,30 @@ def run(argv, cache):
     return end - t0, max(b - a for a, b in zip(marks, marks[1:])), code
 
 
-def wait_filled(cache, busy=(), timeout=600):
-    """Wait until the background child of the first run has filled ``cache`` (its marker is current), the
-    ``busy`` loops stopped meanwhile (the child, at the lowest priority, would barely run beside them)."""
-    code = "from tolerance_ros.core.models import warmup; import sys; sys.exit(0 if warmup.cached() else 1)"
+@contextlib.contextmanager
+def paused(busy):
+    """The ``busy`` loops stopped meanwhile: a cache fills between two runs (the child, at the lowest priority,
+    would barely run beside them)."""
     for proc in busy:
         proc.send_signal(signal.SIGSTOP)
     try:
+        yield
+    finally:
+        for proc in busy:
+            proc.send_signal(signal.SIGCONT)
+
+
+def wait_filled(cache, busy=(), timeout=600):
+    """Wait until the background child of the first run has filled ``cache`` (its marker is current), the
+    ``busy`` loops ``paused``."""
+    code = "from tolerance_ros.core.models import warmup; import sys; sys.exit(0 if warmup.cached() else 1)"
+    with paused(busy):
         t0 = time.perf_counter()
         while time.perf_counter() - t0 < timeout:
             if subprocess.run([sys.executable, "-c", code], env=child_env(cache)).returncode == 0:
                 return True
             time.sleep(2.0)
         return False
-    finally:
-        for proc in busy:
-            proc.send_signal(signal.SIGCONT)
 
 
 def main():
@@ -115,15 +124,10 @@ def main():
 
 def fill(cache, busy=()):
     """Fill ``cache`` with every kernel family (the background child's work, in the foreground), the ``busy``
-    loops stopped meanwhile."""
-    for proc in busy:
-        proc.send_signal(signal.SIGSTOP)
-    try:
+    loops ``paused``."""
+    with paused(busy):
         subprocess.run([sys.executable, "-m", "tolerance_ros.core.models.warmup"], env=child_env(cache),
                        stdout=subprocess.DEVNULL, check=True)
-    finally:
-        for proc in busy:
-            proc.send_signal(signal.SIGCONT)
 
 
 def measure(names, repeat=1, busy=()):
