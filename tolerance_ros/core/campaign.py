@@ -200,7 +200,8 @@ def _within_limits(model, raw, poses, units):
         return
     q = np.array([poses[i].joints for i in given])
     lo, hi = model.joint_limits[:, 0], model.joint_limits[:, 1]
-    out = np.argwhere((q < lo - 1e-12) | (q > hi + 1e-12))
+    wrapped = model.within_turn(q)
+    out = np.argwhere((wrapped < lo - 1e-12) | (wrapped > hi + 1e-12))
     if out.size:
         r, k = out[0]
         i = given[r]

@@ -95,7 +95,8 @@ def _within(q, model, allow_out_of_limits, bounds):
     """(q, mask of joints outside their limits or None), or the error naming the first that is not finite
     or (without ``allow_out_of_limits``) outside its limits."""
     lo, hi = bounds[0], bounds[1]
-    within = (q >= lo) & (q <= hi)  # False for NaN too: all True means finite and within the limits
+    wrapped = model.within_turn(q)   # a continuous joint's angle modulo 2 pi
+    within = (wrapped >= lo) & (wrapped <= hi)  # False for NaN too: all True means finite and within the limits
     if np.count_nonzero(within) == within.size:
         return q, None
     if not np.isfinite(q).all():

@@ -308,3 +308,24 @@ def test_a_joint_that_cannot_move_or_is_its_own_parent_is_refused(edit, message)
     assert edited != text
     with pytest.raises(ModelError, match=message):
         URDFChain(edited)
+
+
+def test_continuous_joints_take_unwrapped_angles_and_compare_them_modulo_a_turn():
+    """The Kinova's continuous joints logged unwrapped (4.79 rad): the same pose as their wrap, within the limits
+    for every check, and a compensation keeps them on the turn they were commanded on."""
+    from tolerance_ros.core.accuracy.checks import screen
+    from tolerance_ros.core.calibration.compensate import into_limits
+    chain = URDFChain(example_urdf("kinova.urdf"), tip_link="j2s6s200_end_effector")
+    assert chain.continuous.tolist() == [True, False, False, True, False, True]
+    q = np.mean(chain.joint_limits, axis=1)[None].repeat(3, axis=0)
+    q[:, 0] = [4.79, -4.79, 4.79 + 2 * np.pi]
+    wrapped = chain.within_turn(q)
+    assert np.allclose(chain.fk(q), chain.fk(wrapped), atol=1e-12) and np.all(np.abs(wrapped[:, 0]) <= np.pi)
+    assert not chain.out_of_limits(q).any()
+    chain.check_joints(q, allow_out_of_limits=False)
+    assert screen(chain, q).keep.all()
+    assert into_limits(chain, q + 0.01, near=q)[:, 0] == pytest.approx(q[:, 0] + 0.01)
+    q[0, 1] = 6.0                                  # a limited joint beyond its limits is still refused
+    assert chain.out_of_limits(q)[0].tolist() == [False, True, False, False, False, False]
+    with pytest.raises(ModelError, match="outside the joint limits"):
+        chain.check_joints(q, allow_out_of_limits=False)

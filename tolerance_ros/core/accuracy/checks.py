@@ -95,7 +95,8 @@ def screen(model, q, meas=None, campaign=None, labels=None) -> Screened:
     n = len(q)
     out = Screened(np.ones(n, bool))
     lo, hi = model.joint_limits[:, 0] - LIMIT_MARGIN, model.joint_limits[:, 1] + LIMIT_MARGIN
-    beyond = (q < lo) | (q > hi)
+    wrapped = model.within_turn(q)
+    beyond = (wrapped < lo) | (wrapped > hi)
     for j in np.flatnonzero(beyond.mean(axis=0) > LIMIT_COLUMN) if n else []:
         unit = "m" if model.joint_types[j] == "prismatic" else "rad"
         top = float(np.abs(q[:, j]).max())
@@ -294,7 +295,8 @@ class StreamCheck:
     def joint_problem(self, q) -> str | None:
         q = np.asarray(q, float).reshape(-1)
         lo, hi = self.model.joint_limits[:, 0] - LIMIT_MARGIN, self.model.joint_limits[:, 1] + LIMIT_MARGIN
-        bad = np.flatnonzero((q < lo) | (q > hi))
+        wrapped = self.model.within_turn(q)
+        bad = np.flatnonzero((wrapped < lo) | (wrapped > hi))
         if not len(bad):
             return None
         j = bad[0]

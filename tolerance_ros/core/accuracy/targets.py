@@ -140,7 +140,8 @@ class AtTarget(Mechanism):
         self.inner = inner
         self.X = np.asarray(X, float).reshape(4, 4)
         self.target = str(target)
-        for attr in ("name", "joint_names", "joint_types", "joint_limits", "param_names", "param_kinds", "nominal"):
+        for attr in ("name", "joint_names", "joint_types", "joint_limits", "param_names", "param_kinds", "nominal",
+                     "continuous"):
             setattr(self, attr, getattr(inner, attr))
         for attr in ("tip_link", "base_link", "source", "config_path"):
             if hasattr(inner, attr):

@@ -141,13 +141,16 @@ def _solve(model, T_target, q0, match, tol_position, tol_orientation, max_iter, 
 
 def into_limits(model: Mechanism, q, near=None) -> np.ndarray:
     """Each revolute joint at the full-turn equivalent closest to ``near`` (default: itself) that lies
-    within its limits, where there is one; prismatic joints unchanged."""
+    within its limits, where there is one (a continuous joint has none: the equivalent closest to ``near``);
+    prismatic joints unchanged."""
     q = np.asarray(q, float)
     ref = q if near is None else np.asarray(near, float)
     lo, hi = model.joint_limits[:, 0], model.joint_limits[:, 1]
     k = np.round((ref - q) / (2 * np.pi))[..., None] + np.array([-1.0, 0.0, 1.0])
     cand = q[..., None] + 2 * np.pi * k
     inside = (cand >= lo[:, None] - 1e-12) & (cand <= hi[:, None] + 1e-12)
+    if model.continuous is not None:
+        inside |= np.asarray(model.continuous, bool)[:, None]
     best = np.argmin(np.abs(cand - ref[..., None]) + np.where(inside, 0.0, 1e9), axis=-1)
     out = np.take_along_axis(cand, best[..., None], axis=-1)[..., 0]
     rev = np.array([t != PRISMATIC for t in model.joint_types])

@@ -145,7 +145,8 @@ class DeflectedChain(Mechanism):
         self.inner = inner
         self.compliance = np.asarray(compliance, float).reshape(inner.dof)
         self.load = load or Load.for_model(inner)
-        for attr in ("name", "joint_names", "joint_types", "joint_limits", "param_names", "param_kinds", "nominal"):
+        for attr in ("name", "joint_names", "joint_types", "joint_limits", "param_names", "param_kinds", "nominal",
+                     "continuous"):
             setattr(self, attr, getattr(inner, attr))
         for attr in ("tip_link", "base_link", "source", "config_path"):
             if hasattr(inner, attr):

@@ -81,7 +81,8 @@ class Mechanism(ABC):
 
     Subclasses set ``name``, ``joint_names``, ``joint_types``, ``joint_limits`` ((dof, 2), SI),
     ``param_names``, ``param_kinds`` ('length' or 'angle') and ``nominal`` ((p,), SI), and implement
-    ``fk_and_jacobian``.
+    ``fk_and_jacobian``; ``continuous`` ((dof,) bool) marks the joints without limits (URDF ``continuous``),
+    whose angles are compared with the limits modulo 2 pi (``within_turn``).
     """
 
     name: str
@@ -96,6 +97,16 @@ class Mechanism(ABC):
     _units = (None, ())
 
     kernel_family = None  # the compiled kernel family of fk_and_jacobian (``kernels.FAMILIES``), where compiled
+    continuous = None     # (dof,) bool: joints without limits; None: none
+
+    def within_turn(self, q) -> np.ndarray:
+        """``q`` (..., dof) with each continuous joint's angle taken modulo 2 pi into [-pi, pi) (the others as they
+        are): what the limits are compared with. An unwrapped angle (4.79 rad) is the same pose as its wrap."""
+        q = np.asarray(q, dtype=float)
+        c = self.continuous
+        if c is None or not np.any(c):
+            return q
+        return np.where(c, np.mod(q + np.pi, 2 * np.pi) - np.pi, q)
 
     @property
     def backend(self) -> str:
@@ -193,7 +204,8 @@ class Mechanism(ABC):
             raise ModelError(f"{field}[{i}][{j}] ({self.joint_names[j]}): not a finite number")
         if not allow_out_of_limits:
             lo, hi = self.joint_limits[:, 0], self.joint_limits[:, 1]
-            out = (arr < lo - 1e-12) | (arr > hi + 1e-12)
+            wrapped = self.within_turn(arr)
+            out = (wrapped < lo - 1e-12) | (wrapped > hi + 1e-12)
             if out.any():
                 i, j = np.argwhere(out)[0]
                 raise ModelError(f"{field}[{i}][{j}] ({self.joint_names[j]}) = {arr[i, j]:.6g} is outside "
@@ -239,7 +251,7 @@ class Mechanism(ABC):
 
     def out_of_limits(self, q) -> np.ndarray:
         """(n, dof) boolean mask of joints outside their limits."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
+        q = self.within_turn(np.atleast_2d(np.asarray(q, dtype=float)))
         return (q < self.joint_limits[:, 0] - 1e-12) | (q > self.joint_limits[:, 1] + 1e-12)
 
     def sample_joints(self, m: int, seed=0) -> np.ndarray:

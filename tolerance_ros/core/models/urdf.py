@@ -97,7 +97,7 @@ class URDFChain(CompiledChain):
                 raise ModelError(f"base_link: {base_link!r} moves with joint "
                                  f"{model.names[frame_joint(bf)]!r}; it must be fixed to the root")
             base_T = np.linalg.inv(bf.placement.homogeneous)
-        names, types, limits, axes, origins, fixed = [], [], [], [], [], []
+        names, types, limits, axes, origins, fixed, continuous = [], [], [], [], [], [], []
         for jid in chain:
             jname = model.names[jid]
             jm = model.joints[jid]
@@ -130,7 +130,8 @@ class URDFChain(CompiledChain):
             F = model.jointPlacements[jid].homogeneous @ np.linalg.inv(O)
             fixed.append(np.eye(4) if np.abs(F - np.eye(4)).max() < 1e-12 else F)
             iq = model.idx_qs[jid]
-            if jtype == "continuous" or jm.nq == 2:
+            continuous.append(jtype == "continuous" or jm.nq == 2)
+            if continuous[-1]:
                 limits.append((-math.pi, math.pi))
             else:
                 lo, hi = float(model.lowerPositionLimit[iq]), float(model.upperPositionLimit[iq])
@@ -155,6 +156,7 @@ class URDFChain(CompiledChain):
         self.joint_types = tuple(types)
         self._revolute = np.array([t == REVOLUTE for t in types])
         self.joint_limits = np.array(limits, dtype=float)
+        self.continuous = np.array(continuous, dtype=bool)
         self.tip_link = tip_link
         self.base_link = base_link or root_link(root) or model.frames[0].name
         self._axes = np.array(axes)
