@@ -328,6 +328,11 @@ class StampGaps:
         self.last_gap = (float(ends[big][-1]), float(gap[-1]))
         return int(gap.size)
 
+    def cut(self):
+        """The stream was cut (its clock jumped): the next stamp starts the intervals again, with no gap
+        across the cut."""
+        self.last = self.last_lag = None
+
     def hole(self, stamps) -> float | None:
         """The longest interval (s) of ``stamps`` (a stretch of this stream) that is a gap by this stream's
         standard, or None (none, or the stream not judged)."""
