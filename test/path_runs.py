@@ -1,6 +1,7 @@
 """Simulated path runs (shared by the tests of the path report, the command line and the monitor) with known truth: the paper's arm as built within gao2023_delta2 (seed 3), driving an
 ISO 9283 test path 10 times at 0.2 m/s, seen by a 1 kHz tracker 8 ms late with 10 um of noise, its joints
-off by a 0.1 mrad offset drawn per cycle (so that the cycles differ), against 500 Hz joint states."""
+off by a 0.1 mrad offset drawn per cycle (so that the cycles differ), against 500 Hz joint states; each cycle
+starts with a rest of ``dwell`` s (0: a program that loops without a stop)."""
 import numpy as np
 
 from tolerance_ros.core.accuracy.iso_paths import plan_path
@@ -12,7 +13,7 @@ Q_CENTER = np.radians([0, 45, 0, 60, 0, 30, 0])   # P1 of gao2023_iso_cube
 T_TB = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
 
 
-def run(model, kind, cycles=10, latency=0.008, noise=10e-6, repeatability=1e-4, seed=1):
+def run(model, kind, cycles=10, latency=0.008, noise=10e-6, repeatability=1e-4, seed=1, dwell=0.5):
     dx = as_built_errors(load_budget("gao2023_delta2", model).vector_for(model), 3)
-    jp, _ = plan_path(model, kind, speed=0.2, accel=1.0, cycles=cycles, q_center=Q_CENTER)
+    jp, _ = plan_path(model, kind, speed=0.2, accel=1.0, cycles=cycles, q_center=Q_CENTER, dwell=dwell)
     return path_streams(model, jp, dx, T_TB, latency=latency, noise=noise, seed=seed, repeatability=repeatability)

@@ -184,3 +184,48 @@ def test_a_cycle_with_lost_tracker_points_is_not_judged_and_the_report_says_so(c
                        "--joint-states", streams / "path.joints.csv")
     assert code == 0 and "points: 1 gap(s) in the stamps" in out and "was not judged" in out
     assert "in cycles not judged" in out
+
+
+def test_a_static_campaigns_measurements_are_not_a_path_exit_2(capsys, tmp_path):
+    """The rows of a static campaign (test poses measured at rest, named by pose) give no path to judge."""
+    assert main(["plan-campaign", "--robot", "gao2023_7dof", "--n", "10", "--out", str(tmp_path / "c.yaml"),
+                 "--quiet"]) == 0
+    assert main(["simulate", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--campaign",
+                 str(tmp_path / "c.yaml"), "--out", str(tmp_path / "m.csv"), "--quiet"]) == 0
+    capsys.readouterr()
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "m.csv")
+    assert code == 2 and "not a path" in err and "report" in err
+    lines = (tmp_path / "m.csv").read_text().splitlines()     # the same rows without their pose names
+    head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    cols = lines[head].split(",")
+    keep = [k for k, c in enumerate(cols) if not c.startswith(("pose", "cycle"))]
+    (tmp_path / "bare.csv").write_text("\n".join(",".join(r.split(",")[k] for k in keep) for r in lines[head:]) + "\n")
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "bare.csv")
+    assert code == 2 and "not a path" in err and "s apart" in err
+
+
+def test_a_loop_without_a_stop_logged_twice_and_late_is_judged_as_the_clean_one(capsys, tmp_path):
+    """plan-campaign --dwell 0s: the line driven back and forth with no rest, the tracker 118 ms late, every joint
+    state logged twice: 4 cycles found by repetition, the latency, the duplicates said."""
+    assert main(["plan-campaign", "--robot", "gao2023_7dof", "--path", "line", "--speed", "0.2m/s", "--cycles", "4",
+                 "--dwell", "0s", "--center-joints", CENTER, "--out", str(tmp_path / "line.yaml"), "--quiet"]) == 0
+    assert main(["simulate", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--trajectory",
+                 str(tmp_path / "line.yaml"), "--latency", "118ms", "--out", str(tmp_path / "p.csv"), "--quiet"]) == 0
+    capsys.readouterr()
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "p.csv",
+                         "--joint-states", tmp_path / "p.joints.csv", "--json")
+    assert code == 0, err
+    clean = json.loads(out)
+    assert clean["cycles"] == 4 and clean["other_motions"] == 4 and clean["cycles_from"]["method"] == "repetition"
+    assert abs(clean["latency_s"] - 0.118) < 0.5e-3
+    lines = (tmp_path / "p.joints.csv").read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("stamp"))
+    (tmp_path / "twice.csv").write_text("\n".join(lines[:head + 1] + [r for r in lines[head + 1:] for _ in (0, 1)]) + "\n")
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "p.csv",
+                         "--joint-states", tmp_path / "twice.csv")
+    assert code == 0, err
+    assert f"joint states: {len(lines) - head - 1:,} row(s) repeated a stamp" in out
+    assert f"{clean['overall']['AT_p_m'] * 1e3:.4f}" in out
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "p.csv",
+                       "--joint-states", tmp_path / "p.joints.csv", "--latency-window", "100ms")
+    assert code == 2 and "edge of the search window -100.0 ms to +100.0 ms" in err

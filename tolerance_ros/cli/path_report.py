@@ -33,59 +33,61 @@ def add_arguments(p):
                         "orientation changes")
     p.add_argument("--budget", help="tolerance budget: the bound tube along the path and the verdicts")
     p.add_argument("--latency", help="the tracker's latency, given (e.g. 8ms) instead of estimated")
-    p.add_argument("--latency-window", default="100ms",
-                   help="the latency is looked for within +- this (default 100ms)")
+    p.add_argument("--latency-window",
+                   help="look for the latency within +- this about zero only (e.g. 100ms; default: of any size, a "
+                        "coarse search over the two streams' whole overlap, then a fine one about it)")
     p.add_argument("--stations", type=int, default=100, help="calculation points per segment (default 100)")
     p.add_argument("--speed-window", default="10ms",
                    help="speeds are central differences over +- this (default 10ms)")
     p.add_argument("--out", metavar="DIR", help="write path_report.json, path_report.md and plots into DIR")
 
 
-def _command(args, model, stamps, points, recorded=None):
-    """(joint stamps, joints, center of the latency search, where from) of the command; ``recorded``: the
-    (joint stamps, joints) of the recording ``--measurements`` names (None for another file)."""
+def _command(args, model, recorded=None):
+    """(joint stamps, joints, the trajectory or None, where from) of the command; ``recorded``: the (joint
+    stamps, joints) of the recording ``--measurements`` names (None for another file)."""
     from ..core.accuracy.io import read_measurements
     if args.joint_states and args.trajectory:
         raise CLIError("--joint-states, --trajectory: give one of them (the command's joints)")
     if args.joint_states:
         from ..core.accuracy.io.joint_states import read_joint_states
         tj, qj = read_joint_states(args.joint_states, model.joint_names, model.joint_types)
-        return tj, model.check_joints(qj, args.joint_states), 0.0, args.joint_states
+        return tj, model.check_joints(qj, args.joint_states), None, args.joint_states
     if args.trajectory:
         from ..core.accuracy.iso_paths import read_trajectory
-        from ..core.accuracy.latency import coarse_offset
-        from ..core.accuracy.path_report import command_points
         try:
             jp = read_trajectory(args.trajectory, model)
         except ValueError as exc:
             raise CLIError(str(exc)) from None
         tj = np.arange(int(jp.duration * JOINT_RATE) + 1) / JOINT_RATE
-        qj = jp.at(tj)
-        return tj, qj, coarse_offset(stamps, points, tj, command_points(model, qj)), args.trajectory
+        return tj, jp.at(tj), jp, args.trajectory
     if recorded is not None:  # a recording: its joint states as they streamed
         tj, qj = recorded
         if tj is None:
             raise CLIError(f"{args.measurements}: no joint states recorded; give the commanded joints with "
                            f"--joint-states or --trajectory")
-        return tj, model.check_joints(qj, args.measurements), 0.0, args.measurements
+        return tj, model.check_joints(qj, args.measurements), None, args.measurements
     m = read_measurements(args.measurements, joint_names=model.joint_names)
     if m.joints is None:
         raise CLIError(f"{args.measurements}: no joint columns; give the commanded joints with --joint-states or "
                        f"--trajectory")
-    return m.stamps, model.check_joints(m.joints, args.measurements), 0.0, args.measurements
+    if m.pose is not None and any(str(v) for v in m.pose):
+        raise CLIError(f"{args.measurements}: not a path: its rows are named by test pose (a static campaign); "
+                       f"judge it with `tolerance-ros report`, or give the joint states streamed along the path with "
+                       f"--joint-states")
+    return m.stamps, model.check_joints(m.joints, args.measurements), None, args.measurements
 
 
 def run(args):
     from ..core.accuracy.io.joint_states import read_points
     from ..core.accuracy.io.rosbag import is_recording, read_rosbag_streams
-    from ..core.accuracy.path_report import path_report
+    from ..core.accuracy.path_report import PathOptions, path_report
     from ..render.path_report import HEADS, segment_rows, summary_lines, write_path_report
     model = load_model(args)
     if not 2 <= args.stations <= MAX_STATIONS:
         raise CLIError(f"--stations: expected 2 to {MAX_STATIONS}, got {args.stations}")
     budget = load_budget(args.budget, model) if args.budget else None
     latency = quantity(args.latency, "time", "--latency", positive=False)
-    window = quantity(args.latency_window, "time", "--latency-window")
+    window = quantity(args.latency_window, "time", "--latency-window") if args.latency_window else None
     speed_window = quantity(args.speed_window, "time", "--speed-window")
     offset = None
     if args.target_offset:
@@ -99,9 +101,10 @@ def run(args):
         source = str(args.measurements)
     else:
         stamps, points, source = read_points(args.measurements)
-    tj, qj, center, command_source = _command(args, model, stamps, points, recorded)
-    doc = path_report(model, stamps, points, tj, qj, budget, args.registration, latency, window, center,
-                      args.stations, speed_window, source=source, offset=offset)
+    tj, qj, trajectory, command_source = _command(args, model, recorded)
+    options = PathOptions(registration=args.registration, latency=latency, window=window, stations=args.stations,
+                          speed_window=speed_window, offset=offset, trajectory=trajectory)
+    doc = path_report(model, stamps, points, tj, qj, budget, options, source=source)
     doc["command"] = {"source": command_source, "kind": "trajectory" if args.trajectory else "joint states"}
     if args.trajectory:
         doc["command"]["start_s"] = doc["latency_s"]

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.accuracy.streams import describe_tidied
 from ..core.ingest import describe_gaps
 from ..core.jsonio import dumps
 from .plots import _legend_beside, _plt, _save, _subplots, panels_plot
@@ -33,6 +34,15 @@ def segment_rows(doc) -> list:
 HEADS = ["segment", "length mm", "AT_p mm", "RT_p mm", "CR mm", "CO mm", "AV %", "RV %", "FV mm/s", "bound mm"]
 
 
+def _cycles_from(how) -> str:
+    """How the cycles were cut, in words (none for cycles between rests)."""
+    if not how or how["method"] == "rests":
+        return ""
+    if how["method"] == "trajectory":
+        return f"; cycles of the trajectory's period {how['period_s']:.3f} s"
+    return f"; cycles found by the command's repetition (period {how['period_s']:.3f} s, no rest between them)"
+
+
 def summary_lines(doc) -> list:
     """The report's lines of text (the command's stdout and the top of path_report.md)."""
     lat = doc["latency"]
@@ -40,7 +50,9 @@ def summary_lines(doc) -> list:
     lines = [f"robot {doc['robot']}: {doc['points']} tracker points from {doc['source']}, {doc['joint_states']} "
              f"joint states; {doc['cycles']} cycles of a {doc['path_length_m'] * 1e3:.1f} mm path at "
              f"{doc['speed_m_s'] * 1e3:.1f} mm/s in {len(doc['segments'])} segment(s)"
-             + (f", {doc['other_motions']} other motion(s)" if doc["other_motions"] else "")]
+             + (f", {doc['other_motions']} other motion(s)" if doc["other_motions"] else "")
+             + _cycles_from(doc.get("cycles_from"))]
+    lines += [line for line in (describe_tidied(name, s) for name, s in (doc.get("streams") or {}).items()) if line]
     if (doc.get("command") or {}).get("kind") == "trajectory":
         lines.append(f"the trajectory starts at {doc['latency_s']:.6f} s +- {doc['latency_std_s'] * 1e3:.3f} ms on the "
                      f"tracker's clock (no latency is measurable without the joint states' stamps); registration "
@@ -54,7 +66,8 @@ def summary_lines(doc) -> list:
     lines.append(f"not on the test path: {out['points']} points ({out['at_rest']} at rest, {out['other_motions']} "
                  f"during other motions, "
                  + (f"{out['not_judged']} in cycles not judged, " if out.get("not_judged") else "")
-                 + f"{out['outside_joint_states']} outside the joint states' time span)")
+                 + f"{out['outside_joint_states']} outside the joint states' time span"
+                 + (f", {out['left_out']} left out as repeated or not finite" if out.get("left_out") else "") + ")")
     lines += [line for line in (describe_gaps(name, g) for name, g in (doc.get("stream_gaps") or {}).items()) if line]
     lines += doc.get("not_judged") or []
     b = doc.get("budget")

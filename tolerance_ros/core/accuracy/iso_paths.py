@@ -155,8 +155,12 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
             raise ValueError(f"path {tp.kind}: the joints leave their limits along the path")
         s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
         tm = trapezoid_times(s, speed, accel)
-        times += [t0, t0 + dwell] if k == 0 else [t0 + dwell]
-        qs += [q[0], q[0]] if k == 0 else [q[0]]
+        if k == 0:                          # the cycle starts at rest at the first knot
+            times.append(t0)
+            qs.append(q[0])
+        if dwell > 0:                       # a knot per move's start, unless no time passes there
+            times.append(t0 + dwell)
+            qs.append(q[0])
         times += list(t0 + dwell + tm[1:])
         qs += list(q[1:])
         t0 = times[-1]

@@ -19,8 +19,10 @@ differs from cycle to cycle, (c) the bias of a geometric error that repeats alon
 along-path component at a speed ``v`` reads as a shift ``e / v``, which differs from one direction of the
 path to another).
 
-``coarse_offset`` finds a large offset (a trajectory file's time from start against the tracker's clock)
-by the cross-correlation of the two speed profiles, which no frame or geometric error changes.
+``coarse_offset`` finds an offset of any size (a tracker hundreds of milliseconds late, a trajectory file's time
+from start against the tracker's clock) by the cross-correlation of the two speed profiles, which no frame or
+geometric error changes; the fine search then looks within ``FINE_WINDOW_S`` of it. An estimate at the edge of
+its search window is never a result: ValueError names the window.
 """
 from __future__ import annotations
 
@@ -34,6 +36,9 @@ from .registration import kabsch
 SCAN_POINTS = 10_000      # points of the coarse scan
 REFINE_POINTS = 100_000   # points of the refinement and of the curvature
 MAX_GROUPS = 60           # cycles (or blocks) estimated one by one
+COARSE_BIN_S = 0.01       # s: the bins of the coarse search's speed profiles
+FINE_WINDOW_S = 0.05      # s: the fine search's half-width about the coarse estimate (5 of its bins)
+COARSE_TIE = 0.02         # shifts whose speed correlation is within this share of the best are tied
 
 
 @dataclass
@@ -61,18 +66,30 @@ class Latency:
 
 class Resampled:
     """The command path on a uniform time grid (``dt`` s, at most 1 ms), interpolated linearly by arithmetic
-    instead of a search: the many evaluations of a latency estimate at a fraction of ``np.interp``'s cost."""
+    instead of a search: the many evaluations of a latency estimate at a fraction of ``np.interp``'s cost.
+    When the stamps span far more time than their samples would fill (long holes), the grid would outgrow
+    them: the path is then interpolated by ``np.interp`` instead, in memory bounded by the samples."""
+
+    GRID_PER_SAMPLE = 20          # grid points per sample, at most (plus GRID_SPARE)
+    GRID_SPARE = 100_000
 
     def __init__(self, tc, pc, dt: float | None = None):
         tc, pc = np.asarray(tc, float), np.asarray(pc, float)
-        step = float(np.median(np.diff(tc))) if len(tc) > 1 else 1e-3
+        d = np.diff(tc)
+        d = d[d > 0]
+        step = float(np.median(d)) if d.size else 1e-3
         self.dt = dt or min(step, 1e-3)
         self.t0 = float(tc[0])
-        n = int(np.floor((tc[-1] - tc[0]) / self.dt)) + 1
+        n = int(np.floor((tc[-1] - tc[0]) / self.dt)) + 1 if tc.size else 0
+        if n > self.GRID_PER_SAMPLE * len(tc) + self.GRID_SPARE:
+            self.tc, self.pc, self.p = tc, pc, None
+            return
         grid = self.t0 + np.arange(n) * self.dt
         self.p = interp_columns(grid, tc, pc)
 
     def __call__(self, t) -> np.ndarray:
+        if self.p is None:
+            return interp_columns(np.asarray(t, float), self.tc, self.pc)
         x = (np.asarray(t, float) - self.t0) / self.dt
         i = np.clip(np.floor(x).astype(np.int64), 0, len(self.p) - 2)
         w = np.clip(x - i, 0.0, 1.0)[:, None]
@@ -99,18 +116,21 @@ def _stride(n, cap) -> np.ndarray:
 
 
 def estimate_latency(tm, pm, tc, pc, window: float = 0.1, center: float = 0.0, register: bool = True,
-                     groups=None, parts=None) -> Latency:
+                     groups=None, parts=None, usable=None) -> Latency:
     """The latency of the tracker's points (``tm`` (n,) s, ``pm`` (n, 3) m, tracker frame) against the command
     path (``tc`` (k,) s, ``pc`` (k, 3) m, base frame) within ``center +- window`` s. ``groups``: index arrays
     into ``tm`` of the cycles (default: 10 time blocks); ``parts``: index arrays of the parts of the path
     (its segments over every cycle; default none). Only points whose shifted stamps stay inside the
-    command's time span for every shift tried are used."""
+    command's time span for every shift tried are used, and of those only the ``usable`` ones (a function of
+    (stamps, lo, hi) giving a mask: those whose shifted stamps stay in one epoch of the command)."""
     from scipy.optimize import minimize_scalar
     tm, pm, tc, pc = (np.asarray(a, float) for a in (tm, pm, tc, pc))
     if not window > 0:
         raise ValueError("latency window: must be > 0")
     lo, hi = center - window, center + window
     inside = (tm - hi >= tc[0]) & (tm - lo <= tc[-1])
+    if usable is not None:
+        inside &= usable(tm, lo, hi)
     idx = np.flatnonzero(inside)
     if len(idx) < 10:
         raise ValueError(f"latency: only {len(idx)} tracker points lie within the joint states' time span "
@@ -123,6 +143,10 @@ def estimate_latency(tm, pm, tc, pc, window: float = 0.1, center: float = 0.0, r
     taus = np.arange(lo, hi + 0.5 * step, step)
     S = np.array([residual_sum(x, tm[scan_i], pm[scan_i], tc, pc, register, cmd) for x in taus])
     b = int(np.argmin(S))
+    if b in (0, len(taus) - 1):
+        raise ValueError(f"latency: the best shift lies at the edge of the search window {lo * 1e3:+.1f} ms to "
+                         f"{hi * 1e3:+.1f} ms, so the latency may lie beyond it: widen the window, or give the "
+                         f"latency")
     a0, a1 = taus[max(b - 1, 0)], taus[min(b + 1, len(taus) - 1)]
     res = minimize_scalar(lambda x: residual_sum(x, tm[ref_i], pm[ref_i], tc, pc, register, cmd), bounds=(a0, a1),
                           method="bounded", options={"xatol": 1e-6})
@@ -160,26 +184,57 @@ def estimate_latency(tm, pm, tc, pc, window: float = 0.1, center: float = 0.0, r
                    np.sqrt(S / len(scan_i)).tolist())
 
 
-def coarse_offset(tm, pm, tc, pc, dt: float = 0.01) -> float:
-    """The shift (s) of the tracker's stamps against the command's by the cross-correlation of their speed
-    profiles, both averaged in bins of ``dt`` s (no frame or small geometric error changes a speed)."""
-    def profile(t, p, t0, n):
-        k = np.clip(((t - t0) / dt).astype(int), 0, n - 1)
-        cnt = np.bincount(k, minlength=n)
-        mean = np.column_stack([np.bincount(k, p[:, j], minlength=n) for j in range(3)]) / np.maximum(cnt, 1)[:, None]
-        have = cnt > 0
-        x = np.arange(n)
-        mean = interp_columns(x, x[have], mean[have])
-        v = np.zeros(n)
-        v[1:-1] = np.linalg.norm(mean[2:] - mean[:-2], axis=1) / (2 * dt)
-        return v - v.mean()
+def _speed_profile(t, p, t0: float, n: int, dt: float):
+    """(n,) speed (m/s) of the path ``p`` (k, 3) at ``t`` (k,) s in bins of ``dt`` s from ``t0``, less its mean
+    where known, and (n,) whether it is known: a bin inside the stream, not in one of its holes (an interval
+    over ten times the median one and 50 ms)."""
+    d = np.diff(t)
+    hole = max(10.0 * float(np.median(d)) if d.size else 0.0, 0.05)
+    centre = t0 + (np.arange(n) + 0.5) * dt
+    after = np.searchsorted(t, centre)
+    inside = (after > 0) & (after < len(t))
+    i = np.clip(after, 1, len(t) - 1)
+    known = inside & (t[i] - t[i - 1] <= hole)
+    x = interp_columns(centre, t, p)
+    v = np.zeros(n)
+    v[1:-1] = np.linalg.norm(x[2:] - x[:-2], axis=1) / (2 * dt)
+    known[1:-1] &= known[:-2] & known[2:]
+    known[[0, -1]] = False
+    if known.any():
+        v[known] -= v[known].mean()
+    v[~known] = 0.0
+    return v, known
 
+
+def coarse_offset(tm, pm, tc, pc, dt: float = COARSE_BIN_S, tie: float = COARSE_TIE) -> float:
+    """The shift (s) of the tracker's stamps against the command's by the cross-correlation of their speed
+    profiles (``_speed_profile``; no frame or small geometric error changes a speed) over every shift that
+    leaves them overlapping for half the shorter stream or more: a latency of any size. Where the path
+    repeats, shifts by its period correlate almost as well (a stream that holds more cycles than the other
+    matches at several): of the peaks within ``tie`` of the best, the nearest zero. The bins widen when the
+    stamps span more time than ``4 x`` the samples would fill (memory bounded by the samples). ValueError
+    when no shift leaves them overlapping so."""
+    tm, pm, tc, pc = (np.asarray(a, float) for a in (tm, pm, tc, pc))
     t0 = min(tm[0], tc[0])
-    n = int(np.ceil((max(tm[-1], tc[-1]) - t0) / dt)) + 1
-    vm, vc = profile(np.asarray(tm, float), np.asarray(pm, float), t0, n), profile(np.asarray(tc, float),
-                                                                                   np.asarray(pc, float), t0, n)
+    span = max(tm[-1], tc[-1]) - t0
+    dt = max(dt, span / (4 * (len(tm) + len(tc)) + 100_000))
+    n = int(np.ceil(span / dt)) + 2
+    (vm, km), (vc, kc) = _speed_profile(tm, pm, t0, n, dt), _speed_profile(tc, pc, t0, n, dt)
     m = 1 << int(np.ceil(np.log2(2 * n)))
-    xc = np.fft.irfft(np.fft.rfft(vm, m) * np.conj(np.fft.rfft(vc, m)), m)
-    lag = int(np.argmax(xc))
-    lag = lag - m if lag > m // 2 else lag
-    return lag * dt
+
+    def corr(a, b):
+        return np.fft.irfft(np.fft.rfft(a, m) * np.conj(np.fft.rfft(b, m)), m)
+
+    xc = corr(vm, vc)
+    overlap = corr(km.astype(float), kc.astype(float)) * dt
+    lags = np.arange(m)
+    lags = np.where(lags > m // 2, lags - m, lags) * dt
+    shorter = min(km.sum(), kc.sum()) * dt
+    ok = overlap >= 0.5 * shorter - 1.5 * dt
+    if not ok.any() or not shorter > 0:
+        raise ValueError(f"latency: no shift of the tracker's stamps leaves the two streams overlapping for half the "
+                         f"shorter one ({shorter:.3g} s of known speed): they cannot be aligned (another recording?)")
+    best = float(xc[ok].max())
+    peak = ok & (xc >= np.roll(xc, 1)) & (xc >= np.roll(xc, -1))
+    near = peak & (xc >= best - tie * abs(best))
+    return float(lags[near][np.argmin(np.abs(lags[near]))])

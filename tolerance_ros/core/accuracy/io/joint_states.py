@@ -5,13 +5,14 @@ Joint states::
     # optional comment lines
     stamp[s],joint:joint1[rad],joint:joint2[deg],...,joint:slide[mm]
 
-``stamp`` needs its unit (s, ms, us, ns) and must not decrease; every joint column its unit (rad, deg,
+``stamp`` needs its unit (s, ms, us, ns); the rows are kept as logged (repeated stamps, rows out of order and
+a clock that jumps are the path report's to put in order and say: ``streams.tidy``); every joint column its unit (rad, deg,
 mrad for revolute joints, m, mm for prismatic ones). Every joint of the robot must have a column; other
 columns are an error naming them. A row that is not numbers stops the read with its line number.
 
 A point stream is the measurement CSV of ``csv_format`` with the columns ``stamp``, ``x``, ``y``, ``z`` only
 (what ``write_points`` writes); ``read_points`` reads one at numpy's speed (with the same checks: units,
-numbers, stamps that do not decrease, a row written twice) and any other measurement file through
+numbers; stamps as logged) and any other measurement file through
 ``read_measurements``.
 """
 from __future__ import annotations
@@ -87,11 +88,6 @@ def read_joint_states(path, joint_names, joint_types=None):
     if len(A) < 3:
         raise MeasurementError(f"{path}: {len(A)} joint state(s); a path needs at least 3")
     A *= np.array(scale)
-    d = np.diff(A[:, 0])
-    if np.any(d < 0):
-        i = int(np.argmax(d < 0)) + 1
-        raise MeasurementError(f"{path}: row {i + 1} after the header: stamp {A[i, 0]:.9g} s is earlier than the "
-                               f"previous one (stamps must not decrease)")
     return A[:, 0], A[:, 1:]
 
 
@@ -144,15 +140,6 @@ def read_points(path):
             if len(A) == 0:
                 raise MeasurementError(f"{path}: no measurements")
             A *= np.array([TIME_UNITS[cols["stamp"][1]]] + [LENGTH_UNITS[cols[c][1]] for c in "xyz"])
-            d = np.diff(A[:, 0])
-            if np.any(d < 0):
-                i = int(np.argmax(d < 0)) + 1
-                raise MeasurementError(f"{path}: row {i + 1} after the header: stamp {A[i, 0]:.9g} s is earlier than "
-                                       f"the previous one (stamps must not decrease)")
-            same = np.flatnonzero(np.all(np.diff(A, axis=0) == 0, axis=1))
-            if len(same):
-                raise MeasurementError(f"{path}: rows {same[0] + 1} and {same[0] + 2} after the header are the same "
-                                       f"record (a measurement written twice)")
             return A[:, 0], A[:, 1:], str(path)
     m = read_measurements(path)
     return m.stamps, m.T[:, :3, 3], m.source
