@@ -6,7 +6,7 @@ import pytest
 
 from path_runs import T_TB, run
 from tolerance_ros.core.accuracy import path as P
-from tolerance_ros.core.accuracy.path_report import command_points, path_report
+from tolerance_ros.core.accuracy.path_report import PathOptions, command_points, path_report
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.services.path_monitor import ERROR, OK, WARN, PathMonitor
 
@@ -32,8 +32,8 @@ def feed(mon, st, batch=0.05):
 
 def test_online_figures_equal_the_offline_report(gao, rect):
     st = rect
-    offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints, latency=0.008, T_tracker_base=T_TB,
-                          step=0.002)
+    offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints,
+                          options=PathOptions(latency=0.008, T_tracker_base=T_TB, step=0.002))
     mon = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
     reports = feed(mon, st)
     assert [r["cycles"] for r in reports] == [1, 2, 3, 4]           # one report as each path ends
@@ -148,7 +148,10 @@ def test_a_motion_with_lost_messages_is_not_judged_and_the_loss_is_warned_of(gao
     mon = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
     reports = feed(mon, st)
     whole = feed(full, rect)
-    assert [r["cycles"] for r in reports] == [1, 2, 3]
+    assert [r.get("cycles") for r in reports] == [1, None, 2, 3]      # the second cycle's report: not judged
+    skipped = reports[1]
+    assert not skipped["judged"] and f"{start:.3f} s" in skipped["reason"] and skipped["points"] > 0
+    reports = [r for r in reports if r["judged"]]
     assert mon.counts["motions"] == full.counts["motions"] and mon.counts["not_judged"] > 0
     stream = "joint_states" if lost == "joints" else "points"
     assert reports[-1]["stream_gaps"][stream]["gaps"] == 1
@@ -158,8 +161,8 @@ def test_a_motion_with_lost_messages_is_not_judged_and_the_loss_is_warned_of(gao
     assert level == WARN and f"{stream}: 1 gap(s)" in words and "not judged" in words, words
     assert mon.diagnostic()["values"][f"{stream}_gaps"] == "1"
     assert whole[-1]["cycles"] == 4 and full.status()[0] == OK
-    offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints, latency=0.008, T_tracker_base=T_TB,
-                          step=0.002)
+    offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints,
+                          options=PathOptions(latency=0.008, T_tracker_base=T_TB, step=0.002))
     assert offline["cycles"] == 3 and offline["not_judged"] == reports[-1]["not_judged"]
     assert offline["outside"]["not_judged"] == mon.counts["not_judged"]
     assert offline["stream_gaps"][stream]["gaps"] == 1
