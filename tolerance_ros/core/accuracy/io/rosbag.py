@@ -161,7 +161,8 @@ def _topic(path, topics, suffixes):
 
 
 def read_rosbag_streams(path, joint_names=None):
-    """The two streams of a recording as they came, unpaired: (point stamps (n,) s, points (n, 3) m, joint stamps
+    """The two streams of a recording as they came (in the order recorded: stamps repeated, out of order or
+    jumping are the path report's to put in order and say), unpaired: (point stamps (n,) s, points (n, 3) m, joint stamps
     (k,) s, joints (k, dof) in the order of ``joint_names``; both None when no joint states were recorded, or
     when ``joint_names`` is None: the points alone are read). Points
     from ``measured_point`` (PointStamped) or ``measured_pose`` (PoseStamped, its position), joints from
@@ -197,12 +198,8 @@ def read_rosbag_streams(path, joint_names=None):
                 raise MeasurementError(f"{path}: message {k} on {conn.topic}: {exc}") from None
     if not pts:
         raise MeasurementError(f"{path}: no messages on {ptopic}")
-    i = np.argsort(pst, kind="stable")
-    joints = None
-    if js:
-        j = np.argsort(jst, kind="stable")
-        jst, joints = np.asarray(jst)[j], np.asarray(js, float)[j]
-    return np.asarray(pst)[i], np.asarray(pts, float)[i], (jst if js else None), joints
+    joints = np.asarray(js, float) if js else None
+    return np.asarray(pst), np.asarray(pts, float), (np.asarray(jst) if js else None), joints
 
 
 def write_rosbag_streams(path, stamps, points, joint_stamps, joints, joint_names, storage="sqlite3",
