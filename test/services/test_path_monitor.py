@@ -4,7 +4,7 @@ points counted as offline, bounded memory, and its diagnostic."""
 import numpy as np
 import pytest
 
-from path_runs import T_TB, run
+from path_runs import T_TB, feed, run
 from tolerance_ros.core.accuracy import path as P
 from tolerance_ros.core.accuracy.path_report import PathOptions, command_points, path_report
 from tolerance_ros.core.budget import load_budget
@@ -14,20 +14,6 @@ from tolerance_ros.services.path_monitor import ERROR, OK, WARN, PathMonitor
 @pytest.fixture(scope="module")
 def rect(gao):
     return run(gao, "rectangle", cycles=4)
-
-
-def feed(mon, st, batch=0.05):
-    """The streams in time order, ``batch`` s at a time (joint states then the tracker's points of each)."""
-    reports = []
-    t0 = min(st.joint_stamps[0], st.stamps[0])
-    end = max(st.joint_stamps[-1], st.stamps[-1])
-    for a in np.arange(t0, end + batch, batch):
-        j = (st.joint_stamps >= a) & (st.joint_stamps < a + batch)
-        m = (st.stamps >= a) & (st.stamps < a + batch)
-        reports += mon.add_joint_states(st.joint_stamps[j], st.joints[j])
-        reports += mon.add_points(st.stamps[m], st.points[m])
-        assert len(mon.tm) < 20_000 and len(mon.tj) < 10_000       # bounded: about one motion at a time
-    return reports + mon.finish()
 
 
 def test_online_figures_equal_the_offline_report(gao, rect):

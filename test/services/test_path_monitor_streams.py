@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from path_runs import T_TB, run
+from path_runs import T_TB, feed, run
 from tolerance_ros.core.geometry import transform
 from tolerance_ros.services.monitor import MonitorLogic
 from tolerance_ros.services.path_monitor import WARN, PathMonitor
@@ -185,3 +185,20 @@ def test_the_accuracy_monitor_never_raises_on_mutated_streams(gao, rect):
                 logic.on_pose(t[k], "tracker", v[k], (0.0, 0.0, 0.0, 1.0), target="")
     logic.resolve(now=1e12)
     assert logic.counts["paired"] > 0 and logic.diagnostic()["level"] in (0, 1, 2)
+
+
+@pytest.mark.parametrize("kind", ["rectangle", "line"])
+def test_a_program_that_loops_without_a_stop_is_judged_on_line_cycle_by_cycle(gao, kind):
+    """No rest between the cycles: each is judged as its repetition (or its stroke, before the line's cusp) is
+    complete, not after the run; the figures within 2 % of the offline report's on the same log."""
+    from tolerance_ros.core.accuracy.path_report import PathOptions, path_report
+    st = run(gao, kind, cycles=5, dwell=0.0)
+    offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints,
+                          options=PathOptions(latency=0.008, T_tracker_base=T_TB, step=0.002))
+    mon = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB, step=0.002)
+    reports = feed(mon, st, batch=0.1)
+    test_path = [r for r in reports if r["judged"] and r["path"] == 0]
+    assert [r["cycles"] for r in test_path] == [1, 2, 3, 4, 5] and all(r["judged"] for r in reports)
+    for on, off in zip(test_path[-1]["segments"], offline["segments"]):
+        assert on["AT_p_m"] == pytest.approx(off["AT_p_m"], rel=0.02) and on["RT_p_m"] == pytest.approx(off["RT_p_m"],
+                                                                                                       rel=0.02)
