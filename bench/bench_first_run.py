@@ -1,17 +1,26 @@
 """Benchmark: a user's first run against the second, for the README's main job and an allocation.
 
-Each job runs as a user runs it (``python -m tolerance_ros.cli ...``, a fresh process): first on an empty
-kernel cache (``NUMBA_CACHE_DIR`` a new folder: the kernels compile in a background child while the job
-starts on the numpy path and switches to each kernel family as it is ready), then, once that child has
-filled the cache, again on the warm cache. Printed side by side: the seconds of each, the ratio of the first
-run to the mean of the second runs just before and just after it (``measure``), and the longest time the
-progress on stderr stood still in each run. Target: the first run within 1.3x of the
-second, and the progress never still for more than 2 s; exits 1 when a job misses either. ``--busy N``
-runs N busy loops beside the jobs, each a session of its own (a loaded machine, reproducibly);
-``--repeat N`` measures each job N times, each from a new empty cache, and prints the medians (a VM's speed
-drifts by 10-20 % between runs).
+Each job runs as a user runs it (a fresh process): first on an empty kernel cache (the kernels compile in a
+background child while the job starts on the numpy path and switches to each kernel family as it is ready),
+then, once that child has filled the cache, again on the warm cache. Two setups:
 
-    python bench/bench_first_run.py [--jobs paper,allocate,rong2018] [--busy 1] [--repeat 3]
+- ``--readme``: the README's own path. A fresh clone of this checkout's HEAD, ``python3 -m venv
+  --system-site-packages .venv && .venv/bin/pip install -q .`` in it (not editable), each job run as
+  ``.venv/bin/tolerance-ros ...`` from the clone's root with the environment as it is (no
+  ``NUMBA_CACHE_DIR``): the cache is the installed package's own, and an empty cache is its numba files and
+  marker removed. After each first run the clone's own ``tolerance_ros`` must hold no kernel cache: the
+  child compiled for the package its parent runs, not for the checkout in the working directory.
+- default: this checkout (``python -m tolerance_ros.cli ...``, the checkout first on ``PYTHONPATH``), each
+  empty cache a new ``NUMBA_CACHE_DIR``.
+
+Printed side by side: the seconds of each, the ratio of the first run to the mean of the second runs just
+before and just after it (``measure``), and the longest time the progress on stderr stood still in each run.
+Target: the first run within 1.3x of the second, and the progress never still for more than 2 s; exits 1
+when a job misses either. ``--busy N`` runs N busy loops beside the jobs, each a session of its own (a loaded
+machine, reproducibly); ``--repeat N`` measures each job N times, each from an empty cache, and prints the
+medians (a VM's speed drifts by 10-20 % between runs).
+
+    python bench/bench_first_run.py [--readme] [--jobs paper,allocate,rong2018] [--busy 1] [--repeat 3]
 """
 import argparse
 import contextlib
@@ -43,10 +52,97 @@ def child_env(cache):
                 PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
 
 
-def run(argv, cache):
+def _is_cache_file(f) -> bool:
+    """A numba cache file or the kernels' marker or lock."""
+    return f.suffix in (".nbi", ".nbc") or f.name.startswith("tolerance_ros-kernels")
+
+
+class Checkout:
+    """The jobs run from this checkout, each empty cache a new ``NUMBA_CACHE_DIR``."""
+
+    cwd = None
+
+    def __init__(self):
+        self.cache = None
+
+    def command(self, argv):
+        return [sys.executable, "-m", "tolerance_ros.cli", *argv]
+
+    def env(self):
+        return child_env(self.cache)
+
+    @contextlib.contextmanager
+    def empty_cache(self):
+        with tempfile.TemporaryDirectory() as cache:
+            self.cache = cache
+            yield
+
+    def python(self, code):
+        return subprocess.run([sys.executable, "-c", code], env=self.env()).returncode
+
+    def fill(self):
+        from tolerance_ros.core.models import warmup
+        subprocess.run(warmup.child_command([]), env=self.env(), stdout=subprocess.DEVNULL, check=True)
+
+    def check(self):
+        return None
+
+
+class Readme:
+    """The README's path: a fresh clone, ``pip install .`` (not editable), the jobs run from the clone's root."""
+
+    INSTALL = "python3 -m venv --system-site-packages .venv && .venv/bin/pip install -q ."
+
+    def __init__(self, where):
+        self.outside = Path(where)        # a folder without a checkout, to ask the installed package from
+        self.clone = self.outside / "tolerance_ros"
+        subprocess.run(["git", "clone", "-q", str(ROOT), str(self.clone)], check=True)
+        print(f"installing as the README does in a fresh clone of {ROOT}: {self.INSTALL}", flush=True)
+        subprocess.run(["bash", "-c", self.INSTALL], cwd=self.clone, check=True)
+        self.bin = self.clone / ".venv" / "bin"
+        self.cache_dir = Path(subprocess.run(
+            [str(self.bin / "python"), "-c", "from tolerance_ros.core.models.warmup import cache_dir; print(cache_dir())"],
+            cwd=self.outside, capture_output=True, text=True, check=True).stdout.strip())
+
+    @property
+    def cwd(self):
+        return self.clone
+
+    def command(self, argv):
+        return [str(self.bin / "tolerance-ros"), *argv]
+
+    def env(self):
+        return {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+
+    @contextlib.contextmanager
+    def empty_cache(self):
+        for f in self.cache_dir.glob("*"):
+            if _is_cache_file(f):
+                f.unlink()
+        yield
+
+    def python(self, code):
+        return subprocess.run([str(self.bin / "python"), "-c", code], env=self.env(), cwd=self.outside).returncode
+
+    def fill(self):
+        code = ("import subprocess, sys; from tolerance_ros.core.models import warmup; "
+                "sys.exit(subprocess.run(warmup.child_command([]), stdout=subprocess.DEVNULL).returncode)")
+        if subprocess.run([str(self.bin / "python"), "-c", code], env=self.env(), cwd=self.outside).returncode:
+            raise SystemExit("filling the installed package's kernel cache failed")
+
+    def check(self):
+        """What is wrong with where the first run compiled to, or None: the clone's own package holds no cache."""
+        stray = [f for f in (self.clone / "tolerance_ros" / "core" / "models" / "__pycache__").glob("*")
+                 if _is_cache_file(f)]
+        if stray:
+            return f"the first run compiled into the checkout's cache ({len(stray)} files), not the installed package's"
+        return None
+
+
+def run(argv, setup):
     """(seconds, longest gap between progress lines on stderr, exit code) of one command in a fresh process."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "tolerance_ros.cli", *argv], env=child_env(cache), stdout=subprocess.DEVNULL,
+    proc = subprocess.Popen(setup.command(argv), env=setup.env(), cwd=setup.cwd, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
     stamps = []
 
@@ -76,14 +172,14 @@ def paused(busy):
             proc.send_signal(signal.SIGCONT)
 
 
-def wait_filled(cache, busy=(), timeout=600):
-    """Wait until the background child of the first run has filled ``cache`` (its marker is current), the
+def wait_filled(setup, busy=(), timeout=600):
+    """Wait until the background child of the first run has filled the cache (its marker is current), the
     ``busy`` loops ``paused``."""
     code = "from tolerance_ros.core.models import warmup; import sys; sys.exit(0 if warmup.cached() else 1)"
     with paused(busy):
         t0 = time.perf_counter()
         while time.perf_counter() - t0 < timeout:
-            if subprocess.run([sys.executable, "-c", code], env=child_env(cache)).returncode == 0:
+            if setup.python(code) == 0:
                 return True
             time.sleep(2.0)
         return False
@@ -94,6 +190,8 @@ def main():
     ap.add_argument("--jobs", default=",".join(DEFAULT_JOBS), help=f"comma-separated, of {list(JOBS)}")
     ap.add_argument("--busy", type=int, default=0, help="busy loops beside the jobs, each a session of its own")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each job (each from an empty cache); medians")
+    ap.add_argument("--readme", action="store_true",
+                    help="the README's path: a fresh clone, pip install . (not editable), run from its root")
     args = ap.parse_args()
     names = args.jobs.split(",")
     unknown = [n for n in names if n not in JOBS]
@@ -102,14 +200,18 @@ def main():
     if args.busy < 0 or args.repeat < 1:
         ap.error("--busy: expected 0 or more; --repeat: expected 1 or more")
     print(f"machine: {machine()}, {load_average()}, {args.busy} busy loop(s) beside")
-    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"], start_new_session=True)
-            for _ in range(args.busy)]
-    try:
-        rows, missed = measure(names, args.repeat, busy)
-    finally:
-        for proc in busy:
-            proc.kill()
-            proc.wait()
+    with tempfile.TemporaryDirectory() as where:
+        setup = Readme(where) if args.readme else Checkout()
+        print("setup: " + ("the README's (a fresh clone, pip install ., run from its root)" if args.readme else
+                           "this checkout, NUMBA_CACHE_DIR a new folder for each empty cache"), flush=True)
+        busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"], start_new_session=True)
+                for _ in range(args.busy)]
+        try:
+            rows, missed = measure(names, setup, args.repeat, busy)
+        finally:
+            for proc in busy:
+                proc.kill()
+                proc.wait()
     print(f"medians of {args.repeat} run(s) each" if args.repeat > 1 else "one run each")
     print("| job | first run s (empty cache) | second run s | ratio | progress still, first / second s | exit |")
     print("|---|---|---|---|---|---|")
@@ -122,15 +224,14 @@ def main():
     return 1 if missed else 0
 
 
-def fill(cache, busy=()):
-    """Fill ``cache`` with every kernel family (the background child's work, in the foreground), the ``busy``
+def fill(setup, busy=()):
+    """Fill the cache with every kernel family (the background child's work, in the foreground), the ``busy``
     loops ``paused``."""
     with paused(busy):
-        subprocess.run([sys.executable, "-m", "tolerance_ros.core.models.warmup"], env=child_env(cache),
-                       stdout=subprocess.DEVNULL, check=True)
+        setup.fill()
 
 
-def measure(names, repeat=1, busy=()):
+def measure(names, setup, repeat=1, busy=()):
     """Rows (job, cold s, warm s, ratio, still cold, still warm, exit codes) and the targets missed; with
     ``repeat`` the median seconds and ratio, the longest stillness and the worst exit codes. Each first run
     is bracketed by two second runs, the one before it and its own after it (on the cache its child
@@ -139,15 +240,18 @@ def measure(names, repeat=1, busy=()):
     rows, missed = [], []
     for name in names:
         runs = []
-        with tempfile.TemporaryDirectory() as cache:
-            fill(cache, busy)
-            before, before_still, c0 = run(JOBS[name], cache)
+        with setup.empty_cache():
+            fill(setup, busy)
+            before, before_still, c0 = run(JOBS[name], setup)
         for _ in range(repeat):
-            with tempfile.TemporaryDirectory() as cache:
-                cold, cold_still, c1 = run(JOBS[name], cache)
-                if not wait_filled(cache, busy):
+            with setup.empty_cache():
+                cold, cold_still, c1 = run(JOBS[name], setup)
+                if not wait_filled(setup, busy):
                     raise SystemExit("the background child did not fill the cache")
-                warm, warm_still, c2 = run(JOBS[name], cache)
+                wrong = setup.check()
+                if wrong:
+                    missed.append(f"{name}: {wrong}")
+                warm, warm_still, c2 = run(JOBS[name], setup)
             ratio = cold / (0.5 * (before + warm))
             runs.append((cold, warm, ratio, cold_still, max(warm_still, before_still), c1, max(c0, c2)))
             print(f"  {name} run {len(runs)}: first {cold:.1f} s, second runs {before:.1f} s before and {warm:.1f} s "

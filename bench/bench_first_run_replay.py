@@ -3,8 +3,7 @@
 A first run's cost over the second is the work its calls do on the numpy path until their kernel family
 is ready. Two timed runs differ by 10-20 % on a VM from its drift alone, more than what an order or a head
 start changes; this replay sees that difference. It measures (1) when each family is ready after the start
-of a compiling child on an empty cache (``python -m tolerance_ros.core.models.warmup``, as a cold command
-spawns it), for each order; (2) one warm run of the job in this process, every chain and worst-case call
+of a compiling child on an empty cache (``warmup.child_command``, as a cold command spawns it), for each order; (2) one warm run of the job in this process, every chain and worst-case call
 timed on its kernel and, at once after, on its numpy path; then replays the warm run's calls with each
 family on numpy until its ready time and prints the estimated first run and its ratio to the second. The
 estimate leaves out what the two processes take from each other: the real first run is slower (measured
@@ -24,6 +23,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_first_run import JOBS, child_env  # noqa: E402
+from tolerance_ros.core.models import warmup  # noqa: E402
 from machine import load_average, machine  # noqa: E402
 
 FAMILIES = ("zonotope", "dh")  # the two families the D-H jobs wait for
@@ -33,8 +33,8 @@ def ready_times(order):
     """Seconds from a compiling child's start on an empty cache to each family of ``order`` being ready."""
     with tempfile.TemporaryDirectory() as cache:
         t0 = time.perf_counter()
-        child = subprocess.Popen([sys.executable, "-m", "tolerance_ros.core.models.warmup", *order],
-                                 env=child_env(cache), stdout=subprocess.PIPE, text=True)
+        child = subprocess.Popen(warmup.child_command(order), env=child_env(cache), stdout=subprocess.PIPE,
+                                 text=True)
         ready = {}
         for line in child.stdout:
             word, _, family = line.strip().partition(" ")

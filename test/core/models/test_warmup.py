@@ -208,3 +208,34 @@ def test_the_families_a_command_waits_for_compile_first_then_the_next_then_the_r
     while not seen and time.monotonic() < deadline:  # _prepare runs in the background thread start() made
         time.sleep(0.01)
     assert seen == [(["zonotope", "urdf", "dh", "pups"], 1)]
+
+
+LAUNCHER = r"""
+import subprocess, sys
+from tolerance_ros.core.models import warmup
+print(warmup.__file__)
+print(subprocess.run(warmup.child_command(["--where"]), capture_output=True, text=True, check=True).stdout.strip())
+"""
+
+
+def test_the_compiling_child_imports_the_package_its_parent_runs_whatever_the_working_directory(tmp_path):
+    """The README's path: the package installed (``pip install .`` copies it into site-packages; a copy here),
+    the command run from a checkout's root, which holds another ``tolerance_ros``. A console script's parent
+    imports the installed one; its child must too (``python -m`` would import the checkout's and compile into
+    its cache, where the installed package never looks)."""
+    import shutil
+    skip = shutil.ignore_patterns("__pycache__")
+    site, checkout, scripts = tmp_path / "site", tmp_path / "checkout", tmp_path / "bin"
+    shutil.copytree(ROOT / "tolerance_ros", site / "tolerance_ros", ignore=skip)
+    shutil.copytree(ROOT / "tolerance_ros", checkout / "tolerance_ros", ignore=skip)
+    scripts.mkdir()
+    (scripts / "tolerance-ros").write_text(LAUNCHER)
+    env = dict(os.environ, PYTHONPATH=str(site))
+    out = subprocess.run([sys.executable, str(scripts / "tolerance-ros")], cwd=checkout, env=env, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    parent, child = out.stdout.split()
+    assert Path(parent).is_relative_to(site) and Path(child) == site / "tolerance_ros"
+    old = subprocess.run([sys.executable, "-m", "tolerance_ros.core.models.warmup", "--where"], cwd=checkout, env=env,
+                         capture_output=True, text=True, timeout=120)
+    assert Path(old.stdout.strip()) == checkout / "tolerance_ros"    # what ``python -m`` imported: the checkout's

@@ -3,9 +3,10 @@
 Compiling the kernels with an empty numba cache takes 30-40 s on a 2-core VM; loading them from the cache about 1 s
 (most of it importing numba). A node, or a one-shot command, that waited for either would lose its first
 requests. ``start(background=True)`` returns at once: the models answer from their numpy reference path
-(equal to the compiled one to 1e-12) while a background thread prepares the kernels (a child process
-``python -m tolerance_ros.core.models.warmup`` compiles them into the cache when it is cold, then this
-process loads them from there), and the models switch to them between two calls, without a pause.
+(equal to the compiled one to 1e-12) while a background thread prepares the kernels (a child process running
+this module of the very package its parent runs, ``child_command``, compiles them into the cache when it is
+cold, then this process loads them from there), and the models switch to them between two calls, without a
+pause.
 Without ``background`` (the library's default), the kernels compile or load on first use, in the caller.
 
 Whether the cache is warm is known without importing numba: ``kernels.warm_up`` writes ``MARKER`` into
@@ -211,15 +212,26 @@ def _lock_cache(order=()):
             return None
 
 
+_CHILD = ("import sys; sys.path[0] = sys.argv.pop(1); import runpy; "
+          "runpy.run_module('tolerance_ros.core.models.warmup', run_name='__main__', alter_sys=True)")
+
+
+def child_command(args) -> list:
+    """The command line of the child that fills the cache: this very package first on its import path (the
+    folder that holds this ``tolerance_ros``), in place of the working directory. ``python -m`` would put the
+    working directory first: run from a checkout's root after ``pip install .``, the child would compile the
+    checkout's kernels into the checkout's cache, where the installed package never looks."""
+    return [sys.executable, "-c", _CHILD, str(_HERE.parents[2])] + list(args)
+
+
 def _fill_in_child(order, nice=True, first=None):
     """Run ``fill_cache`` in a child process; meanwhile import numba here (``kernels.prime``: the families
     waited for then load in milliseconds, not a second); each family it reports ready is loaded here at once.
     None on success, else the reason."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(_HERE.parents[2])] + [p for p in [env.get("PYTHONPATH")] if p])
-    args = [sys.executable, "-m", "tolerance_ros.core.models.warmup"] + (["--nice"] if nice else []) + list(order)
-    if first is not None:
-        args.append(f"--first={first}")
+    args = child_command((["--nice"] if nice else []) + list(order) + ([f"--first={first}"] if first is not None
+                                                                         else []))
     try:
         child = subprocess.Popen(args, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE, text=True, start_new_session=True)
@@ -304,5 +316,8 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None) -> int:
 
 if __name__ == "__main__":
     _args = sys.argv[1:]
+    if "--where" in _args:              # which package this child imports (``child_command``'s test)
+        print(Path(sys.modules["tolerance_ros"].__file__).resolve().parent)
+        sys.exit(0)
     _first = next((int(a.split("=", 1)[1]) for a in _args if a.startswith("--first=")), None)
     sys.exit(fill_cache([a for a in _args if a in kernels.FAMILIES], "--nice" in _args, _first))
