@@ -1,5 +1,4 @@
 """URDF chains: our batched FK and Jacobian against pinocchio on real URDFs from example-robot-data."""
-import time
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -222,11 +221,12 @@ def test_a_byte_order_mark_gives_one_answer_from_a_file_and_from_text(tmp_path):
     (_chain_urdf([(f"j{i}", f"l{i}", f"l{i + 1}") for i in range(1001)]), "1001 joints; a URDF may have at most 1000"),
     ('<!DOCTYPE r [<!ENTITY a "x">]><robot name="&a;"/>', r"entity declarations \(<!ENTITY ...>\) are not supported"),
 ])
-def test_a_hostile_urdf_is_refused_before_pinocchio_reads_it(text, message):
-    t0 = time.perf_counter()
+def test_a_hostile_urdf_is_refused_before_pinocchio_reads_it(text, message, monkeypatch):
+    def reads(*args, **kwargs):
+        raise AssertionError("pinocchio was given the hostile URDF")
+    monkeypatch.setattr(pin, "buildModelFromXML", reads)
     with pytest.raises(ModelError, match=message):
         URDFChain(text)
-    assert time.perf_counter() - t0 < 1.0
 
 
 def test_a_urdf_file_is_bounded_and_utf8(tmp_path):
