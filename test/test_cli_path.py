@@ -229,3 +229,29 @@ def test_a_loop_without_a_stop_logged_twice_and_late_is_judged_as_the_clean_one(
     code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "p.csv",
                        "--joint-states", tmp_path / "p.joints.csv", "--latency-window", "100ms")
     assert code == 2 and "edge of the search window -100.0 ms to +100.0 ms" in err
+
+
+def test_joint_state_files_as_exported_say_what_is_wrong_or_read_past(capsys, streams, tmp_path):
+    """A row with a field more, a semicolon-separated export: exit 2 naming the line or the separator; a column
+    of a joint the robot does not have (a gripper's): read past and said."""
+    lines = (streams / "path.joints.csv").read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("stamp"))
+    extra = lines[:head + 1] + lines[head + 1:head + 50] + [lines[head + 50] + ",0.0"] + lines[head + 51:]
+    (tmp_path / "extra.csv").write_text("\n".join(extra) + "\n")
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                       "--joint-states", tmp_path / "extra.csv")
+    assert code == 2 and f"line {head + 51}: expected 8 columns, got 9" in err
+    (tmp_path / "semi.csv").write_text("\n".join(l.replace(",", ";") for l in lines[head:]) + "\n")
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                       "--joint-states", tmp_path / "semi.csv")
+    assert code == 2 and "separated by semicolons" in err
+    (tmp_path / "semi_points.csv").write_text((streams / "path.csv").read_text().replace(",", ";"))
+    code, _, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "semi_points.csv",
+                       "--joint-states", streams / "path.joints.csv")
+    assert code == 2 and "separated by semicolons" in err
+    grip = [lines[head] + ",joint:gripper[rad]"] + [r + ",0.5" for r in lines[head + 1:]]
+    (tmp_path / "grip.csv").write_text("\n".join(grip) + "\n")
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                         "--joint-states", tmp_path / "grip.csv")
+    assert code == 0, err
+    assert "columns of joints gao2023_7dof does not have, read past: gripper" in out

@@ -42,15 +42,16 @@ def add_arguments(p):
     p.add_argument("--out", metavar="DIR", help="write path_report.json, path_report.md and plots into DIR")
 
 
-def _command(args, model, recorded=None):
+def _command(args, model, recorded=None, ignored=None):
     """(joint stamps, joints, the trajectory or None, where from) of the command; ``recorded``: the (joint
-    stamps, joints) of the recording ``--measurements`` names (None for another file)."""
+    stamps, joints) of the recording ``--measurements`` names (None for another file); the joint columns of
+    ``--joint-states`` the robot does not have are appended to ``ignored``."""
     from ..core.accuracy.io import read_measurements
     if args.joint_states and args.trajectory:
         raise CLIError("--joint-states, --trajectory: give one of them (the command's joints)")
     if args.joint_states:
         from ..core.accuracy.io.joint_states import read_joint_states
-        tj, qj = read_joint_states(args.joint_states, model.joint_names, model.joint_types)
+        tj, qj = read_joint_states(args.joint_states, model.joint_names, model.joint_types, ignored)
         return tj, model.check_joints(qj, args.joint_states), None, args.joint_states
     if args.trajectory:
         from ..core.accuracy.iso_paths import read_trajectory
@@ -101,11 +102,13 @@ def run(args):
         source = str(args.measurements)
     else:
         stamps, points, source = read_points(args.measurements)
-    tj, qj, trajectory, command_source = _command(args, model, recorded)
+    ignored = []
+    tj, qj, trajectory, command_source = _command(args, model, recorded, ignored)
     options = PathOptions(registration=args.registration, latency=latency, window=window, stations=args.stations,
                           speed_window=speed_window, offset=offset, trajectory=trajectory)
     doc = path_report(model, stamps, points, tj, qj, budget, options, source=source)
-    doc["command"] = {"source": command_source, "kind": "trajectory" if args.trajectory else "joint states"}
+    doc["command"] = {"source": command_source, "kind": "trajectory" if args.trajectory else "joint states",
+                      "ignored_columns": ignored}
     if args.trajectory:
         doc["command"]["start_s"] = doc["latency_s"]
     for what in doc["missed"]:

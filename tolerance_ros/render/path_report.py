@@ -52,6 +52,10 @@ def summary_lines(doc) -> list:
              f"{doc['speed_m_s'] * 1e3:.1f} mm/s in {len(doc['segments'])} segment(s)"
              + (f", {doc['other_motions']} other motion(s)" if doc["other_motions"] else "")
              + _cycles_from(doc.get("cycles_from"))]
+    ignored = (doc.get("command") or {}).get("ignored_columns")
+    if ignored:
+        lines.append(f"joint-state columns of joints {doc['robot']} does not have, read past: {', '.join(ignored[:10])}"
+                     + (f" and {len(ignored) - 10} more" if len(ignored) > 10 else ""))
     lines += [line for line in (describe_tidied(name, s) for name, s in (doc.get("streams") or {}).items()) if line]
     if (doc.get("command") or {}).get("kind") == "trajectory":
         lines.append(f"the trajectory starts at {doc['latency_s']:.6f} s +- {doc['latency_std_s'] * 1e3:.3f} ms on the "

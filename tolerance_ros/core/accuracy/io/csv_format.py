@@ -59,12 +59,23 @@ def _csv_row(line, spec):
         raise MeasurementError(f"{name or f'column {k + 1}'}: longer than {limit} characters") from None
 
 
+def separator_hint(header) -> str:
+    """The words to add when a header (its fields split at commas) is one field holding another separator."""
+    if len(header) == 1:
+        for sep, name in ((";", "semicolons"), ("\t", "tabs")):
+            if sep in header[0]:
+                return (f" (the file is separated by {name}; this format's separator is the comma, and its decimal mark "
+                        f"the point: export it so)")
+    return ""
+
+
 def _parse_header(header, source):
     cols = {}
     for i, h in enumerate(header):
         m = _COL.match(h)
         if not m:
-            raise MeasurementError(f"{source}: header column {i + 1} {_show(h)} is not 'name[unit]'")
+            raise MeasurementError(f"{source}: header column {i + 1} {_show(h)} is not 'name[unit]'"
+                                   f"{separator_hint(header)}")
         name, unit = m.group(1), (m.group(2) or "").strip()
         if name in cols:
             raise MeasurementError(f"{source}: column {name!r} appears twice")

@@ -24,7 +24,7 @@ import numpy as np
 
 from ...resources import not_a_file
 from ...units import ANGLE_UNITS, LENGTH_UNITS, TIME_UNITS
-from .csv_format import _COL
+from .csv_format import _COL, separator_hint
 from .measurements import MeasurementError
 
 
@@ -38,9 +38,11 @@ def _header(path):
     raise MeasurementError(f"{path}: empty file (no header)")
 
 
-def read_joint_states(path, joint_names, joint_types=None):
+def read_joint_states(path, joint_names, joint_types=None, ignored=None):
     """(stamps (k,) s, joints (k, dof) SI in the order of ``joint_names``) from a joint-state CSV (see the
-    module docstring); ``joint_types``: 'revolute' or 'prismatic' per joint, to check each column's unit."""
+    module docstring); ``joint_types``: 'revolute' or 'prismatic' per joint, to check each column's unit.
+    The columns of joints the robot does not have (a gripper's) are read past; their names are appended to
+    ``ignored`` (a list) when given, for the report to say."""
     p = Path(path)
     if not p.is_file():
         raise MeasurementError(f"{path}: {not_a_file(p)}")
@@ -52,7 +54,8 @@ def read_joint_states(path, joint_names, joint_types=None):
     for k, h in enumerate(header):
         m = _COL.match(h)
         if not m or not m.group(2):
-            raise MeasurementError(f"{path}, line {lineno}: column {k + 1} {h!r} is not 'name[unit]'")
+            raise MeasurementError(f"{path}, line {lineno}: column {k + 1} {h[:60]!r} is not 'name[unit]'"
+                                   f"{separator_hint(header)}")
         if m.group(1) in cols:
             raise MeasurementError(f"{path}, line {lineno}: column {m.group(1)!r} appears twice")
         cols[m.group(1)] = (k, m.group(2).strip())
@@ -68,6 +71,8 @@ def read_joint_states(path, joint_names, joint_types=None):
         have = [c[6:] for c in cols if c.startswith("joint:")]
         raise MeasurementError(f"{path}, line {lineno}: no column for joint(s) {missing} of the robot (the file has "
                                f"{have})")
+    if ignored is not None:
+        ignored += [c[6:] for c in cols if c.startswith("joint:") and c[6:] not in joint_names]
     types = joint_types or ["revolute"] * len(joint_names)
     scale = [TIME_UNITS[cols["stamp"][1]]]
     for n, kind in zip(joint_names, types):
@@ -83,7 +88,7 @@ def read_joint_states(path, joint_names, joint_types=None):
         A = np.loadtxt(io.StringIO(body), delimiter=",", comments="#", usecols=use, ndmin=2)
     except ValueError:
         A = None
-    if A is None or A.shape[1] != len(use) or not np.all(np.isfinite(A)):
+    if A is None or A.shape[1] != len(use) or not np.all(np.isfinite(A)) or not _fields_fit(body, len(header), len(A)):
         _first_bad(path, body, lineno, len(header), use)
     if len(A) < 3:
         raise MeasurementError(f"{path}: {len(A)} joint state(s); a path needs at least 3")
@@ -91,9 +96,19 @@ def read_joint_states(path, joint_names, joint_types=None):
     return A[:, 0], A[:, 1:]
 
 
+def _fields_fit(body, ncols, rows) -> bool:
+    """Whether each of the ``rows`` data lines of ``body`` has ``ncols`` fields (counted by its commas; lines
+    with comments are counted one by one)."""
+    if "#" not in body:
+        return body.count(",") == (ncols - 1) * rows
+    lines = [line.split("#", 1)[0] for line in body.splitlines()]
+    return all(line.count(",") == ncols - 1 for line in lines if line.strip())
+
+
 def _first_bad(path, body, lineno, ncols, use):
     for i, line in enumerate(body.splitlines()):
-        if not line.strip() or line.lstrip().startswith("#"):
+        line = line.split("#", 1)[0]
+        if not line.strip():
             continue
         fields = line.split(",")
         if len(fields) != ncols:
@@ -135,7 +150,7 @@ def read_points(path):
                 A = np.loadtxt(io.StringIO(body), delimiter=",", comments="#", usecols=use, ndmin=2)
             except ValueError:
                 A = None
-            if A is None or not np.all(np.isfinite(A)):
+            if A is None or not np.all(np.isfinite(A)) or not _fields_fit(body, 4, len(A)):
                 _first_bad(path, body, lineno, 4, use)
             if len(A) == 0:
                 raise MeasurementError(f"{path}: no measurements")
