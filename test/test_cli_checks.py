@@ -124,3 +124,17 @@ def test_the_failed_line_of_a_report_reads_as_words(capsys, tmp_path):
     code, out, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "m.csv", "--budget",
                          budget)
     assert code == 3 and "24 of 24 measurements over the design limit (24 over the position limit" in err
+
+
+def test_a_limit_or_budget_implausible_for_the_robot_exits_2(capsys, tmp_path):
+    """--limit 1e300m, and a budget written in m where it meant mm: refused before any work (exit 2)."""
+    from helpers import run_cli
+    from tolerance_ros.core.resources import resolve
+    code, out, err = run_cli(capsys, "allocate", "--robot", "gao2023_7dof", "--limit", "1e300m")
+    assert code == 2 and "--limit: the position limit" in err and "FAILED" not in out + err
+    text = resolve("budgets", "gao2023_delta2", suffixes=(".yaml",)).read_text()
+    (tmp_path / "m.yaml").write_text(text.replace("length: mm", "length: m"))
+    for argv in (["verify", "--robot", "gao2023_7dof", "--tolerances", tmp_path / "m.yaml"],
+                 ["sensitivity", "--robot", "gao2023_7dof", "--limit", "3m", "--samples", "50"]):
+        code, _, err = run_cli(capsys, *argv)
+        assert code == 2 and "a length unit off" in err, err

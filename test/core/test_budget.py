@@ -117,3 +117,23 @@ def test_a_tolerance_no_part_is_made_to_is_refused(gao, tmp_path):
                     "tolerances: {a1: 0.05}\ndefault: 0\n")
     with pytest.raises(BudgetError, match="is a date"):
         load_budget(path, gao)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("length: mm", "length: m"), r"the position limit 1400 mm is 139 % of the robot's size \(gao2023_7dof's reach "
+                                  r"is 1 m\).*a length unit off"),
+    (("limit: {position: 1.4}", "limit: {position: 1.4, orientation: 2.0}"), "orientation limit 2 rad.*an angle unit off"),
+    (("alpha1: ", "alpha1: 0.2 #"), r"tolerances.alpha1: 0.2 rad is beyond 0.1 rad"),
+    (("a1: ", "a1: 70 #"), r"tolerances.a1: 70 mm is 6.97 % of the robot's size"),
+])
+def test_limits_and_tolerances_implausible_for_the_robots_size_are_refused(gao, tmp_path, edit, message):
+    """A budget whose length unit was changed from mm to m (a 1.4 m limit on a 1 m arm), an orientation limit or
+    a tolerance no robot is designed to: refused naming the value, the robot's size and the likely slip."""
+    from tolerance_ros.core.resources import resolve
+    text = resolve("budgets", "gao2023_delta2", suffixes=(".yaml",)).read_text()
+    assert edit[0] in text
+    path = tmp_path / "b.yaml"
+    path.write_text(text.replace(edit[0], edit[1], 1))
+    with pytest.raises(BudgetError, match=message):
+        load_budget(path, gao)
+    assert load_budget("gao2023_delta2", gao).problem_for(gao) is None

@@ -59,6 +59,8 @@ def test_allocate_request_parsing(robots, gao):
      "time_limit: 4.94066e-324 is outside [0.1, 3600]"),
     ('{"id": 1, "limit": 0.001, "time_limit": 0}', "invalid_request", "time_limit: 0 is outside [0.1, 3600]"),
     ('{"id": 1, "limit": 0.001, "solver": "ga", "orientation_limit": 0.001}', "invalid_request", "GA handles"),
+    ('{"id": 1, "limit": 3.0}', "invalid_request", "a length unit off"),
+    ('{"id": 1, "limit": 0.001, "orientation_limit": 1.5}', "invalid_request", "an angle unit off"),
 ])
 def test_bad_requests_are_refused_before_any_work(robots, text, code, needle):
     with pytest.raises(ContractError) as exc:

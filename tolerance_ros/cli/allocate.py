@@ -7,7 +7,7 @@ import numpy as np
 
 from ..core import errors
 from ..render.text import Progress, table
-from .common import CLIError, load_model, missed, quantity
+from .common import CLIError, limit_option, load_model, missed, quantity
 
 NAME = "allocate"
 HELP = "allocate tolerances under a design limit (precision synthesis)"
@@ -53,8 +53,8 @@ def run(args):
     from ..core import synthesis
     from ..core.errors import k_for_confidence
     model = load_model(args)
-    limit = quantity(args.limit, "length", "--limit")
-    olimit = quantity(args.orientation_limit, "angle", "--orientation-limit")
+    limit = limit_option(model, args.limit, "length", "--limit")
+    olimit = limit_option(model, args.orientation_limit, "angle", "--orientation-limit")
     k_sigma = k_for_confidence(args.confidence) if args.confidence is not None else 3.0
     prog = Progress(f"allocate ({args.solver})", not args.quiet)
     ga = {"tol_runs": args.ga_tol, "max_rounds": args.ga_rounds}

@@ -100,6 +100,19 @@ def quantity(text, kind, option, positive=True):
     return value
 
 
+def limit_option(model, text, kind, option):
+    """SI design limit of an option written with its unit, or None for None; CLIError when it has no unit or
+    cannot be meant for ``model`` (``budget.limits_problem``: beyond 5 % of its reach, or 0.1 rad)."""
+    value = quantity(text, kind, option)
+    if value is None:
+        return None
+    from ..core.budget import limits_problem
+    problem = limits_problem(model, value if kind == "length" else None, value if kind == "angle" else None)
+    if problem:
+        raise CLIError(f"{option}: {problem}")
+    return value
+
+
 def point_option(text, option):
     """[x, y, z] m of ``X,Y,Z`` (a unit on each, e.g. ``0mm,0mm,120mm``), or None when it is not three values
     (the caller says what it expected); CLIError for a value without its unit."""

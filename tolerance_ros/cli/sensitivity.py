@@ -8,7 +8,7 @@ import numpy as np
 from ..core import analysis
 from ..core.units import parse_quantity
 from ..render.text import Progress, fmt, table
-from .common import SENSITIVITY_SAMPLES, check_cap, load_model, quantity
+from .common import SENSITIVITY_SAMPLES, check_cap, limit_option, load_model
 
 OWN_CAPS = ("samples",)  # its own, smaller cap than verify's (SENSITIVITY_SAMPLES)
 
@@ -33,7 +33,7 @@ def add_arguments(p):
 def run(args):
     check_cap(args.samples, "samples", SENSITIVITY_SAMPLES)
     model = load_model(args)
-    limit = quantity(args.limit, "length" if args.rows == "position" else "angle", "--limit")
+    limit = limit_option(model, args.limit, "length" if args.rows == "position" else "angle", "--limit")
     prog = Progress("sensitivity", not args.quiet)
     prog(0, 1)
     sens = analysis.sensitivity(model, args.samples, args.seed, rows=args.rows, length_unit=args.length_unit)

@@ -8,7 +8,7 @@ import numpy as np
 from ..core import analysis, errors
 from ..core.budget import load_budget
 from ..render.text import Progress, fmt, table
-from .common import load_model, missed, quantity
+from .common import limit_option, load_model, missed
 
 NAME = "verify"
 HELP = "Monte Carlo verification of a tolerance set"
@@ -35,8 +35,8 @@ def run(args):
     model = load_model(args)
     budget = load_budget(args.tolerances, model)
     delta = budget.vector_for(model)
-    limit = quantity(args.limit, "length", "--limit") if args.limit else budget.limit_position
-    olimit = (quantity(args.orientation_limit, "angle", "--orientation-limit") if args.orientation_limit
+    limit = limit_option(model, args.limit, "length", "--limit") if args.limit else budget.limit_position
+    olimit = (limit_option(model, args.orientation_limit, "angle", "--orientation-limit") if args.orientation_limit
               else budget.limit_orientation)
     signs = None
     if args.signs:

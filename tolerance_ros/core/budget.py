@@ -33,6 +33,8 @@ _KEYS = {"robot", "units", "limit", "criterion", "tolerances", "free", "default"
 
 
 MAX_TOLERANCE = {"length": 1.0, "angle": 3.141592653589793}  # m, rad: the largest tolerance a budget may give
+PLAUSIBLE_SHARE = 0.05   # of the robot's reach: the largest design limit or length tolerance believed for it
+PLAUSIBLE_ANGLE = 0.1    # rad: the largest orientation limit or angle tolerance believed
 
 
 class BudgetError(ValueError):
@@ -66,6 +68,11 @@ class Budget:
                               f"or set `default`")
         return np.array([0.0 if n in self.free else self.tolerances.get(n, self.default)
                          for n in model.param_names], dtype=float)
+
+    def problem_for(self, model, where="") -> str | None:
+        """Why this budget cannot be meant for ``model`` (``limits_problem``: a limit or tolerance implausible for
+        its size), or None."""
+        return limits_problem(model, self.limit_position, self.limit_orientation, self.tolerances, where)
 
     @classmethod
     def from_vector(cls, model, delta, free=None, **kw) -> "Budget":
@@ -189,6 +196,31 @@ def budget_from_dict(data, kinds=None, field_prefix="") -> Budget:
                   free=tuple(free))
 
 
+def limits_problem(model, position=None, orientation=None, tolerances=None, where="") -> str | None:
+    """Why design limits (``position`` m, ``orientation`` rad) or ``tolerances`` ({parameter: SI}) cannot be meant
+    for ``model``: a limit or a length tolerance beyond ``PLAUSIBLE_SHARE`` of its reach, an orientation limit or
+    an angle tolerance beyond ``PLAUSIBLE_ANGLE`` (no part is made, no robot designed, that loosely: a unit
+    off); None when they can."""
+    reach = model.reach()
+    cap = PLAUSIBLE_SHARE * reach
+    size = f"{model.name}'s reach is {reach:.3g} m"
+    if position is not None and not position <= cap:
+        return (f"{where}the position limit {position * 1e3:.6g} mm is {position / reach * 100:.3g} % of the robot's size "
+                f"({size}); no design limit is that loose (a length unit off: m written for mm?)")
+    if orientation is not None and not orientation <= PLAUSIBLE_ANGLE:
+        return (f"{where}the orientation limit {orientation:.6g} rad is beyond {PLAUSIBLE_ANGLE:g} rad; no design limit is "
+                f"that loose (an angle unit off: rad written for mrad, or degrees?)")
+    kinds = dict(zip(model.param_names, model.param_kinds))
+    for name, value in (tolerances or {}).items():
+        if kinds.get(name) == "angle" and not value <= PLAUSIBLE_ANGLE:
+            return (f"{where}tolerances.{name}: {value:.6g} rad is beyond {PLAUSIBLE_ANGLE:g} rad; no part is made that "
+                    f"loosely (an angle unit off?)")
+        if kinds.get(name) == "length" and not value <= cap:
+            return (f"{where}tolerances.{name}: {value * 1e3:.6g} mm is {value / reach * 100:.3g} % of the robot's size "
+                    f"({size}); no part is made that loosely (a length unit off: m written for mm?)")
+    return None
+
+
 def _guess_kind(name: str):
     """Kind from a parameter name when the robot is not known: D-H and URDF names are unambiguous."""
     base = name.split(".")[-1] if "." in name else name.rstrip("0123456789")
@@ -212,6 +244,9 @@ def load_budget(spec, model=None) -> Budget:
     except BudgetError as exc:
         raise BudgetError(f"{path}: {exc}") from None
     budget.path = str(path)
+    problem = budget.problem_for(model) if model is not None else None
+    if problem:
+        raise BudgetError(f"{path}: {problem}")
     return budget
 
 

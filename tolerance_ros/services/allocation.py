@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..core.budget import limits_problem
 from ..core.errors import DEFAULT_LIMIT_CRITERION, LIMIT_CRITERIA, k_for_confidence
 from ..core.models.base import Mechanism
 from ..core.synthesis import MODELS, PHYSICAL, SOLVERS, allocate
@@ -91,6 +92,9 @@ def _job(req, robots, limits, max_time_limit_s):
         if job.solver == "ga":
             raise ContractError("invalid_request", "orientation_limit: the paper's GA handles a position limit "
                                                    "only; use the active-set solver")
+    problem = limits_problem(mechanism, job.limit, job.orientation_limit)
+    if problem:
+        raise ContractError("invalid_request", problem)
     if job.confidence is not None:
         number(job.confidence, "confidence", 0.785, 1.0)
         if job.confidence >= 1:

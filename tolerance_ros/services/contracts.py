@@ -416,4 +416,7 @@ def check_budget(budget, model) -> np.ndarray:
         if not 0 <= value <= MAX_TOLERANCE[kind]:  # False for NaN too
             raise ContractError("invalid_request", f"budget.tolerances.{name}: {value:.6g} is outside "
                                                    f"[0, {MAX_TOLERANCE[kind]:g}]")
+    problem = budget.problem_for(model, "budget: ")
+    if problem:
+        raise ContractError("invalid_request", problem[:MAX_MESSAGE_CHARS])
     return delta

@@ -74,6 +74,9 @@ def parse_tolerances(value, model, current_budget=None) -> tuple:
             budget = budget_from_dict(data, kinds, "tolerances.")
         except BudgetError as exc:
             raise ContractError("invalid_request", str(exc)[:300]) from None
+        problem = budget.problem_for(model)
+        if problem:
+            raise ContractError("invalid_request", problem[:300])
     else:
         raise ContractError("invalid_request", "tolerances: expected an object of parameter -> tolerance (SI) or 'current'")
     try:

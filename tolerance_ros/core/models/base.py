@@ -99,6 +99,14 @@ class Mechanism(ABC):
     kernel_family = None  # the compiled kernel family of fk_and_jacobian (``kernels.FAMILIES``), where compiled
     continuous = None     # (dof,) bool: joints without limits; None: none
 
+    def reach(self) -> float:
+        """The largest distance (m) of the tool point from the base origin over 512 seeded joint samples (the
+        robot's size, against which lengths given for it are judged; computed once)."""
+        if getattr(self, "_reach", None) is None:
+            q = self.sample_joints(512, 7)
+            self._reach = float(np.linalg.norm(self.fk(q)[:, :3, 3], axis=1).max())
+        return self._reach
+
     def within_turn(self, q) -> np.ndarray:
         """``q`` (..., dof) with each continuous joint's angle taken modulo 2 pi into [-pi, pi) (the others as they
         are): what the limits are compared with. An unwrapped angle (4.79 rad) is the same pose as its wrap."""
@@ -287,6 +295,7 @@ class Mechanism(ABC):
             raise ModelError(f"limits: expected finite (lower < upper) pairs of shape ({self.dof}, 2)")
         out = copy.copy(self)
         out.joint_limits = lim
+        out._reach = None
         return out
 
     def describe(self) -> dict:
