@@ -39,7 +39,7 @@ from machine import load_average, machine, verdicts  # noqa: E402
 from tolerance_ros.core.accuracy.simulate import as_built_errors  # noqa: E402
 from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.calibration.calibrate import Calibration  # noqa: E402
-from tolerance_ros.core.calibration.writers import save_calibration  # noqa: E402
+from tolerance_ros.core.calibration.calibration_file import save_calibration  # noqa: E402
 from tolerance_ros.core.models import load_robot  # noqa: E402
 from tolerance_ros.services.trajectory import TrajectoryLogic  # noqa: E402
 

@@ -480,7 +480,7 @@ def test_plan_calibrate_compensate_closes_the_loop(capsys, tmp_path, gao):
         assert (tmp_path / "cal" / name).exists(), name
     assert load_robot(tmp_path / "cal" / "gao2023_7dof_calibrated.yaml").name == "gao2023_7dof"
     from tolerance_ros.core.calibration.provenance import file_sha256, generate_key_pair
-    from tolerance_ros.core.calibration.writers import load_calibration
+    from tolerance_ros.core.calibration.calibration_file import load_calibration
     made = load_calibration(tmp_path / "cal" / "calibration.yaml", gao)
     assert made.provenance["made_by"] == "tolerance-ros calibrate" and made.signature is None
     assert made.provenance["log_sha256"] == file_sha256(csv_path) and made.provenance["log"] == str(csv_path.resolve())
@@ -554,7 +554,7 @@ def test_calibrate_a_urdf_robot_writes_a_urdf(capsys, tmp_path):
     assert doc["files"]["urdf"] == str(urdf) and doc["validation"]["improvement"] > 0.9
     assert doc["files"]["robot"] == str(tmp_path / "cal" / "ur5_calibrated.yaml")
     q = ur5.sample_joints(5, 9)
-    from tolerance_ros.core.calibration.writers import calibration_robot, load_calibration
+    from tolerance_ros.core.calibration.calibration_file import calibration_robot, load_calibration
     from tolerance_ros.core.models import load_robot
     cal = load_calibration(tmp_path / "cal" / "calibration.yaml")
     np.testing.assert_allclose(load_robot(doc["files"]["robot"]).fk(q), cal.fk(ur5, q), atol=1e-12)
@@ -579,7 +579,7 @@ def test_compensate_writes_a_flagged_target_with_its_nominal_joints_unless_accep
     from tolerance_ros.core.budget import load_budget
     from tolerance_ros.core.calibration.calibrate import calibrate
     from tolerance_ros.core.calibration.planning import campaign_dict
-    from tolerance_ros.core.calibration.writers import save_calibration
+    from tolerance_ros.core.calibration.calibration_file import save_calibration
     from tolerance_ros.core.campaign import load_campaign
     q = gao.sample_joints(30, 5)
     dx = as_built_errors(load_budget("gao2023_delta2", gao).vector_for(gao), 1)

@@ -96,7 +96,7 @@ def test_five_percent_of_the_training_rows_off_by_5_to_50_mm_barely_move_the_pre
     from tolerance_ros.core.accuracy.io import read_csv
     from tolerance_ros.core.calibration.calibrate import calibrate_measurements
     from tolerance_ros.core.calibration.validation import predict_measurements
-    from tolerance_ros.core.calibration.writers import load_calibration
+    from tolerance_ros.core.calibration.calibration_file import load_calibration
     from tolerance_ros.core.models import load_robot
     tmp, files, _ = tiago
     model = load_robot(URDF, tip_link="wrist_ft_tool_link")

@@ -34,7 +34,7 @@ from tolerance_ros.core.accuracy.io import read_log  # noqa: E402
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure  # noqa: E402
 from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.calibration.calibrate import calibrate  # noqa: E402
-from tolerance_ros.core.calibration.writers import save_calibration  # noqa: E402
+from tolerance_ros.core.calibration.calibration_file import save_calibration  # noqa: E402
 from tolerance_ros.core.jsonio import dumps_fast, loads_strict  # noqa: E402
 from tolerance_ros.core.models import load_robot  # noqa: E402
 from tolerance_ros.services.contracts import CODES  # noqa: E402

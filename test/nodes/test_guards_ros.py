@@ -20,7 +20,7 @@ from tolerance_ros.core.accuracy.simulate import as_built_errors, measure  # noq
 from tolerance_ros.core.budget import load_budget  # noqa: E402
 from tolerance_ros.core.calibration.calibrate import calibrate  # noqa: E402
 from tolerance_ros.core.calibration.provenance import generate_key_pair, load_signing_key, new_provenance  # noqa: E402
-from tolerance_ros.core.calibration.writers import SI, calibration_from_text, calibration_text  # noqa: E402
+from tolerance_ros.core.calibration.calibration_file import SI, calibration_from_text, calibration_text  # noqa: E402
 from tolerance_ros.core.models import load_robot  # noqa: E402
 from tolerance_ros.nodes.common import LATCHED_QOS  # noqa: E402
 

@@ -303,7 +303,7 @@ def test_the_error_model_node_serves_a_calibration_file(graph, ns, tmp_path):
     """The node's 'calibration' parameter: 'model': 'calibrated' and 'compensate' answer with it."""
     from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
     from tolerance_ros.core.calibration.calibrate import calibrate
-    from tolerance_ros.core.calibration.writers import save_calibration
+    from tolerance_ros.core.calibration.calibration_file import save_calibration
     from tolerance_ros.core.geometry import transform
     from tolerance_ros.nodes.error_model_server import ErrorModelServer
     gao = load_robot("gao2023_7dof")
@@ -398,7 +398,7 @@ def test_the_monitor_judges_reflectors_on_their_own_topics_from_a_calibration(gr
     from tolerance_ros.core.accuracy.simulate import measure_targets
     from tolerance_ros.core.accuracy.targets import Targets
     from tolerance_ros.core.calibration.calibrate import calibrate_measurements
-    from tolerance_ros.core.calibration.writers import save_calibration
+    from tolerance_ros.core.calibration.calibration_file import save_calibration
     from tolerance_ros.core.geometry import transform
     from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
     gao = load_robot("gao2023_7dof")
@@ -455,7 +455,7 @@ def test_the_trajectory_compensator_corrects_motion_and_swaps_its_calibration_li
     from tolerance_ros.core.accuracy.simulate import as_built_errors
     from tolerance_ros.core.calibration.calibrate import Calibration
     from tolerance_ros.core.calibration.compensate import compensate
-    from tolerance_ros.core.calibration.writers import calibration_text, save_calibration
+    from tolerance_ros.core.calibration.calibration_file import calibration_text, save_calibration
     from tolerance_ros.nodes.trajectory_compensator import TrajectoryCompensator
     gao = load_robot("gao2023_7dof")
 
@@ -578,7 +578,7 @@ def test_the_accuracy_loop_closes_on_the_graph(graph, ns, tmp_path):
     assert after <= 0.1 * before, (before, after)
     # measured against the plan itself: the tracker's readings of the compensated motion, in the base frame the
     # calibration registered (the one its model, and so the compensation, is expressed in)
-    from tolerance_ros.core.calibration.writers import calibration_from_text
+    from tolerance_ros.core.calibration.calibration_file import calibration_from_text
     put = collect(graph, graph.node("late_listener", ns), String, "tolerance_calibration", LATCHED_QOS)
     assert wait_for(lambda: put)
     T_tb = calibration_from_text(put[-1].data, gao).T_tracker_base

@@ -191,7 +191,7 @@ def rogue_calibration(path):
     from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
     from tolerance_ros.core.budget import load_budget
     from tolerance_ros.core.calibration.calibrate import calibrate
-    from tolerance_ros.core.calibration.writers import SI, calibration_text
+    from tolerance_ros.core.calibration.calibration_file import SI, calibration_text
     from tolerance_ros.core.models import load_robot
     gao = load_robot("gao2023_7dof")
     q = gao.sample_joints(30, 6)

@@ -248,7 +248,7 @@ def _rogue_calibration(tmp):
     from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
     from tolerance_ros.core.budget import load_budget
     from tolerance_ros.core.calibration.calibrate import calibrate
-    from tolerance_ros.core.calibration.writers import SI, calibration_text
+    from tolerance_ros.core.calibration.calibration_file import SI, calibration_text
     q = GAO.sample_joints(30, 6)
     cal = calibrate(GAO, q, measure(GAO, q, as_built_errors(load_budget("gao2023_delta2", GAO).vector_for(GAO), 1),
                                     1e-5, 0.0, None, seed=2), folds=3)

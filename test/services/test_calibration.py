@@ -8,7 +8,7 @@ from tolerance_ros.testing.schemas import validator
 from tolerance_ros.core.accuracy.io import write_csv
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_targets
 from tolerance_ros.core.budget import load_budget
-from tolerance_ros.core.calibration.writers import calibration_from_text
+from tolerance_ros.core.calibration.calibration_file import calibration_from_text
 from tolerance_ros.core.geometry import transform
 from tolerance_ros.services.calibration import FIELDS, CalibrationService
 from tolerance_ros.services.robots import RobotSet

@@ -10,7 +10,7 @@ import pytest
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.calibration.calibrate import calibrate, calibrated_mechanism
-from tolerance_ros.core.calibration.writers import save_calibration
+from tolerance_ros.core.calibration.calibration_file import save_calibration
 from tolerance_ros.core.geometry import matrices_to_quat, transform
 from tolerance_ros.services.compensation import load_calibrations
 from tolerance_ros.services.contracts import Limits

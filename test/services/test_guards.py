@@ -10,7 +10,7 @@ from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.calibration.calibrate import calibrate
 from tolerance_ros.core.calibration.envelope import Envelope
 from tolerance_ros.core.calibration.provenance import generate_key_pair, load_signing_key, new_provenance
-from tolerance_ros.core.calibration.writers import SI, calibration_from_text, calibration_text
+from tolerance_ros.core.calibration.calibration_file import SI, calibration_from_text, calibration_text
 from tolerance_ros.services.guards import CalibrationGate, CalibrationRefused, describe, summary
 
 

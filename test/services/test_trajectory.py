@@ -12,7 +12,7 @@ from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_target
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.calibration.calibrate import calibrate_measurements
 from tolerance_ros.core.calibration.planning import campaign_dict
-from tolerance_ros.core.calibration.writers import calibration_from_text, calibration_text, save_calibration
+from tolerance_ros.core.calibration.calibration_file import calibration_from_text, calibration_text, save_calibration
 from tolerance_ros.core.geometry import transform
 from tolerance_ros.services.trajectory import TrajectoryError, TrajectoryLogic
 

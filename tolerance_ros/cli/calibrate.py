@@ -74,7 +74,8 @@ def run(args):
     from ..core.accuracy.io import read_measurements
     from ..core.calibration.calibrate import FitOptions, calibrate_measurements
     from ..core.calibration.provenance import ProvenanceError, file_sha256, load_signing_key, new_provenance
-    from ..core.calibration.writers import save_calibration, write_calibrated_robot
+    from ..core.calibration.calibrated_robot import write_calibrated_robot
+    from ..core.calibration.calibration_file import save_calibration
     from ..core.campaign import load_campaign
     from ..render.calibration_report import write_calibration_report
     model = load_model(args)

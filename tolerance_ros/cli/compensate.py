@@ -33,7 +33,7 @@ def add_arguments(p):
 
 def run(args):
     from ..core.calibration.compensate import compensate
-    from ..core.calibration.writers import load_calibration
+    from ..core.calibration.calibration_file import load_calibration
     from ..core.campaign import load_campaign
     model = load_model(args)
     cal = load_calibration(args.calibration, model)

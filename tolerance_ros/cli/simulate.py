@@ -132,7 +132,7 @@ def _run_trajectory(args, model, delta, noise, out):
 def _truth(args, model, dx, T_tracker, noise, out, rows, poses, targets, registration, orientation, what):
     """The truth beside the measurements (calibration format): its path."""
     from ..core.calibration.calibrate import Calibration
-    from ..core.calibration.writers import save_calibration
+    from ..core.calibration.calibration_file import save_calibration
     truth = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), dx, np.zeros_like(dx),
                         np.zeros(6), T_tracker, None, [], [], {}, float("nan"), float("nan"), 0, 0, noise,
                         float("nan"), float("nan"), rows, poses, 0, registration, targets=targets,

@@ -30,7 +30,7 @@ def add_arguments(p):
 def run(args):
     from ..core.accuracy.io import read_measurements
     from ..core.calibration.validation import predict_measurements
-    from ..core.calibration.writers import calibration_robot, load_calibration
+    from ..core.calibration.calibration_file import calibration_robot, load_calibration
     from ..core.campaign import load_campaign
     from ..core.models import load_robot
     if args.robot:

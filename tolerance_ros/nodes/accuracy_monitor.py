@@ -30,7 +30,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from ..core.budget import load_budget
 from ..core.calibration.provenance import load_signing_key
-from ..core.calibration.writers import load_calibration
+from ..core.calibration.calibration_file import load_calibration
 from ..core.campaign import load_campaign
 from ..core.geometry import transform
 from ..core.jsonio import dumps_fast

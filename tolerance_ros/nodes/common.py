@@ -109,7 +109,7 @@ def calibration_in_force(node, logic, text, keeps: str, source=None):
     """The Calibration of ``text`` (from ``CALIBRATION_TOPIC``) put in force with ``logic.set_calibration`` once
     ``node.gate`` admits it (logged old -> new); None, logged, when it does not fit ``logic.model`` or the gate
     refuses it (``keeps`` says what stays)."""
-    from ..core.calibration.writers import calibration_from_text
+    from ..core.calibration.calibration_file import calibration_from_text
     source = source or CALIBRATION_TOPIC
     try:
         cal = calibration_from_text(text, logic.model)

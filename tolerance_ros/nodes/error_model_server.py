@@ -29,7 +29,7 @@ from std_msgs.msg import String
 from ..core.errors import CRITERIA
 from ..core.jsonio import dumps_fast
 from ..services.contracts import ContractError, Limits, budget_from_message
-from ..core.calibration.writers import calibration_robot_name, load_calibration
+from ..core.calibration.calibration_file import calibration_robot_name, load_calibration
 from ..services.compensation import calibration_from_graph
 from ..services.error_model import ErrorModelService
 from ..services.guards import CalibrationRefused

@@ -15,7 +15,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
 
-from ..core.calibration.writers import load_calibration
+from ..core.calibration.calibration_file import load_calibration
 from ..services.trajectory import ON_FLAG, TrajectoryError, TrajectoryLogic
 from .common import (CALIBRATION_TOPIC, LATCHED_QOS, STATUS_QOS, calibration_gate, calibration_in_force, declare,
                      follow_robot, guarded, robot_set, run, status_name)

@@ -41,7 +41,7 @@ from ..core.accuracy.io import MeasurementError, read_measurements
 from ..core.calibration.calibrate import MODELS, PRIOR, FitOptions, calibrate_measurements
 from ..core.calibration.envelope import Envelope
 from ..core.calibration.provenance import file_sha256, new_provenance
-from ..core.calibration.writers import SI, calibration_text
+from ..core.calibration.calibration_file import SI, calibration_text
 from ..core.models.base import Mechanism
 from ..core.yamlio import loads_yaml
 from .allocation import DEFAULT_TIME_LIMIT_S, MAX_TIME_LIMIT_S, MIN_TIME_LIMIT_S

@@ -28,9 +28,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.accuracy.targets import AtTarget
+from ..core.calibration.calibration_file import (CalibrationError, calibration_from_text, calibration_robot_name,
+                                                 load_calibration)
 from ..core.calibration.compensate import MATCHES, compensate
-from ..core.calibration.writers import (CalibrationError, calibration_from_text, calibration_robot_name,
-                                       load_calibration)
 from ..core.ingest import MAX_POSITION_M
 from ..core.models.base import ModelError
 from .contracts import ContractError, Limits

@@ -514,7 +514,7 @@ def _build_readers():
     from .example_robots import example_urdf
     from tolerance_ros.core.accuracy.io import MeasurementError, read_csv
     from tolerance_ros.core.budget import BudgetError, load_budget
-    from tolerance_ros.core.calibration.writers import CalibrationError, load_calibration
+    from tolerance_ros.core.calibration.calibration_file import CalibrationError, load_calibration
     from tolerance_ros.core.campaign import CampaignError, load_campaign
     from tolerance_ros.core.models import ModelError, load_robot
     from tolerance_ros.core.resources import config_dir

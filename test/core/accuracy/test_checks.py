@@ -13,7 +13,7 @@ from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_target
 from tolerance_ros.core.accuracy.targets import Targets
 from tolerance_ros.core.calibration.calibrate import calibrate_measurements
 from tolerance_ros.core.calibration.validation import predict_measurements
-from tolerance_ros.core.calibration.writers import CalibrationError, calibration_robot, save_calibration
+from tolerance_ros.core.calibration.calibration_file import CalibrationError, calibration_robot, save_calibration
 from tolerance_ros.core.campaign import Campaign, TestPose
 from tolerance_ros.core.geometry import transform
 from tolerance_ros.core.models import URDFChain

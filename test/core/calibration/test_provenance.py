@@ -13,8 +13,8 @@ from tolerance_ros.core.calibration.calibrate import calibrate
 from tolerance_ros.core.calibration.provenance import (ProvenanceError, content_sha256, file_sha256,
                                                       generate_key_pair, load_public_keys, load_signing_key,
                                                       new_provenance, verify_signature)
-from tolerance_ros.core.calibration.writers import (SI, CalibrationError, calibration_from_text, calibration_text,
-                                                   load_calibration, save_calibration)
+from tolerance_ros.core.calibration.calibration_file import (SI, CalibrationError, calibration_from_text,
+                                                             calibration_text, load_calibration, save_calibration)
 
 
 @pytest.fixture(scope="module")

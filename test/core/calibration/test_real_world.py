@@ -10,7 +10,7 @@ from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.calibration.calibrate import calibrate_measurements
 from tolerance_ros.core.calibration.elastic import DeflectedChain, gravity_loads, has_inertials
 from tolerance_ros.core.calibration.validation import predict_measurements
-from tolerance_ros.core.calibration.writers import load_calibration, save_calibration
+from tolerance_ros.core.calibration.calibration_file import load_calibration, save_calibration
 from tolerance_ros.core.geometry import transform
 
 NOISE = 1e-5

@@ -279,7 +279,7 @@ def test_corrected_origins_round_trip_through_the_urdf_exactly(seed, tmp_path):
     """The calibrated URDF (each changed origin written as the rpy of its exact rotation) re-parsed by pinocchio
     gives the calibrated chain's poses, at pitch +-pi/2 and at random origins."""
     from tolerance_ros.core.calibration.calibrate import calibrated_mechanism
-    from tolerance_ros.core.calibration.writers import calibrated_urdf_text
+    from tolerance_ros.core.calibration.calibrated_robot import calibrated_urdf_text
     rng = np.random.default_rng(seed)
     pitches = [np.pi / 2, -np.pi / 2, rng.uniform(-1.5, 1.5), np.pi / 2 - 1e-9, rng.uniform(-1.5, 1.5)]
     text = _random_origins_urdf(rng, pitches)

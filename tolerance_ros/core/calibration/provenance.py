@@ -1,5 +1,5 @@
 """Provenance, content hash and signature of a calibration: the ``provenance`` and ``signature`` blocks of the
-calibration file (format in ``writers``).
+calibration file (format in ``calibration_file``).
 
 The content hash (``provenance.content_sha256``) is the SHA-256 of the calibration document as read back
 (everything but ``provenance.content_sha256`` itself and the ``signature`` block), written as canonical JSON

@@ -1,4 +1,4 @@
-"""Files of a calibration: the calibration file, and the calibrated robot in the input's own form.
+"""The calibration file: its format, written and read, and every check a calibration passes when it is loaded.
 
 Calibration file (YAML; ``units`` applies to ``parameters``, ``base_correction``, ``registration`` and
 ``aliases``; the ``fit`` and ``validation`` blocks name their unit in each key, ``_m`` or ``_rad``)::
@@ -59,32 +59,23 @@ edited by hand no longer matches its hash and is refused: delete its ``content_s
 too, which the edit has made false) and the readers compute the hash of the edited content.
 
 ``tolerance_ros.calibration/1`` files (one tool offset, no targets, no elastic term) are read too.
-
-Calibrated robot files: a D-H robot YAML with the identified values written in the file's own units
-(other keys and unchanged values kept as written; the base correction becomes ``base``), or a URDF
-whose corrected joints' ``<origin xyz rpy>`` attributes carry the identified errors, zero offsets
-and the base correction folded in exactly; every other byte of the file is kept.
 """
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from ..accuracy.identification import BASE_NAMES, base_matrix
+from ..accuracy.identification import BASE_NAMES
 from ..geometry import rpy_from_matrix
 from ..models.base import Mechanism, ModelError
-from ..models.dh import DHChain
 from ..models.loader import frame_from_dict, load_robot
-from ..models.urdf import URDFChain
 from ..resources import ConfigNotFound, not_a_file
 from ..units import UnitError, angle_scale, length_scale, parse_number
 from ..accuracy.targets import Targets
 from ..yamlio import loads_yaml, read_yaml
 from .elastic import Load
-from .mechanism import calibrated_mechanism, corrected_origins
 from .provenance import ProvenanceError, check_blocks, signature, stamped, verified_provenance
 from .result import Calibration
 
@@ -125,7 +116,7 @@ def calibration_text(cal: Calibration, units=None, signing_key=None) -> str:
     ``tolerance_calibration`` topic), its content hash stamped, signed with ``signing_key`` (an Ed25519
     private key, ``provenance.load_signing_key``) when one is given."""
     head = (f"# Calibration of {cal.robot} by tolerance-ros calibrate; format: "
-            f"tolerance_ros/core/calibration/writers.py\n")
+            f"tolerance_ros/core/calibration/calibration_file.py\n")
     doc = stamped(_document(cal, units), lambda d: loads_yaml(_dump(d), "calibration", CalibrationError))
     if signing_key is not None:
         doc["signature"] = signature(doc["provenance"]["content_sha256"], signing_key)
@@ -166,10 +157,10 @@ def _document(cal: Calibration, units=None) -> dict:
                     for k, v in cal.sources.items()},
         "provenance": {k: v for k, v in (cal.provenance or {}).items() if k != "content_sha256"},
         "registration": {"method": cal.registration,
-                         "T_tracker_base": {"xyz": _floats(T[:3, 3] / ls),
-                                            "rpy": _floats(rpy_from_matrix(T[None, :3, :3])[0] / as_)},
-                         "tool_offset": None if cal.tool_offset is None else _floats(np.asarray(cal.tool_offset) / ls)},
-        "base_correction": {"xyz": _floats(cal.base[:3] / ls), "rotation_vector": _floats(cal.base[3:] / as_)},
+                         "T_tracker_base": {"xyz": plain_floats(T[:3, 3] / ls),
+                                            "rpy": plain_floats(rpy_from_matrix(T[None, :3, :3])[0] / as_)},
+                         "tool_offset": None if cal.tool_offset is None else plain_floats(np.asarray(cal.tool_offset) / ls)},
+        "base_correction": {"xyz": plain_floats(cal.base[:3] / ls), "rotation_vector": plain_floats(cal.base[3:] / as_)},
         "parameters": {n: {"error": float(v / kind_scale[k]), "std": float(s / kind_scale[k])}
                        for n, k, v, s in zip(cal.names, cal.kinds, cal.dx, cal.std)},
         "held": list(cal.held),
@@ -189,8 +180,8 @@ def _document(cal: Calibration, units=None) -> dict:
                                cal.compliance, cal.compliance_std)},
         "nominal_registration": None if cal.nominal_registration is None else {
             "T_tracker_base": _frame_doc(cal.nominal_registration["T_tracker_base"], ls, as_),
-            "base": {"xyz": _floats(cal.nominal_registration["base"][:3] / ls),
-                     "rotation_vector": _floats(cal.nominal_registration["base"][3:] / as_)},
+            "base": {"xyz": plain_floats(cal.nominal_registration["base"][:3] / ls),
+                     "rotation_vector": plain_floats(cal.nominal_registration["base"][3:] / as_)},
             "targets": _targets_doc(cal.nominal_registration["targets"], None, ls, as_)},
         "model": _plain(cal.model),
         "rejected": _plain(cal.rejected),
@@ -202,7 +193,7 @@ def _document(cal: Calibration, units=None) -> dict:
 
 
 def _frame_doc(T, ls, as_) -> dict:
-    return {"xyz": _floats(T[:3, 3] / ls), "rpy": _floats(rpy_from_matrix(T[None, :3, :3])[0] / as_)}
+    return {"xyz": plain_floats(T[:3, 3] / ls), "rpy": plain_floats(rpy_from_matrix(T[None, :3, :3])[0] / as_)}
 
 
 def _targets_doc(targets, std, ls, as_) -> dict:
@@ -210,7 +201,7 @@ def _targets_doc(targets, std, ls, as_) -> dict:
     for k, (name, X) in enumerate(zip(targets.names, targets.X)):
         entry = _frame_doc(X, ls, as_)
         if std is not None:
-            entry["std"] = _floats(np.asarray(std[k]) / ls)
+            entry["std"] = plain_floats(np.asarray(std[k]) / ls)
         by_name[name] = entry
     return {"frames": bool(targets.frames), "by_name": by_name}
 
@@ -429,7 +420,8 @@ def _calibration_from_dict(doc, path, model):
     return cal
 
 
-def _floats(v):
+def plain_floats(v) -> list:
+    """The numbers of ``v`` (any shape) as a flat list of Python floats."""
     return [float(x) for x in np.asarray(v, float).ravel()]
 
 
@@ -450,138 +442,3 @@ def _plain(obj):
     if isinstance(obj, np.generic):
         return obj.item()
     return obj
-
-
-# ------------------------------------------------------------------ calibrated robot files
-
-
-def write_calibrated_robot(model: Mechanism, cal: Calibration, out_dir) -> dict:
-    """Write the calibrated robot in the input's own form into ``out_dir``; {kind: path}.
-
-    D-H: ``<name>_calibrated.yaml``. URDF: ``<stem>_calibrated.urdf``, and ``<name>_calibrated.yaml`` of
-    kind urdf pointing at it with the chain's tip and base links (the robot YAML it came from, edited).
-    """
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    if isinstance(model, DHChain):
-        path = out_dir / f"{model.name}_calibrated.yaml"
-        path.write_text(calibrated_dh_yaml(model, cal.dx, cal.base))
-        return {"robot": str(path)}
-    if isinstance(model, URDFChain):
-        if model.source == "<string>":
-            raise CalibrationError("calibrated URDF: the robot was built from a string; give it a file")
-        stem = Path(model.source).stem
-        urdf = out_dir / f"{stem}_calibrated.urdf"
-        urdf.write_text(calibrated_urdf_text(model, Path(model.source).read_text(), cal.dx, cal.base))
-        files = {"urdf": str(urdf)}
-        cfg = getattr(model, "config_path", None)
-        data = read_yaml(cfg, CalibrationError) if cfg and Path(cfg).suffix in (".yaml", ".yml") else \
-            {"name": model.name, "kind": "urdf"}
-        data.update(urdf=urdf.name, tip_link=model.tip_link, base_link=model.base_link)
-        path = out_dir / f"{model.name}_calibrated.yaml"
-        path.write_text(_header(model) + yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
-        files["robot"] = str(path)
-        return files
-    raise CalibrationError(f"calibration: robot {model.name!r} is a {type(model).__name__}; calibrated files are "
-                           f"written for D-H and URDF chains")
-
-
-def _header(model):
-    return f"# {model.name}, calibrated by tolerance-ros calibrate (the calibration file lists what changed)\n"
-
-
-def calibrated_dh_yaml(model: DHChain, dx, base) -> str:
-    """Text of the calibrated D-H robot file: the input file's keys and units with the identified values
-    (a value whose error is 0 stays as written), ``base := B @ base``; SI when the model has no file."""
-    cal = calibrated_mechanism(model, dx, base)
-    dx = np.asarray(dx, float)
-    cfg = getattr(model, "config_path", None)
-    if cfg:
-        data = read_yaml(cfg, CalibrationError)
-    else:
-        data = {"name": model.name, "kind": "dh", "convention": model.convention,
-                "units": {"length": "m", "angle": "rad"},
-                "joints": [{"name": n, "type": t, "limits": [float(lo), float(hi)]}
-                           for n, t, (lo, hi) in zip(model.joint_names, model.joint_types, model.joint_limits)]}
-        data["tool"] = {"xyz": _floats(model.tool[:3, 3]), "rpy": _floats(rpy_from_matrix(model.tool[None, :3, :3])[0])}
-    units = data.get("units") or {}
-    ls, as_ = length_scale(units.get("length", "m")), angle_scale(units.get("angle", "rad"))
-    n = model.dof
-    p = cal.nominal
-    for i, joint in enumerate(data["joints"]):
-        for k, key in enumerate(("a", "d", "alpha", "theta")):
-            j = k * n + i
-            if dx[j] != 0 or key not in joint and p[j] != 0 or not cfg:
-                joint[key] = float(p[j] / (ls if key in ("a", "d") else as_))
-    if not np.array_equal(cal.base, model.base) or not cfg:
-        data["base"] = {"xyz": _floats(cal.base[:3, 3] / ls),
-                        "rpy": _floats(rpy_from_matrix(cal.base[None, :3, :3])[0] / as_)}
-    return _header(model) + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120)
-
-
-_COMMENT = re.compile(r"<!--.*?-->", re.S)
-_JOINT = re.compile(r"<joint\b[^>]*>")
-_ATTR = r"\b{}\s*=\s*([\"'])(.*?)\1"
-
-
-def calibrated_urdf_text(model: URDFChain, text: str, dx, base) -> str:
-    """The URDF text with the corrected joints' ``<origin xyz rpy>`` values (``corrected_origins``).
-
-    Only those attribute values change (an absent attribute or ``<origin>`` element is added); a
-    component equal to its written value keeps its text. Comments are not touched.
-    """
-    values, changed = corrected_origins(model, dx, base_matrix(np.asarray(base, float)))
-    wanted = {model.joint_names[k]: values[k] for k in np.flatnonzero(changed)}
-    masked = _COMMENT.sub(lambda m: " " * len(m.group()), text)
-    edits = []
-    found = set()
-    for m in _JOINT.finditer(masked):
-        tag = m.group()
-        name = re.search(_ATTR.format("name"), tag)
-        if name is None or name.group(2) not in wanted or re.search(_ATTR.format("type"), tag) is None:
-            continue
-        jname = name.group(2)
-        if tag.endswith("/>"):
-            raise CalibrationError(f"urdf: joint {jname!r} is an empty element; it needs its <origin> and <axis>")
-        end = masked.find("</joint>", m.end())
-        body = masked[m.end():end]
-        xyz, rpy = wanted[jname][:3], wanted[jname][3:]
-        om = re.search(r"<origin\b[^>]*?/?>", body)
-        if om is None:
-            line_start = masked.rfind("\n", 0, m.start()) + 1
-            indent = re.match(r"[ \t]*", masked[line_start:]).group() + "  "
-            edits.append((m.end(), m.end(), f"\n{indent}<origin xyz=\"{_fmt(xyz)}\" rpy=\"{_fmt(rpy)}\"/>"))
-        else:
-            start = m.end() + om.start()
-            edits += _origin_edits(masked[start:m.end() + om.end()], start, xyz, rpy)
-        found.add(jname)
-    lost = sorted(set(wanted) - found)
-    if lost:
-        raise CalibrationError(f"urdf: joint(s) {lost} not found in the text")
-    out = text
-    for a, b, new in sorted(edits, reverse=True):
-        out = out[:a] + new + out[b:]
-    return out
-
-
-def _origin_edits(tag, offset, xyz, rpy):
-    edits = []
-    for attr, vals in (("xyz", xyz), ("rpy", rpy)):
-        m = re.search(_ATTR.format(attr), tag)
-        if m is None:
-            close = len(tag) - (2 if tag.endswith("/>") else 1)
-            edits.append((offset + close, offset + close, f" {attr}=\"{_fmt(vals)}\""))
-            continue
-        old = m.group(2).split()
-        try:
-            old_vals = [float(t) for t in old]
-        except ValueError:
-            old_vals = []
-        tokens = [o if len(old) == 3 and old_vals[i] == v else repr(float(v)) for i, (o, v) in
-                  enumerate(zip(old if len(old) == 3 else [""] * 3, vals))]
-        edits.append((offset + m.start(2), offset + m.end(2), " ".join(tokens)))
-    return edits
-
-
-def _fmt(vals):
-    return " ".join(repr(float(v)) for v in vals)
