@@ -8,6 +8,7 @@ from tolerance_ros.core.calibration.calibration_file import (CalibrationError, l
                                                              save_calibration)
 from tolerance_ros.core.models import URDFChain
 
+
 def test_calibration_file_round_trip(gao, gao_calibration, tmp_path):
     cal = gao_calibration
     path = save_calibration(cal, tmp_path / "calibration.yaml")
