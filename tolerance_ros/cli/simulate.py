@@ -133,10 +133,12 @@ def _truth(args, model, dx, T_tracker, noise, out, rows, poses, targets, registr
     """The truth beside the measurements (calibration format): its path."""
     from ..core.calibration.calibrate import Calibration
     from ..core.calibration.calibration_file import save_calibration
+    from ..core.calibration.result import nominal_fingerprint
     truth = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), dx, np.zeros_like(dx),
                         np.zeros(6), T_tracker, None, [], [], {}, float("nan"), float("nan"), 0, 0, noise,
                         float("nan"), float("nan"), rows, poses, 0, registration, targets=targets,
                         has_orientation=orientation)
+    truth.nominal = nominal_fingerprint(model)
     source = getattr(model, "config_path", None) or getattr(model, "source", None)
     truth.sources = {"robot": relative(source, out.parent) if source and Path(str(source)).is_file() else model.name,
                      "measurements": out.name, "campaign": args.campaign or args.trajectory,

@@ -62,3 +62,66 @@ def test_calibration_files_that_would_trace_back_are_the_calibrations_error(gao,
     path.write_text(edit(path.read_text()))
     with pytest.raises(CalibrationError, match=rf"^{path}{message}"):
         load_calibration(path, gao)
+
+
+def _edited(path, *pairs):
+    """The text of the calibration file at ``path`` edited by hand: each (old, new) replaced, and its
+    content_sha256 line deleted (what the docs say to do after an edit)."""
+    import re
+    text = path.read_text()
+    for old, new in pairs:
+        assert re.search(old, text), old
+        text = re.sub(old, new, text, count=1)
+    lines = [line for line in text.splitlines() if not line.strip().startswith("content_sha256:")]
+    return "\n".join(lines) + "\n"
+
+
+def test_a_hand_edit_needs_only_its_content_sha256_line_deleted(gao, gao_calibration, tmp_path):
+    path = save_calibration(gao_calibration, tmp_path / "c.yaml")
+    edited = tmp_path / "edited.yaml"
+    edited.write_text(_edited(path, (r"a2: \{error: [-0-9.e]+", "a2: {error: 0.01")))
+    cal = load_calibration(edited, gao)
+    assert cal.dx[gao.param_index(["a2"])[0]] == pytest.approx(1e-5)
+    assert cal.content_sha256 != load_calibration(path, gao).content_sha256
+
+
+def test_a_calibration_is_refused_for_another_version_of_its_robot(gao, gao_calibration, tmp_path):
+    """Its nominal tool points at its check postures tell the robot it was made for: the same name with a link
+    10 mm longer is another robot."""
+    from pathlib import Path
+    from tolerance_ros.core.models import load_robot
+    path = save_calibration(gao_calibration, tmp_path / "c.yaml")
+    text = Path(gao.config_path).read_text()
+    assert "d: 415, " in text
+    (tmp_path / "longer.yaml").write_text(text.replace("d: 415, ", "d: 425, "))
+    longer = load_robot(tmp_path / "longer.yaml")
+    assert longer.name == gao.name
+    with pytest.raises(CalibrationError, match=r"nominal: gao2023_7dof as given is not the robot this calibration was "
+                                               r"made for: .* up to 10 mm"):
+        load_calibration(path, longer)
+    assert load_calibration(path, gao).nominal == gao_calibration.nominal
+
+
+def test_an_elastic_term_the_robot_cannot_load_is_refused_when_loaded(gao, gao_calibration, tmp_path):
+    """A compliance block in a D-H robot's calibration (no gravity load is known for its joints): refused at once,
+    naming the block, instead of an AttributeError wherever it is used."""
+    path = save_calibration(gao_calibration, tmp_path / "c.yaml")
+    block = "{" + ", ".join(f"{j}: {{value: 1.0e-06, std: 0}}" for j in gao.joint_names) + "}"
+    (tmp_path / "elastic.yaml").write_text(_edited(path, (r"compliance: null", f"compliance: {block}")))
+    with pytest.raises(CalibrationError, match="compliance: an elastostatic term needs the gravity load of each joint"):
+        load_calibration(tmp_path / "elastic.yaml", gao)
+
+
+def test_a_number_that_is_not_finite_is_refused_and_never_written(gao, gao_calibration, tmp_path):
+    import dataclasses
+    import math
+    path = save_calibration(gao_calibration, tmp_path / "c.yaml")
+    (tmp_path / "nan.yaml").write_text(_edited(path, (r"improvement: [-0-9.e]+", "improvement: .nan")))
+    with pytest.raises(CalibrationError, match=r"validation.improvement: not a finite number"):
+        load_calibration(tmp_path / "nan.yaml", gao)
+    (tmp_path / "inf.yaml").write_text(_edited(path, (r"noise_per_axis_m: [-0-9.e]+", "noise_per_axis_m: -.inf")))
+    with pytest.raises(CalibrationError, match=r"fit.noise_per_axis_m: not a finite number"):
+        load_calibration(tmp_path / "inf.yaml", gao)
+    unknown = dataclasses.replace(gao_calibration, validation=dict(gao_calibration.validation, improvement=math.nan))
+    back = load_calibration(save_calibration(unknown, tmp_path / "unknown.yaml"), gao)
+    assert back.validation["improvement"] is None

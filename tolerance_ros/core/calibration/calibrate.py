@@ -36,7 +36,7 @@ from ..models.base import Mechanism
 from .crossval import Folds, kept_figures, pose_groups, score, validate
 from .elastic import Load
 from .mechanism import calibrated_mechanism, corrected_origins
-from .result import Calibration
+from .result import Calibration, nominal_fingerprint
 from .robust import (MODELS, PRIOR, REGISTRATIONS, REJECT, FitData, FitOptions, estimate_sets, fit,
                      prior_vector)
 
@@ -161,6 +161,7 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, options: FitOptions |
     problems += _plausibility_problems(model, cal)
     cal.plausibility = {"ok": not problems, "problems": problems}
     cal.warnings = ([ignored] if ignored else []) + _warnings(cal, final, validations[best["label"]])
+    cal.warnings += _negative_compliances(model, cal)
     cal.repeatability = repeatability(final.reg.to_base(T_tracker)[:, :3, 3], final, groups, idx, len(names))
     cal.training = {"joint_ranges": np.c_[q.min(axis=0), q.max(axis=0)].tolist(),
                     "postures": np.unique(np.round(q, 6), axis=0).tolist()}
@@ -182,6 +183,7 @@ def _result(model, data, final, nominal, opts, pose_names, sources, load, chosen
     names = data.names
     cal.tool_offset = cal.targets.offsets[0].copy() if opts.registration == "base+tool" and len(names) == 1 else None
     cal.sources.setdefault("joint_names", list(model.joint_names))
+    cal.nominal = nominal_fingerprint(model)
     cal.nominal_registration = {"T_tracker_base": nominal.reg.T_tracker_base, "targets": nominal.ident.targets,
                                 "base": nominal.ident.base.copy()}
     r = ident.row_residuals[keep]
@@ -256,6 +258,23 @@ def _plausibility_problems(model, cal) -> list:
                    f"({v['before']['position_rms_m'] * 1e3:.4f} mm before, {v['after']['position_rms_m'] * 1e3:.4f} "
                    f"mm after)")
     return out
+
+
+def _negative_compliances(model, cal) -> list:
+    """Warnings for compliances fitted negative beyond three standard uncertainties: no joint bends against its
+    load, so the term takes up another gravity-dependent error there; it predicts at the loads of the data, and
+    must not be carried to another payload."""
+    if cal.compliance is None:
+        return []
+    std = np.zeros_like(cal.compliance) if cal.compliance_std is None else np.abs(cal.compliance_std)
+    bad = np.flatnonzero(cal.compliance + 3 * std < 0)
+    if not bad.size:
+        return []
+    which = ", ".join(f"{model.joint_names[j]} {cal.compliance[j]:.4g} +- {std[j]:.2g}" for j in bad)
+    return [f"compliance fitted negative ({which}; rad/(N m), m/N for a prismatic joint): not a physical compliance, "
+            f"since no joint bends against its load; the term takes up another gravity-dependent error there "
+            f"(backlash, a counterbalance, a cable), which predicts at the loads of these data but must not be carried "
+            f"to another payload"]
 
 
 def _row_list(fitted, mask, stamps, labels, names, idx, kind) -> list:

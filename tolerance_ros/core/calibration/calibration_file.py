@@ -62,6 +62,7 @@ too, which the edit has made false) and the readers compute the hash of the edit
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -77,7 +78,7 @@ from ..accuracy.targets import Targets
 from ..yamlio import loads_yaml, read_yaml
 from .elastic import Load
 from .provenance import ProvenanceError, check_blocks, signature, stamped, verified_provenance
-from .result import Calibration
+from .result import NOMINAL_TOLERANCE, Calibration
 
 FORMAT = "tolerance_ros.calibration/2"
 FORMATS = ("tolerance_ros.calibration/1", FORMAT)
@@ -123,8 +124,25 @@ def calibration_text(cal: Calibration, units=None, signing_key=None) -> str:
     return head + _dump(doc)
 
 
+_BLOCK = ("provenance", "signature")   # written one key a line: an edit by hand deletes a line (content_sha256)
+
+
+class _BlockMapping(dict):
+    """A mapping written one key a line."""
+
+
+class _Dumper(yaml.SafeDumper):
+    pass
+
+
+_Dumper.add_representer(_BlockMapping, lambda dumper, data: dumper.represent_mapping("tag:yaml.org,2002:map", data,
+                                                                                     flow_style=False))
+
+
 def _dump(doc) -> str:
-    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=110)
+    """The document as YAML: short mappings of numbers inline, the provenance and signature one key a line."""
+    doc = {k: _BlockMapping(v) if k in _BLOCK and isinstance(v, dict) else v for k, v in doc.items()}
+    return yaml.dump(doc, Dumper=_Dumper, sort_keys=False, default_flow_style=None, width=110)
 
 
 def calibration_from_text(text, model: Mechanism, source="tolerance_calibration") -> Calibration:
@@ -188,6 +206,7 @@ def _document(cal: Calibration, units=None) -> dict:
         "plausibility": _plain(cal.plausibility),
         "repeatability": _plain(cal.repeatability),
         "training": _plain(cal.training),
+        "nominal": _plain(cal.nominal),
     }
     return doc
 
@@ -249,7 +268,7 @@ _SECTIONS = {"units": dict, "sources": dict, "registration": dict, "base_correct
              "held": list, "unidentifiable": list, "aliases": dict, "fit": dict, "validation": dict, "targets": dict,
              "compliance": dict, "nominal_registration": dict, "model": dict, "rejected": list, "plausibility": dict,
              "repeatability": dict, "training": dict, "convergence": dict, "undetermined": dict, "suspect": list,
-             "warnings": list, "load": dict, "provenance": dict, "signature": dict}
+             "warnings": list, "load": dict, "provenance": dict, "signature": dict, "nominal": dict}
 
 
 def _read(path):
@@ -286,6 +305,9 @@ def _check_document(doc, path):
             raise CalibrationError(f"{path}: {field}: expected a whole number, got {value!r}")
     if not isinstance(doc.get("robot"), str):
         raise CalibrationError(f"{path}: robot: expected the robot's name")
+    bad = _not_finite(doc)
+    if bad:
+        raise CalibrationError(f"{path}: {bad}: not a finite number (a calibration file holds none)")
     try:
         check_blocks(doc, path)
     except ProvenanceError as exc:
@@ -417,6 +439,8 @@ def _calibration_from_dict(doc, path, model):
         cal.load = dict(doc["load"])
     if compliance is not None and cal.load is None:
         cal.load = Load.for_model(model).to_dict() if Load.for_model(model) else None
+    cal.nominal = doc.get("nominal")
+    check_calibration(cal, model)
     return cal
 
 
@@ -432,7 +456,8 @@ def _without_samples(validation):
 
 
 def _plain(obj):
-    """YAML-safe copy (numpy scalars and arrays to Python)."""
+    """YAML-safe copy (numpy scalars and arrays to Python; a number that is not finite, not known, to None:
+    a calibration file holds no NaN or infinity, and its readers refuse one)."""
     if isinstance(obj, dict):
         return {str(k): _plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -440,5 +465,54 @@ def _plain(obj):
     if isinstance(obj, np.ndarray):
         return _plain(obj.tolist())
     if isinstance(obj, np.generic):
-        return obj.item()
+        return _plain(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
     return obj
+
+
+def _not_finite(doc, where="") -> str | None:
+    """The field (dotted path) of the first number in ``doc`` that is not finite, or None."""
+    if isinstance(doc, dict):
+        items = doc.items()
+    elif isinstance(doc, list):
+        items = ((f"[{i}]", v) for i, v in enumerate(doc))
+    else:
+        return where if isinstance(doc, float) and not math.isfinite(doc) else None
+    for k, v in items:
+        found = _not_finite(v, f"{where}{k}" if str(k).startswith("[") or not where else f"{where}.{k}")
+        if found:
+            return found
+    return None
+
+
+def check_calibration(cal: Calibration, model: Mechanism) -> None:
+    """The checks a calibration passes when it is loaded, whoever loads it (the commands and the nodes alike):
+    the robot given is the one it was made for (its ``nominal`` tool points, ``result.nominal_fingerprint``);
+    an elastostatic term has a load this robot can compute. CalibrationError naming the field otherwise."""
+    nominal = cal.nominal
+    if nominal is not None:
+        try:
+            q = np.asarray(nominal["joints"], float)
+            points = np.asarray(nominal["tool_points_m"], float)
+            ok = q.ndim == 2 and q.shape[1] == model.dof and points.shape == (len(q), 3) and len(q) > 0
+        except (KeyError, TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise CalibrationError(f"nominal: expected joints ({model.dof} a posture) and tool_points_m (3 a posture)")
+        off = float(np.linalg.norm(model.fk(q)[:, :3, 3] - points, axis=1).max())
+        if off > NOMINAL_TOLERANCE:
+            raise CalibrationError(f"nominal: {model.name} as given is not the robot this calibration was made for: at "
+                                   f"the calibration's check postures its tool lies up to {off * 1e3:.4g} mm from where "
+                                   f"that robot's did (another version of its robot file?)")
+    if cal.compliance is not None and np.any(cal.compliance):
+        load = cal.joint_load(model)
+        if load is None:
+            raise CalibrationError(f"compliance: an elastostatic term needs the gravity load of each joint, which "
+                                   f"{model.name} ({type(model).__name__}) cannot give (a URDF chain can; no `load` "
+                                   f"block names one)")
+        try:
+            load.torques(model, model.sample_joints(1, 0))
+        except (ModelError, ValueError) as exc:
+            raise CalibrationError(f"load: {exc}") from None
+

@@ -13,6 +13,17 @@ from .elastic import DeflectedChain, Load
 from .mechanism import calibrated_mechanism
 
 
+NOMINAL_POSTURES = 8        # seeded postures whose nominal tool points identify the robot a calibration is for
+NOMINAL_TOLERANCE = 1e-6    # m: the tool points of the same robot agree this well (any FK, any machine)
+
+
+def nominal_fingerprint(model: Mechanism) -> dict:
+    """The nominal robot a calibration is made for, as its tool points (m) at ``NOMINAL_POSTURES`` seeded
+    postures: a robot of the same name whose geometry differs (a link 10 mm longer) puts them elsewhere."""
+    q = model.sample_joints(NOMINAL_POSTURES, 1234)
+    return {"joints": q.tolist(), "tool_points_m": model.fk(q)[:, :3, 3].tolist()}
+
+
 @dataclass
 class Calibration:
     """Identified parameter errors of one robot (SI) and what they rest on.
@@ -83,6 +94,7 @@ class Calibration:
     warnings: list = field(default_factory=list)
     provenance: dict | None = None
     signature: dict | None = None
+    nominal: dict | None = None
 
     def __post_init__(self):
         if self.targets is None:
