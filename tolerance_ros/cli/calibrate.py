@@ -73,9 +73,10 @@ def payload_option(text):
 def run(args):
     from ..core.accuracy.io import read_measurements
     from ..core.calibration.calibrate import FitOptions, calibrate_measurements
-    from ..core.calibration.provenance import ProvenanceError, file_sha256, load_signing_key, new_provenance
     from ..core.calibration.calibrated_robot import write_calibrated_robot
     from ..core.calibration.calibration_file import save_calibration
+    from ..core.calibration.elastic import Load
+    from ..core.calibration.provenance import ProvenanceError, file_sha256, load_signing_key, new_provenance
     from ..core.campaign import load_campaign
     from ..render.calibration_report import write_calibration_report
     model = load_model(args)
@@ -85,11 +86,20 @@ def run(args):
         key = load_signing_key(args.signing_key) if args.signing_key else None
     except ProvenanceError as exc:
         raise CLIError(f"--signing-key: {exc}") from None
+    if args.payload and args.parameters not in ("auto", "full+elastic"):
+        raise CLIError(f"--payload: only the elastostatic term loads the joints with it (--parameters full+elastic, or "
+                       f"auto, which tries it); with --parameters {args.parameters} it would be ignored")
+    try:
+        payload = payload_option(args.payload)
+        if payload is not None:
+            Load("point-mass", *payload)
+    except ValueError as exc:
+        raise CLIError(f"--payload: {exc}") from None
     opts = FitOptions(registration=args.registration, sigma_position=quantity(args.noise, "length", "--noise"),
                       sigma_orientation=quantity(args.orientation_noise, "angle", "--orientation-noise"),
                       robust=not args.no_robust, prior=prior_option(args.prior),
                       registration_prior=prior_option(args.registration_prior, "--registration-prior"),
-                      folds=args.folds, seed=args.seed, payload=payload_option(args.payload))
+                      folds=args.folds, seed=args.seed, payload=payload)
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     log_sha256 = file_sha256(args.measurements)

@@ -22,6 +22,8 @@ from ..models.urdf import URDFChain
 
 GRAVITY = 9.81          # m/s^2, along -z of the chain's base frame
 DEFAULT_MASS = 1.0      # kg: the lumped point mass at the tool frame when the URDF has no inertials
+MAX_MASS = 5000.0       # kg: no robot arm carries more (the heaviest payloads are 2.3 t); beyond, a unit slip
+MAX_REACH = 20.0        # m: no payload's centre of mass lies farther from the tool frame
 MODELS = ("inertials", "point-mass", "inertials+payload")
 
 
@@ -46,8 +48,14 @@ class Load:
             raise ValueError(f"load: expected one of {list(MODELS)}, got {self.kind!r}")
         if self.kind != "inertials" and not (np.isfinite(self.mass) and self.mass > 0):
             raise ValueError(f"load: the point mass must be positive and finite, got {self.mass!r} kg")
+        if self.kind != "inertials" and self.mass > MAX_MASS:
+            raise ValueError(f"load: a point mass of {self.mass:.6g} kg is beyond {MAX_MASS:g} kg, more than any robot arm "
+                             f"carries (a unit slip: g for kg?)")
         if len(self.point) != 3 or not all(np.isfinite(self.point)):
             raise ValueError(f"load: the point must be three finite coordinates (m), got {self.point!r}")
+        if float(np.linalg.norm(self.point)) > MAX_REACH:
+            raise ValueError(f"load: the point {tuple(self.point)} m lies more than {MAX_REACH:g} m from the tool frame "
+                             f"(a unit slip: mm for m?)")
 
     @classmethod
     def for_model(cls, model: Mechanism, payload=None) -> "Load | None":
