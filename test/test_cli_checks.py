@@ -138,3 +138,66 @@ def test_a_limit_or_budget_implausible_for_the_robot_exits_2(capsys, tmp_path):
                  ["sensitivity", "--robot", "gao2023_7dof", "--limit", "3m", "--samples", "50"]):
         code, _, err = run_cli(capsys, *argv)
         assert code == 2 and "a length unit off" in err, err
+
+
+@pytest.fixture(scope="module")
+def gao_cal(tmp_path_factory):
+    """A calibration of the paper's arm made by `calibrate` from a simulated campaign."""
+    tmp = tmp_path_factory.mktemp("gao_cal")
+    with_out = ["--quiet"]
+    assert main(["plan-campaign", "--robot", "gao2023_7dof", "--n", "20", "--candidates", "300", "--out",
+                 str(tmp / "plan.yaml"), *with_out]) == 0
+    assert main(["simulate", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--campaign",
+                 str(tmp / "plan.yaml"), "--out", str(tmp / "m.csv"), *with_out]) == 0
+    assert main(["calibrate", "--robot", "gao2023_7dof", "--measurements", str(tmp / "m.csv"), "--campaign",
+                 str(tmp / "plan.yaml"), "--folds", "3", "--out", str(tmp / "cal"), *with_out]) == 0
+    return tmp
+
+
+def test_compensate_applies_the_envelope_and_the_robot_check_as_the_nodes_do(capsys, gao_cal, tmp_path):
+    """A calibration edited by hand to a 50 mrad error (its hash line deleted): refused by its envelope, no correction
+    printed (exit 2); a robot file of the same name with a link 10 mm longer: refused as another robot."""
+    import re
+    from pathlib import Path
+    from tolerance_ros.core.models import load_robot
+    capsys.readouterr()
+    text = (gao_cal / "cal" / "calibration.yaml").read_text()
+    text = re.sub(r"(theta2: \{error: )[-0-9.e]+", r"\g<1>50.0", text)
+    text = "\n".join(line for line in text.splitlines() if not line.strip().startswith("content_sha256:")) + "\n"
+    (tmp_path / "big.yaml").write_text(text)
+    code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration", tmp_path / "big.yaml",
+                         "--poses", "gao2023_iso_cube")
+    assert code == 2 and "outside the envelope" in err and "joint2 by up to 50" in err and "P1" not in out
+    code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration", tmp_path / "big.yaml",
+                         "--poses", "gao2023_iso_cube", "--max-joint-correction", "100mrad", "--max-tool-correction",
+                         "60mm")
+    assert code == 0 and "P1" in out, err
+    robot = Path(load_robot("gao2023_7dof").config_path).read_text()
+    (tmp_path / "longer.yaml").write_text(robot.replace("d: 415, ", "d: 425, "))
+    for command in (["compensate", "--poses", "gao2023_iso_cube"], ["validate", "--measurements", gao_cal / "m.csv"]):
+        code, _, err = run(capsys, command[0], "--robot", tmp_path / "longer.yaml", "--calibration",
+                           gao_cal / "cal" / "calibration.yaml", *command[1:])
+        assert code == 2 and "is not the robot this calibration was made for" in err, err
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--parameters", "full", "--payload", "5kg@0m,0m,0.1m"], "--payload: only the elastostatic term"),
+    (["--payload", "2000000kg@0m,0m,0.1m"], "more than any robot arm carries"),
+    (["--payload", "5kg@0m,0m,100m"], "lies more than 20 m from the tool frame"),
+])
+def test_calibrate_refuses_a_payload_it_would_ignore_or_that_no_arm_carries(capsys, gao_cal, extra, message):
+    code, _, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", gao_cal / "m.csv", "--out",
+                       gao_cal / "unused", *extra)
+    assert code == 2 and message in err, err
+
+
+def test_a_urdf_in_millimetres_is_refused_at_design_time(capsys, tmp_path):
+    """Every length of a UR5's URDF written in millimetres (a link 425 m long): no arm is that large."""
+    import re
+    text = example_urdf("ur5_robot.urdf").read_text()
+    mm = re.sub(r'xyz="([^"]*)"', lambda m: 'xyz="' + " ".join(str(float(v) * 1e3) for v in m.group(1).split()) + '"',
+                text)
+    (tmp_path / "ur5_mm.urdf").write_text(mm)
+    for argv in (["jacobian", "--joints", "0rad,0rad,0rad,0rad,0rad,0rad"], ["sensitivity", "--samples", "20"]):
+        code, _, err = run(capsys, argv[0], "--robot", tmp_path / "ur5_mm.urdf", "--tip-link", "tool0", *argv[1:])
+        assert code == 2 and "lengths in millimetres where metres were meant" in err, err

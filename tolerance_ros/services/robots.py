@@ -78,7 +78,7 @@ class RobotSet:
             text, _ = read_urdf(text, text_only=True)  # the reader of URDF files: one answer for one content
         except ModelError as exc:
             raise ModelError(f"robot_description: {exc}") from None
-        model = URDFChain(text, tip_link=self.tip_link, base_link=self.base_link)
+        model = URDFChain(text, tip_link=self.tip_link, base_link=self.base_link).check_size("robot_description: ")
         if check is not None:
             check(model)
         hashes = (hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest(), chain_sha256(model))

@@ -38,6 +38,9 @@ def warm_up_kernels(which=None) -> float:
         return 0.0
 
 
+MAX_REACH_M = 20.0  # m: no robot arm reaches farther from its base (the largest industrial arms: about 4.7 m)
+
+
 class ModelError(ValueError):
     """An invalid mechanism model or an invalid input to one; the message names the field."""
 
@@ -106,6 +109,16 @@ class Mechanism(ABC):
             q = self.sample_joints(512, 7)
             self._reach = float(np.linalg.norm(self.fk(q)[:, :3, 3], axis=1).max())
         return self._reach
+
+    def check_size(self, where: str = "") -> "Mechanism":
+        """This model, or ModelError when it is larger than any robot arm (its tool reaching beyond ``MAX_REACH_M``
+        from its base: lengths written in millimetres where metres were meant, as a URDF's are)."""
+        reach = self.reach()
+        if not reach <= MAX_REACH_M:
+            raise ModelError(f"{where}robot {self.name!r}: its tool reaches {reach:.4g} m from its base, more than any "
+                             f"robot arm ({MAX_REACH_M:g} m): lengths in millimetres where metres were meant? (a URDF's "
+                             f"lengths are metres)")
+        return self
 
     def within_turn(self, q) -> np.ndarray:
         """``q`` (..., dof) with each continuous joint's angle taken modulo 2 pi into [-pi, pi) (the others as they

@@ -30,7 +30,7 @@ def load_robot(spec, tip_link=None, base_link=None) -> Mechanism:
     path = resolve("robots", spec, suffixes=(".yaml", ".yml", ".urdf"))
     if path.suffix == ".urdf":
         try:
-            return URDFChain(path, tip_link=tip_link, base_link=base_link)
+            return URDFChain(path, tip_link=tip_link, base_link=base_link).check_size()
         except ModelError as exc:  # every error names the file
             raise ModelError(str(exc) if str(path) in str(exc) else f"{path}: {exc}") from None
     data = read_yaml(path, ModelError)
@@ -51,7 +51,7 @@ def load_robot(spec, tip_link=None, base_link=None) -> Mechanism:
     except ModelError as exc:
         raise ModelError(f"{path}: {exc}") from None
     model.config_path = str(path)
-    return model
+    return model.check_size(f"{path}: ")
 
 
 def _kinds():
