@@ -23,7 +23,8 @@ def small_arm(tmp_path_factory):
 
 
 def test_jacobian_json_is_si_and_complete(capsys):
-    code, out, _ = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0,0.1,0.2,0.3,0.4,0.5,0.6", "--json")
+    code, out, _ = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0rad,0.1rad,0.2rad,0.3rad,0.4rad,0.5rad,0.6rad",
+                         "--json")
     assert code == 0
     doc = json.loads(out)
     assert doc["ok"] and doc["robot"] == "gao2023_7dof"
@@ -72,8 +73,9 @@ def test_verify_with_bounds_and_histogram(capsys, tmp_path):
 
 @pytest.mark.parametrize("argv, message", [
     (["jacobian", "--robot", "nope"], "no such file"),
-    (["jacobian", "--robot", "gao2023_7dof", "--joints", "1,2,3"], "expected 7 values"),
-    (["jacobian", "--robot", "gao2023_7dof", "--joints", "1,2,x,4,5,6,7"], "--joints[0]"),
+    (["jacobian", "--robot", "gao2023_7dof", "--joints", "1rad,2rad,3rad"], "expected 7 values"),
+    (["jacobian", "--robot", "gao2023_7dof", "--joints", "1rad,2rad,xrad,4rad,5rad,6rad,7rad"], "--joints[0]"),
+    (["jacobian", "--robot", "gao2023_7dof", "--joints", "0,0.1,0.2,0.3,0.4,0.5,0.6"], "has no unit"),
     (["verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta1", "--limit", "1.4 furlong"], "--limit"),
     (["verify", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta1", "--limit=-1mm"], "must be > 0"),
     (["verify", "--robot", "gao2023_7dof", "--tolerances", "missing_budget"], "missing_budget"),
@@ -277,8 +279,8 @@ def test_argument_errors_with_json_are_a_json_document_with_a_stable_code(capsys
 
 
 def test_messages_keep_their_quotes_and_a_directory_is_not_a_missing_file(capsys, tmp_path):
-    code, _, err = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0,a,0.2,0.3,0.4,0.5,0.6")
-    assert "got '0,a,0.2,0.3,0.4,0.5,0.6'" in err
+    code, _, err = run(capsys, "jacobian", "--robot", "gao2023_7dof", "--joints", "0rad,'a',0.2rad,0.3rad,0.4rad,0.5rad,0.6rad")
+    assert "cannot read \"'a'\" as an angle" in err
     code, _, err = run(capsys, "jacobian", "--robot", str(tmp_path))
     assert code == 2 and "is a directory" in err and "no such file" not in err
 

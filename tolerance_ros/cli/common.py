@@ -113,6 +113,17 @@ def limit_option(model, text, kind, option):
     return value
 
 
+def joints_option(model, text, option):
+    """(dof,) joints (rad or m) of an option ``Q1,Q2,...``, each value with its unit (``0deg``, ``0.1rad``, a
+    prismatic joint's ``20mm``); CLIError naming the option otherwise."""
+    parts = text.split(",")
+    if len(parts) != model.dof:
+        raise CLIError(f"{option}: expected {model.dof} values (one per joint of {model.name}: "
+                       f"{', '.join(model.joint_names)}), got {len(parts)}")
+    return [quantity(v, "length" if t == "prismatic" else "angle", option, positive=False)
+            for v, t in zip(parts, model.joint_types)]
+
+
 def point_option(text, option):
     """[x, y, z] m of ``X,Y,Z`` (a unit on each, e.g. ``0mm,0mm,120mm``), or None when it is not three values
     (the caller says what it expected); CLIError for a value without its unit."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..render.text import table
-from .common import CAPS, CLIError, check_cap, gigabytes, load_model
+from .common import CAPS, CLIError, check_cap, gigabytes, joints_option, load_model
 
 NAME = "jacobian"
 HELP = "nominal pose and parameter-error Jacobian at configurations"
@@ -13,30 +13,35 @@ ROBOT = True
 
 def add_arguments(p):
     p.add_argument("--joints", action="append", metavar="Q1,Q2,...",
-                   help="a joint configuration (rad, m); repeat for several")
-    p.add_argument("--deg", action="store_true", help="revolute joints in --joints are in degrees")
+                   help="a joint configuration, each value with its unit (e.g. 0deg,10deg,... or 0rad,0.1rad,...; a "
+                        "prismatic joint's 20mm); repeat for several")
+    p.add_argument("--deg", action="store_true",
+                   help="--joints as bare numbers: degrees for revolute joints, metres for prismatic ones")
     p.add_argument("--random", type=int, default=1, metavar="N",
                    help=f"N random configurations if no --joints (at most {CAPS['random'][0]})")
     p.add_argument("--seed", type=int, default=0, help="seed of the random joints (default 0)")
 
 
 def _joints(args, model):
+    """The configurations of ``--joints`` (each value with its unit; with ``--deg``, bare numbers in degrees for
+    revolute joints and metres for prismatic ones), or ``--random`` ones."""
     if args.joints:
         rows = []
         for i, text in enumerate(args.joints):
-            try:
-                vals = [float(v) for v in text.replace(",", " ").split()]
-            except ValueError:
-                raise CLIError(f"--joints[{i}]: expected {model.dof} numbers separated by commas, got {text!r}") from None
-            rows.append(vals)
-        lens = {len(r) for r in rows}
-        if lens != {model.dof}:
-            raise CLIError(f"--joints: expected {model.dof} values per configuration "
-                           f"({', '.join(model.joint_names)}), got {sorted(lens)}")
-        q = np.array(rows)
-        if args.deg:
-            q = np.where([t == "revolute" for t in model.joint_types], np.deg2rad(q), q)
-        return model.check_joints(q, "--joints", allow_out_of_limits=True)
+            option = f"--joints[{i}]"
+            if args.deg:
+                try:
+                    vals = [float(v) for v in text.split(",")]
+                except ValueError:
+                    raise CLIError(f"{option}: with --deg, expected {model.dof} numbers separated by commas, got "
+                                   f"{text[:200]!r}") from None
+                if len(vals) != model.dof:
+                    raise CLIError(f"{option}: expected {model.dof} values per configuration "
+                                   f"({', '.join(model.joint_names)}), got {len(vals)}")
+                rows.append(np.where([t == "revolute" for t in model.joint_types], np.deg2rad(vals), vals))
+            else:
+                rows.append(joints_option(model, text, option))
+        return model.check_joints(np.array(rows), "--joints", allow_out_of_limits=True)
     return model.sample_joints(args.random, args.seed)
 
 

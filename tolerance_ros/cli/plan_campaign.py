@@ -6,7 +6,7 @@ from pathlib import Path
 
 from ..core.budget import load_budget
 from ..render.text import Progress, table
-from .common import CAPS, CLIError, load_model, quantity
+from .common import CAPS, CLIError, joints_option, load_model, quantity
 
 NAME = "plan-campaign"
 HELP = "test poses that make the identification best conditioned"
@@ -66,15 +66,6 @@ def add_arguments(p):
     p.add_argument("--plot", metavar="DIR", help="write singular_values.png into DIR")
 
 
-def _center(model, text):
-    """(dof,) joints of ``--center-joints`` (each value with its unit)."""
-    parts = text.split(",")
-    if len(parts) != model.dof:
-        raise CLIError(f"--center-joints: expected {model.dof} values (one per joint of {model.name}), got {len(parts)}")
-    return [quantity(v, "length" if t == "prismatic" else "angle", "--center-joints", positive=False)
-            for v, t in zip(parts, model.joint_types)]
-
-
 def run_path(args, model):
     """``--path``: the test path's joint trajectory written to ``--out`` (YAML, SI)."""
     import yaml
@@ -87,7 +78,7 @@ def run_path(args, model):
     accel = quantity(args.accel, "acceleration", "--accel")
     dwell = quantity(args.dwell, "time", "--dwell", positive=False)
     side = quantity(args.side, "length", "--side")
-    center = _center(model, args.center_joints) if args.center_joints else None
+    center = joints_option(model, args.center_joints, "--center-joints") if args.center_joints else None
     try:
         jp, tp = plan_path(model, args.path, speed, accel, dwell, cycles, side, center, seed=args.seed)
     except ValueError as exc:

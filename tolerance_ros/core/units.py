@@ -124,7 +124,7 @@ def parse_quantity(text, kind: str = "length", field: str = "value") -> float:
     forms = f"write it with its unit, e.g. {_EXAMPLES[kind]} ({kind} units: {', '.join(sorted(units))})"
     m = _QUANTITY.match(str(text)) if isinstance(text, str) else None
     if not m:
-        raise UnitError(f"{field}: cannot read {text!r} as a {kind}; {forms}")
+        raise UnitError(f"{field}: cannot read {text!r} as {'an' if kind[0] in 'aeiou' else 'a'} {kind}; {forms}")
     number, unit = float(m.group(1)), m.group(2)
     if not unit:
         raise UnitError(f"{field}: {text!r} has no unit; {forms}")
