@@ -65,23 +65,21 @@ def test_the_marker_lives_where_numba_caches_the_kernels(tmp_path):
 
 
 def test_a_cold_start_serves_at_once_and_switches_to_the_compiled_kernels_without_a_pause(tmp_path):
-    """Empty cache, two processes started together: each answers within 2 s of its start (imports
-    included), from the numpy path; one child process compiles the kernels while the other process waits
-    for it; both load them; no call waits (none over 0.5 s); the compiled answer equals the numpy one to
-    1e-12; the next start finds the cache warm and loads."""
+    """Empty cache, two processes started together: ``start`` returns while the kernels compile (each process
+    answers meanwhile, from the numpy path until its family is ready); one child process compiles the kernels
+    while the other process waits for it; both load them and switch between two calls; the compiled answer
+    equals the numpy one to 1e-12; the next start finds the cache warm and loads. (How long each step takes:
+    bench/bench_first_run.py.)"""
     starts = [subprocess.Popen([sys.executable, "-c", COLD_START, "gao2023_7dof", "{}"], env=_env(tmp_path),
                                stdout=subprocess.PIPE, text=True) for _ in range(2)]  # two nodes of one launch
     both = [json.loads(p.communicate(timeout=300)[0].strip().splitlines()[-1]) for p in starts]
     for cold in both:
-        assert cold["state"] == "compiling" and cold["first_s"] < 2.0, cold
-        assert cold["switched"] and cold["calls"] > 1 and cold["slowest_call_s"] < 0.5, cold
+        assert cold["state"] == "compiling" and cold["switched"], cold
         assert cold["diff"] < 1e-12 and cold["cached"] and cold["final"]["state"] == "ready", cold
     assert any(c["others_pending"] for c in both), "the family asked for first switched before the others were ready"
     assert sorted(c["final"]["filled"] for c in both) == [False, True], "one of them compiles, the other waits"
-    cold = max(both, key=lambda c: c["after_s"])
     warm = _run(COLD_START, tmp_path, "gao2023_7dof", "{}")
-    assert warm["state"] == "loading" and warm["first_s"] < 2.0 and warm["switched"], warm
-    assert warm["after_s"] < cold["after_s"], (warm, cold)
+    assert warm["state"] == "loading" and warm["switched"] and not warm["final"]["filled"], warm
 
 
 def test_a_stale_marker_is_not_trusted(tmp_path, monkeypatch):
