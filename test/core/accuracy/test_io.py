@@ -307,7 +307,8 @@ BAD_LOG_LINES = [
     ("negative seq", [_m(-5)], "seq: expected a non-negative integer, got -5"),
     ("unknown event", ['{"event": "measurment", "seq": 5}'],
      "event: expected start, budget, calibration, measurement, paired or unpaired, got 'measurment'"),
-    ("pose label as a list", [_m(5), _p(5, pose=["P1"])], "pose: expected a test pose name or null, got a JSON array"),
+    ("pose label as a list", [_m(5), _p(5, pose=["P1"])],
+     "pose: expected a test pose name of at most 100 characters or null, got a JSON array"),
 ]
 
 

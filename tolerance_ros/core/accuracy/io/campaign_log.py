@@ -25,7 +25,7 @@ import numpy as np
 
 from ...ingest import IngestError, JointOrder, pose_from_values, stamp_seconds
 from ...resources import not_a_file
-from .csv_format import MAX_TARGET
+from .csv_format import MAX_POSE, MAX_TARGET
 from .measurements import MeasurementError, Measurements
 from .text import _check_text, _cut, _lines, _not_utf8, _show
 
@@ -107,8 +107,9 @@ def read_log(path, skip_bad=False) -> Measurements:
                     raise MeasurementError(f"joint_names: expected a list of names, got {_brief(names)}")
                 joints = _numbers(rec, "joints", len(names))
                 pose = rec.get("pose")
-                if pose is not None and not isinstance(pose, str):
-                    raise MeasurementError(f"pose: expected a test pose name or null, got {_brief(pose)}")
+                if pose is not None and (not isinstance(pose, str) or len(pose) > MAX_POSE):
+                    raise MeasurementError(f"pose: expected a test pose name of at most {MAX_POSE} characters or "
+                                           f"null, got {_brief(pose)}")
                 order = order or JointOrder(names)
                 try:
                     q = order(names, joints)

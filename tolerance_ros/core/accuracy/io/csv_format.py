@@ -120,6 +120,7 @@ _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _RPY, _QUAT = ("roll", "pitch", "yaw"), ("qx", "qy", "qz", "qw")
 _KNOWN = ("stamp", "pose", "cycle", "target", "x", "y", "z") + _RPY + _QUAT
 MAX_TARGET = 100  # characters of a target name
+MAX_POSE = 100    # characters of a test pose's name
 
 
 @dataclass
@@ -297,6 +298,8 @@ def _convert_fast(rows, spec, last):
     except ValueError:
         return None
     poses = [p.strip() for p in by_col[spec.cols["pose"][0]]] if "pose" in spec.cols else [""] * len(rows)
+    if any(len(p) > MAX_POSE for p in poses):
+        return None
     targets = None
     if "target" in spec.cols:
         targets = [t.strip() for t in by_col[spec.cols["target"][0]]]
@@ -363,6 +366,8 @@ def _parse_row(row, spec):
         except ValueError as exc:
             raise MeasurementError(f"qx, qy, qz, qw: {exc}") from None
     pose = row[spec.cols["pose"][0]].strip() if "pose" in spec.cols else ""
+    if len(pose) > MAX_POSE:
+        raise MeasurementError(f"pose: a name of {len(pose):,} characters ({_show(pose)}); at most {MAX_POSE}")
     cycle = _cycle(row[spec.cols["cycle"][0]]) if "cycle" in spec.cols else -1
     target = _target(row[spec.cols["target"][0]]) if "target" in spec.cols else ""
     return vals, pose, cycle, target
