@@ -60,7 +60,8 @@ def test_simulate_reflectors_and_its_errors(capsys, xarm_campaign, tmp_path):
     assert code == 2 and "--tip-link" in err and "ee_link" in err
 
 
-def test_a_refused_calibration_says_its_first_reason_last(capsys, xarm_campaign, tmp_path):
+def test_measurements_in_the_wrong_unit_are_refused_as_bad_input_with_the_reason_last(capsys, xarm_campaign,
+                                                                                      tmp_path):
     urdf, tmp = xarm_campaign
     lines = (tmp / "m.csv").read_text().splitlines()
     i = next(k for k, line in enumerate(lines) if line.startswith("stamp"))
@@ -75,7 +76,7 @@ def test_a_refused_calibration_says_its_first_reason_last(capsys, xarm_campaign,
     (tmp_path / "metres.csv").write_text("\n".join(lines[:i + 1] + body) + "\n")
     code, out, err = run(capsys, "calibrate", "--robot", urdf, "--measurements", tmp_path / "metres.csv",
                          "--out", tmp_path / "cal", "--quiet", "--folds", "3")
-    assert code == 3 and "metres labelled millimetres" in err.strip().splitlines()[-1]
+    assert code == 2 and "metres labelled millimetres" in err.strip().splitlines()[-1]
 
 
 def test_orientation_noise_on_points_is_said(capsys, xarm_campaign, tmp_path):
@@ -201,3 +202,78 @@ def test_a_urdf_in_millimetres_is_refused_at_design_time(capsys, tmp_path):
     for argv in (["jacobian", "--joints", "0rad,0rad,0rad,0rad,0rad,0rad"], ["sensitivity", "--samples", "20"]):
         code, _, err = run(capsys, argv[0], "--robot", tmp_path / "ur5_mm.urdf", "--tip-link", "tool0", *argv[1:])
         assert code == 2 and "lengths in millimetres where metres were meant" in err, err
+
+
+def _rewrite(src, dst, fix_row=None, fix_header=None):
+    """A copy of the measurement CSV ``src`` with each data row's fields passed through ``fix_row`` and the header's
+    through ``fix_header``."""
+    lines = src.read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    header = lines[head].split(",")
+    rows = [line.split(",") for line in lines[head + 1:]]
+    if fix_header:
+        header = fix_header(header)
+    if fix_row:
+        rows = [fix_row(header, r) for r in rows]
+    dst.write_text("\n".join(lines[:head] + [",".join(header)] + [",".join(r) for r in rows]) + "\n")
+    return dst
+
+
+def test_calibrate_and_validate_refuse_what_report_refuses_with_exit_2(capsys, gao_cal, tmp_path):
+    """Radians labelled degrees in the orientation columns, the points in metres labelled millimetres, x and y
+    swapped, another campaign with the same pose names: report, calibrate and validate all refuse them as bad
+    input (exit 2) with the cause, before any fit."""
+    m = gao_cal / "m.csv"
+    ori = ("roll", "pitch", "yaw")
+
+    def radians(header, row):
+        return [f"{float(v) * np.pi / 180:.9f}" if header[k].split("[")[0] in ori else v for k, v in enumerate(row)]
+
+    def swap_xy(header):
+        return [{"x[mm]": "y[mm]", "y[mm]": "x[mm]"}.get(h, h) for h in header]
+    cases = {
+        "radians labelled degrees": _rewrite(m, tmp_path / "rad.csv", fix_row=radians),
+        "metres labelled millimetres": _rewrite(m, tmp_path / "m_mm.csv", fix_row=lambda h, r: [
+            f"{float(v) / 1000:.9f}" if h[k] in ("x[mm]", "y[mm]", "z[mm]") else v for k, v in enumerate(r)]),
+        "cannot be judged against gao2023_7dof": _rewrite(m, tmp_path / "swapped.csv", fix_header=swap_xy),
+    }
+    for cause, path in cases.items():
+        for argv in (["report", "--measurements", path], ["calibrate", "--measurements", path, "--out", tmp_path / "c"],
+                     ["validate", "--calibration", gao_cal / "cal" / "calibration.yaml", "--measurements", path]):
+            code, out, err = run(capsys, argv[0], *(["--robot", "gao2023_7dof"] if argv[0] != "validate" else []),
+                                 *argv[1:])
+            assert code == 2 and cause in err, (argv[0], cause, err)
+            assert "calibrate again" not in out + err
+    other = tmp_path / "other.yaml"
+    assert main(["plan-campaign", "--robot", "gao2023_7dof", "--n", "20", "--candidates", "300", "--seed", "9",
+                 "--out", str(other), "--quiet"]) == 0
+    capsys.readouterr()
+    for argv in (["report", "--campaign", other], ["calibrate", "--campaign", other, "--out", tmp_path / "c2"]):
+        code, _, err = run(capsys, argv[0], "--robot", "gao2023_7dof", "--measurements", m, *argv[1:])
+        assert code == 2 and "campaign" in err, (argv[0], err)
+
+
+def test_calibrate_names_a_rejected_row_by_its_file_line_as_report_does(capsys, gao_cal, tmp_path):
+    m = gao_cal / "m.csv"
+    lines = m.read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    k = head + 21                                   # the file's line k + 1
+    fields = lines[k].split(",")
+    fields[3] = f"{float(fields[3]) + 40.0:.6f}"    # x 40 mm off
+    lines[k] = ",".join(fields)
+    (tmp_path / "off.csv").write_text("\n".join(lines) + "\n")
+    code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", tmp_path / "off.csv",
+                         "--campaign", gao_cal / "plan.yaml", "--folds", "3", "--out", tmp_path / "c")
+    assert f"rejected: line {k + 1} (pose" in out, out
+
+
+def test_a_pose_name_is_bounded(capsys, gao_cal, tmp_path):
+    lines = (gao_cal / "m.csv").read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    fields = lines[head + 1].split(",")
+    fields[lines[head].split(",").index("pose")] = "P" * 200_000
+    lines[head + 1] = ",".join(fields)
+    (tmp_path / "long.csv").write_text("\n".join(lines) + "\n")
+    code, _, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", tmp_path / "long.csv",
+                       "--out", tmp_path / "c")
+    assert code == 2 and f"line {head + 2}: pose: a name of 200,000 characters" in err and len(err) < 1000, err

@@ -127,12 +127,12 @@ def test_four_markers_of_the_rigid_body_as_four_targets(capsys, tiago, tmp_path)
     assert 0.1 < np.linalg.norm(offsets["TR"] - offsets["BL"]) < 0.25   # the markers' spread on the body
 
 
-def test_metres_labelled_millimetres_are_refused_with_exit_3(capsys, tiago, tmp_path):
+def test_metres_labelled_millimetres_are_refused_as_bad_input_with_exit_2(capsys, tiago, tmp_path):
     _, files, _ = tiago
     wrong = tmp_path / "mm.csv"
     wrong.write_text(files["train"].read_text().replace("x[m],y[m],z[m]", "x[mm],y[mm],z[mm]"))
     code, out, err = run(capsys, "calibrate", "--robot", URDF, "--tip-link", "wrist_ft_tool_link", "--measurements",
                          wrong, "--registration", "base+tool", "--noise", "1mm", "--out", tmp_path / "cal",
                          "--parameters", "joint-offsets", "--quiet")
-    assert code == 3 and "metres labelled millimetres" in err and "REFUSED" in out
-    assert not (tmp_path / "cal" / "calibration.yaml").exists() and (tmp_path / "cal" / "calibration.refused.yaml").exists()
+    assert code == 2 and "metres labelled millimetres" in err and err.count("\n") == 1
+    assert not (tmp_path / "cal").exists()

@@ -123,7 +123,7 @@ def test_a_calibration_the_checks_refuse_is_answered_not_put_in_force(gao, tmp_p
     try:
         svc.handle(json.dumps({"id": "r1", "log": str(log)}))
         resp = wait(out, "r1")
-        assert resp["ok"] and resp["success"] is False and "units" in resp["plausibility"]["problems"][0]
+        assert resp["ok"] is False and resp["error"]["code"] == "infeasible" and "units" in resp["error"]["message"]
         assert not [d for kind, d in out.items if kind == "calibration"]
     finally:
         svc.close()

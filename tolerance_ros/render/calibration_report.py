@@ -113,7 +113,7 @@ def fit_summary(cal) -> str:
 
 def row_lines(rows, kind) -> list:
     """One line per rejected or suspect measurement."""
-    return [f"{kind}: row {r['row']}" + (f" (pose {r['pose']})" if r.get("pose") else "")
+    return [f"{kind}: {r.get('where') or 'row ' + str(r['row'])}" + (f" (pose {r['pose']})" if r.get("pose") else "")
             + (f", target {r['target']}" if r.get("target") else "") + f": {r['reason']}" for r in rows]
 
 

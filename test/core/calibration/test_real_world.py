@@ -75,11 +75,12 @@ def test_outliers_are_rejected_and_listed(gao):
     assert not kept.rejected and kept.validation["after"]["position_rms_m"] > 10 * NOISE
 
 
-def test_metres_labelled_millimetres_and_implausible_errors_are_refused(gao):
+def test_metres_labelled_millimetres_are_refused_before_any_fit(gao):
+    from tolerance_ros.core.accuracy.checks import CheckError
     meas = _campaign(gao, None, None, 6)
     meas.T[:, :3, 3] *= 1e-3                    # the file said mm where it held m
-    cal = calibrate_measurements(gao, meas, sigma_position=NOISE)
-    assert not cal.plausibility["ok"] and "metres labelled millimetres" in cal.plausibility["problems"][0]
+    with pytest.raises(CheckError, match="metres labelled millimetres"):
+        calibrate_measurements(gao, meas, sigma_position=NOISE)
 
 
 def test_the_elastic_term_is_kept_where_the_arm_bends_and_recovers_the_compliance(ur5):

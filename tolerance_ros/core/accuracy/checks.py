@@ -29,6 +29,7 @@ from .io import MeasurementError
 from .registration import Registration, register, spread_ratio
 
 PLAUSIBLE_SPREAD = (0.5, 2.0)  # measured over nominal spread of the points: outside, the length unit is wrong
+MIN_SPREAD = 1e-3              # m: nominal points spread less than this tell no length unit
 PLAUSIBLE_RESIDUAL = 0.02      # a registered residual RMS beyond this share of the reach is a slip, not an error
 LIMIT_MARGIN = 0.01            # rad or m: a joint this far beyond its limit is not a reading of this robot
 LIMIT_COLUMN = 0.25            # a joint beyond its limits in more than this share of the rows: the column is wrong
@@ -57,7 +58,10 @@ def units_problem(model, q, points) -> str | None:
     joints q: the length unit, or the joints' angle unit when reading them in the other one explains it), or
     None."""
     q = np.asarray(q, float)
-    ratio = spread_ratio(model.fk(q)[:, :3, 3], points)
+    nominal = model.fk(q)[:, :3, 3]
+    if len(q) < 3 or np.sqrt(np.mean(np.sum((nominal - nominal.mean(axis=0)) ** 2, axis=1))) < MIN_SPREAD:
+        return None                           # the tool hardly moves: no spread to judge the unit by
+    ratio = spread_ratio(nominal, points)
     lo, hi = PLAUSIBLE_SPREAD
     if lo <= ratio <= hi:
         return None
@@ -73,6 +77,55 @@ def units_problem(model, q, points) -> str | None:
         else ""
     return (f"units: the measured points spread {ratio:.4g} times as far as the robot's tool moves; the length unit "
             f"of the measurements cannot be right{hint}")
+
+
+ORIENTATION_MIN_TURN = 0.01   # rad: the tool must turn this much between two measurements for their turn to count
+
+
+def _turns(R) -> np.ndarray:
+    """(n - 1,) angle (rad) of the rotation between consecutive rotations of ``R`` (n, 3, 3)."""
+    rel = R[1:] @ np.transpose(R[:-1], (0, 2, 1))
+    return np.arccos(np.clip((np.trace(rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
+
+
+def orientation_problem(model, q, R) -> str | None:
+    """Why measured orientations (n, 3, 3) cannot be in the angle unit claimed, or None: from one measurement to
+    the next they must turn as the robot's tool turns at the same joints (an angle no frame changes), within
+    ``PLAUSIBLE_SPREAD`` (the median over the pairs where the tool turns ``ORIENTATION_MIN_TURN`` or more:
+    radians labelled degrees turn 57 times too little). None also where the tool hardly turns."""
+    tool = _turns(model.fk(np.asarray(q, float))[:, :3, :3])
+    seen = _turns(np.asarray(R, float))
+    moving = tool >= ORIENTATION_MIN_TURN
+    if np.count_nonzero(moving) < 3:
+        return None
+    ratio = float(np.median(seen[moving]) / np.median(tool[moving]))
+    lo, hi = PLAUSIBLE_SPREAD
+    if lo <= ratio <= hi:
+        return None
+    hint = (" (radians labelled degrees?)" if ratio < 0.1 else
+            " (milliradians labelled radians, or degrees labelled radians?)" if ratio > 5 else "")
+    return (f"units: from one measurement to the next the measured orientations turn {ratio:.4g} times as far as the "
+            f"robot's tool does; the angle unit of the orientation columns cannot be right{hint}")
+
+
+def refuse_implausible(model, q, T_meas, idx, names, registration="base", frames=False, robust=True) -> list:
+    """CheckError when measurements cannot be this robot's, as ``report`` judges them: their orientations'
+    unit (``orientation_problem``), then the nominal model robustly registered onto them, its residual against
+    the robot's size (``diagnose``: another robot, swapped columns, a joint column in the other angle unit);
+    else the hints (a target offset). What ``calibrate`` and ``validate`` ask before any fit."""
+    q = np.asarray(q, float)
+    if frames:
+        problem = orientation_problem(model, q, np.asarray(T_meas)[:, :3, :3])
+        if problem:
+            raise CheckError(problem)
+    if len(q) < 3:
+        return []
+    tool = registration == "base+tool"
+    reg, out, _ = robust_register(model.fk(q), T_meas, idx, names, tool, frames, robust)
+    refused, hints = diagnose(model, q, T_meas, idx, names, "base+tool" if tool else "base", frames, reg, ~out)
+    if refused:
+        raise CheckError(refused)
+    return hints
 
 
 @dataclass

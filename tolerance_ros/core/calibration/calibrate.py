@@ -70,7 +70,7 @@ def candidates(model: Mechanism, parameters="auto", prior=PRIOR, gravity=None) -
 
 def calibrate(model: Mechanism, q, T_tracker, labels=None, options: FitOptions | None = None, *, parameters="auto",
               has_orientation=True, sources=None, target_index=None, target_names=("",), stamps=None, progress=None,
-              **changes) -> Calibration:
+              where=None, **changes) -> Calibration:
     """Calibrate from tracker readings T_tracker (n, 4, 4) at joints q (n, dof), with k-fold validation.
 
     labels : (n,) test-pose name of each measurement, or None (measurements at equal joints form a pose).
@@ -78,7 +78,8 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, options: FitOptions |
     parameters : 'auto' (of ``candidates``, the one that predicts held-out poses best) or one of ``MODELS``.
     has_orientation : whether the readings carry orientations (orientation errors are fitted and validated
     only then, with ``sigma_orientation``).  target_index, target_names : each row's target and the targets'
-    names (several need registration 'base+tool').  stamps : (n,) for the rejected list.  progress : called
+    names (several need registration 'base+tool').  stamps : (n,) for the rejected list.  where : (n,) where each
+    row comes from ('line 23' of its file), for the rejected list (default 'row i', 0-based).  progress : called
     with (done, total) after each candidate's cross-validation and the final fit.
     """
     opts = (options or FitOptions()).updated(**changes)
@@ -155,8 +156,8 @@ def calibrate(model: Mechanism, q, T_tracker, labels=None, options: FitOptions |
                  "how": "chosen by the lowest cross-validated position RMS" if parameters == "auto" else "given",
                  "compared_on": "the measurements every candidate keeps" if exclude.any() else "every measurement",
                  "candidates": scores, "held_compliance": list(getattr(final.ident, "compliance_held", []))}
-    cal.rejected = _row_list(final, final.rejected, stamps, labels, names, idx, "rejected")
-    cal.suspect = _row_list(final, final.suspect, stamps, labels, names, idx, "suspect")
+    cal.rejected = _row_list(final, final.rejected, stamps, labels, names, idx, "rejected", where)
+    cal.suspect = _row_list(final, final.suspect, stamps, labels, names, idx, "suspect", where)
     cal.validation = kept_figures(validations[best["label"]], final.rejected)
     problems += _plausibility_problems(model, cal)
     cal.plausibility = {"ok": not problems, "problems": problems}
@@ -216,16 +217,31 @@ def _warnings(cal, final, validation) -> list:
 
 def calibrate_measurements(model, meas, campaign=None, options: FitOptions | None = None, *, parameters="auto",
                            progress=None, **changes) -> Calibration:
-    """``calibrate`` for a ``Measurements`` (joints from its columns or from the campaign's test poses)."""
+    """``calibrate`` for a ``Measurements`` (joints from its columns or from the campaign's test poses), after the
+    checks ``report`` makes (``checks``: the units of the points and of the orientations, the joint limits, the
+    campaign of labelled poses, the nominal robot registered onto them): CheckError (bad input, exit 2) for
+    measurements that cannot be this robot's, before any fit; the rows it leaves out and rejects are named by
+    their place in the file (``Measurements.where``)."""
     from ..accuracy.evaluation import measurement_joints
     q = measurement_joints(model, meas, campaign)
-    screened = checks.screen(model, q, meas)   # rows beyond the joint limits: left out, said
+    problem = checks.units_problem(model, q, meas.T[:, :3, 3])
+    if problem:
+        raise checks.CheckError(f"{meas.source}: {problem}")
+    labels = meas.pose if meas.pose is not None and any(str(p) for p in meas.pose) else None
+    screened = checks.screen(model, q, meas, campaign, labels)   # beyond the limits: left out, said; wrong campaign
     if not screened.keep.all():
         meas, q = meas.select(screened.keep), q[screened.keep]
     labels = meas.pose if meas.pose is not None and any(str(p) for p in meas.pose) else None
-    cal = calibrate(model, q, meas.T, labels, options, parameters=parameters, has_orientation=meas.has_orientation,
+    opts = (options or FitOptions()).updated(**changes)
+    try:
+        checks.refuse_implausible(model, q, meas.T, meas.target_index(), meas.target_names, opts.registration,
+                                  meas.has_orientation)
+    except checks.CheckError as exc:
+        raise checks.CheckError(f"{meas.source}: {exc}") from None
+    cal = calibrate(model, q, meas.T, labels, opts, parameters=parameters, has_orientation=meas.has_orientation,
                     sources={"measurements": meas.source}, target_index=meas.target_index(),
-                    target_names=meas.target_names, stamps=meas.stamps, progress=progress, **changes)
+                    target_names=meas.target_names, stamps=meas.stamps, progress=progress,
+                    where=[meas.where(i) for i in range(len(meas))])
     cal.warnings = [f"left out before the fit: {r['where']}: {r['reason']}" for r in screened.left_out] + cal.warnings
     return cal
 
@@ -277,7 +293,7 @@ def _negative_compliances(model, cal) -> list:
             f"to another payload"]
 
 
-def _row_list(fitted, mask, stamps, labels, names, idx, kind) -> list:
+def _row_list(fitted, mask, stamps, labels, names, idx, kind, where=None) -> list:
     """The measurements of ``mask`` with their residuals and the reason: rejected (beyond the threshold) or
     suspect (beyond it, kept: their removal would change what is identifiable)."""
     out = []
@@ -287,8 +303,8 @@ def _row_list(fitted, mask, stamps, labels, names, idx, kind) -> list:
                   f"standard deviations of the fit, at this row)")
         if kind == "suspect":
             reason += "; kept, because leaving it out would change which parameters are identifiable"
-        entry = {"row": int(i), "target": names[idx[i]], "residual_m": float(r[i]), "threshold_m": float(limit[i]),
-                 "reason": reason}
+        entry = {"row": int(i), "where": where[i] if where is not None else f"row {int(i)}", "target": names[idx[i]],
+                 "residual_m": float(r[i]), "threshold_m": float(limit[i]), "reason": reason}
         if stamps is not None:
             entry["stamp"] = float(stamps[i])
         if labels is not None:

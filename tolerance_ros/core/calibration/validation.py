@@ -38,8 +38,9 @@ def predict_campaign(cal: Calibration, model: Mechanism, q, T_tracker, target_in
     """Before (nominal robot, registration-only fit) and after (calibrated robot) errors of a campaign of
     tracker readings T_tracker (n, 4, 4) at joints q (n, dof); a plain dict, SI.
 
-    The campaign is checked first (``accuracy.checks``): a length or angle unit that cannot be right, or a
-    joint column out of range, is refused; rows beyond the joint limits are left out and listed (``meas``
+    The campaign is checked first (``accuracy.checks``): a length or angle unit that cannot be right, a
+    joint column out of range, or measurements the nominal robot cannot be registered onto (another robot,
+    swapped columns: ``checks.refuse_implausible``) are refused; rows beyond the joint limits are left out and listed (``meas``
     names their file lines). With ``reregister`` the tracker's placement is refitted for each model,
     robustly: rows beyond ``checks.REJECT`` robust sigmas are left out of it and of the figures, and listed.
 
@@ -57,6 +58,9 @@ def predict_campaign(cal: Calibration, model: Mechanism, q, T_tracker, target_in
     if problem:
         raise checks.CheckError(problem)
     screened = checks.screen(model, q, meas)
+    checks.refuse_implausible(model, q[screened.keep], T_tracker[screened.keep], idx[screened.keep], cal.targets.names,
+                              "base+tool" if len(cal.targets.names) > 1 or cal.registration == "base+tool" else "base",
+                              bool(has_orientation), robust)
     ori = bool(has_orientation and cal.has_orientation)
     notes = []
     if has_orientation and not cal.has_orientation:
