@@ -250,7 +250,7 @@ def test_the_robot_from_robot_description(graph, ns, urdf, tip):
     r = served()
     cli = subprocess.run([sys.executable, "-m", "tolerance_ros.cli", "jacobian", "--robot", str(example_urdf(urdf)),
                           "--tip-link", tip, "--json", "--quiet"] + [a for row in q for a in ("--joints",
-                          ",".join(repr(float(v)) for v in row))], capture_output=True, text=True, timeout=120)
+                          ",".join(f"{float(v)!r}rad" for v in row))], capture_output=True, text=True, timeout=120)
     doc = json.loads(cli.stdout)
     assert r["robot"] == name == doc["robot"]
     np.testing.assert_allclose(np.array(r["jacobian"]), np.array(doc["jacobian"]), atol=1e-15)
