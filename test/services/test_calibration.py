@@ -85,6 +85,9 @@ def test_a_calibration_from_the_log_is_answered_and_put_in_force(gao, campaign, 
     ({"id": "b3", "window": [5, 1]}, "invalid_request", "window: t_start must be before t_end"),
     ({"id": "b4", "robot": "nobody"}, "unknown_robot", "nobody"),
     ({"id": "b5", "time_limit": 1e-300}, "invalid_request", "time_limit"),
+    ({"id": "b6", "log": "a\x00b.csv"}, "invalid_request", "holds a NUL byte"),
+    ({"id": "b7", "log": "x" * 300 + ".csv"}, "invalid_request", "longer than a file name can be"),
+    ({"id": "b8", "log": "/" + "d/" * 3000 + "m.csv"}, "invalid_request", "longer than a file name can be"),
 ])
 def test_bad_requests_are_refused_naming_the_field(campaign, req, code, message):
     out = Recorder()
@@ -93,6 +96,7 @@ def test_bad_requests_are_refused_naming_the_field(campaign, req, code, message)
         svc.handle(json.dumps(req))
         doc = out.items[0][1]
         assert doc["ok"] is False and doc["error"]["code"] == code and message in doc["error"]["message"]
+        assert len(doc["error"]["message"]) < 300          # at most a bounded piece of the name is shown
     finally:
         svc.close()
 

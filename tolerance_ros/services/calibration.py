@@ -76,19 +76,36 @@ class CalibrationJob:
     time_limit_s: float = DEFAULT_TIME_LIMIT_S
 
 
+MAX_NAME_CHARS = 255     # characters of one part of a log's path (the file systems' own limit)
+MAX_PATH_CHARS = 4096    # characters of a log's whole path
+
+
 def log_path(log: str, log_dir) -> str:
     """The path of a requested log: under ``log_dir`` (a relative one from there), symbolic links resolved;
-    ContractError for a path elsewhere or one that does not exist. ``log_dir`` None: any path."""
-    if log_dir is None:
-        path = Path(log)
-    else:
-        base = Path(log_dir).expanduser().resolve()
-        path = (base / log).resolve()
-        if not path.is_relative_to(base):
-            raise ContractError("invalid_request", f"log: {log[:200]!r} is outside this node's log_dir ({base}); "
-                                                   f"the calibrate service reads only logs under it")
-    if not path.exists():
-        raise ContractError("invalid_request", f"log: no such file {log[:200]!r}")
+    ContractError 'invalid_request' for a name no file can have (a NUL byte, a part over ``MAX_NAME_CHARS``),
+    a path elsewhere or one that does not exist; its message shows at most 60 characters of the name and
+    nothing of the node's own folders. ``log_dir`` None: any path."""
+    shown = repr(log[:60]) + ("..." if len(log) > 60 else "")
+    if "\x00" in log:
+        raise ContractError("invalid_request", f"log: {shown} holds a NUL byte; no file is named so")
+    if len(log) > MAX_PATH_CHARS or any(len(part) > MAX_NAME_CHARS for part in log.split("/")):
+        raise ContractError("invalid_request", f"log: {shown} is longer than a file name can be ({MAX_NAME_CHARS} "
+                                               f"characters a part, {MAX_PATH_CHARS} in all)")
+    try:
+        if log_dir is None:
+            path = Path(log)
+        else:
+            base = Path(log_dir).expanduser().resolve()
+            path = (base / log).resolve()
+            if not path.is_relative_to(base):
+                raise ContractError("invalid_request", f"log: {shown} is outside this node's log_dir; the calibrate "
+                                                       f"service reads only logs under it")
+        found = path.exists()
+    except (OSError, ValueError, RuntimeError) as exc:   # a loop of links, a name the system refuses
+        raise ContractError("invalid_request", f"log: {shown} cannot be read as a file name "
+                                               f"({type(exc).__name__})") from None
+    if not found:
+        raise ContractError("invalid_request", f"log: no such file {shown}")
     return str(path)
 
 
