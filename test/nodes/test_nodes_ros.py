@@ -601,36 +601,39 @@ main(["--ros-args", "-r", "__ns:=" + sys.argv[1]])
 """
 
 
-def test_a_node_on_an_empty_kernel_cache_answers_within_2_s_and_loses_no_request(graph, ns, tmp_path):
-    """The error-model server in a child process with an empty NUMBA_CACHE_DIR: subscribed and answering
-    within 2 s of its start, every request of the compile window answered (from the numpy path), then the
-    compiled kernels in force (its log says so)."""
+def test_a_node_on_an_empty_kernel_cache_answers_while_it_compiles_and_loses_no_request(graph, ns, tmp_path):
+    """The error-model server in a child process with an empty NUMBA_CACHE_DIR: its first answer comes before
+    its log says the compiled kernels are in force (it answered from the numpy path meanwhile), every request of
+    the compile window is answered, then the compiled kernels are in force. Ordered by events, not seconds."""
     import signal
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), ROS_DOMAIN_ID=str(graph.context.get_domain_id()))
-    t_start = time.time()
     node = subprocess.Popen([sys.executable, "-c", SERVER_PROCESS, ns], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(node.stdout), daemon=True)
+    reader.start()
+
+    def compiled():
+        return any("compiled kernels compiled and loaded" in line for line in list(lines))
     try:
         client = graph.client(ns)
         if not client.wait_for_server("compute_error_jacobian", 20):
             os.killpg(node.pid, signal.SIGINT)
-            raise AssertionError(f"no server within 20 s: {node.communicate(timeout=30)[0]}")
+            raise AssertionError(f"no server within 20 s: {''.join(lines)}")
         first = client.compute_error_jacobian(Q)
-        t_first = time.time() - t_start
-        answered, slowest = 0, 0.0
+        first_before_compiled = not compiled()
+        answered = 0
         for k in range(20):
-            t = time.time()
-            r = client.compute_error_jacobian([q + 0.01 * k for q in Q])
-            slowest = max(slowest, time.time() - t)
-            answered += r["ok"]
+            answered += client.compute_error_jacobian([q + 0.01 * k for q in Q])["ok"]
             time.sleep(0.25)
-        assert first["ok"] and answered == 20 and slowest < 1.0, (answered, slowest)
-        print(f"first answer {t_first:.2f} s after the start; slowest of the window {slowest:.3f} s")
-        assert t_first < 2.0, f"first answer {t_first:.2f} s after the start"
+        assert first["ok"] and answered == 20, answered
+        assert first_before_compiled, "the first answer waited for the compiled kernels"
+        assert wait_for(compiled, 300, 1.0), "".join(lines)
     finally:
         os.killpg(node.pid, signal.SIGINT)
-        out = node.communicate(timeout=60)[0]
-    assert "compiling the kernels in the background" in out, out
+        node.wait(timeout=60)
+        reader.join(timeout=10)
+    assert "compiling the kernels in the background" in "".join(lines), "".join(lines)
 
 
 def test_a_measurement_stream_keeps_a_second_of_1khz_while_its_callback_runs_late():
