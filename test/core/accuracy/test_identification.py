@@ -81,6 +81,26 @@ def test_dependent_parameters_keep_one_of_each_dependent_set():
     assert held[3] and not held[2] and held[0] != held[1]
 
 
+@pytest.mark.parametrize("seed", range(5))
+def test_a_tall_jacobian_holds_the_same_columns_as_its_square_twin(seed):
+    """The columns held depend only on the columns' inner products: a Jacobian of 3,000 rows (reduced first by
+    an orthogonal transformation) holds exactly the columns its 30-row twin of the same geometry holds (taken as
+    it is), ties of equal columns included."""
+    from tolerance_ros.core.accuracy.identification import dependent_columns
+    rng = np.random.default_rng(seed)
+    small = rng.standard_normal((30, 16))
+    small[:, 3] = small[:, 1]                                   # a tie: equal columns
+    small[:, 7] = 0.5 * small[:, 2] - small[:, 12]              # a combination of an estimable and a nuisance one
+    small[:, 9] = small[:, 14]                                  # one the nuisance columns explain
+    Q, _ = np.linalg.qr(rng.standard_normal((3000, 30)))
+    tall = Q @ small
+    estimable, nuisance = np.arange(12), np.arange(12, 16)
+    pref = rng.integers(0, 2, 12)
+    a = dependent_columns(small, estimable, nuisance, preference=pref)
+    b = dependent_columns(tall, estimable, nuisance, preference=pref)
+    assert np.array_equal(a, b) and a[9] and a[1] != a[3] and a.sum() == 3
+
+
 def test_holding_the_dependent_parameters_estimates_the_rest_from_the_data(gao, truth):
     """Position rows only, no prior: d1/theta1 (the base's), alpha6/theta6 (equivalent to d6/a6 when the
     tool point lies on the last axis) and alpha7/theta7 (no effect on position) are held at 0; the

@@ -164,6 +164,14 @@ def _targets_with(targets, layout, x):
     return X
 
 
+def _rotated(R, A) -> np.ndarray:
+    """(n, 3, k) ``R @ A[i]`` for each (3, k) block of ``A`` (n, 3, k): one matrix product over every block (one
+    BLAS call, where an einsum or a broadcast matmul loops over the n small products)."""
+    n, _, k = A.shape
+    flat = np.ascontiguousarray(A.transpose(1, 0, 2)).reshape(3, n * k)
+    return (R @ flat).reshape(3, n, k).transpose(1, 0, 2)
+
+
 def _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity=None, sqrt_w=None):
     """(J, r, |dp|): the Jacobian in the unknowns (``_Layout``) and the residuals (measured - model), rows
     stacked per measurement, and each measurement's position residual (m, unweighted). The model of a
@@ -184,11 +192,11 @@ def _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity=No
     n = len(q)
     rows = 6 if use_ori else 3
     J = np.zeros((n, rows, layout.n))
-    J[:, :3, :p] = np.einsum("ij,njp->nip", R0, Jt[:, :3])
+    J[:, :3, :p] = _rotated(R0, Jt[:, :3])
     Jb = base_jacobian(Tp[:, :3, 3])
     J[:, :3, layout.base] = Jb[:, :3]
     if use_ori:
-        J[:, 3:, :p] = w_ori * np.einsum("ij,njp->nip", R0, Jt[:, 3:])
+        J[:, 3:, :p] = w_ori * _rotated(R0, Jt[:, 3:])
         J[:, 3:, layout.base] = w_ori * Jb[:, 3:]
     RW = R0 @ T_tool[:, :3, :3]
     for k in range(layout.K if layout.nt else 0):
@@ -198,9 +206,9 @@ def _stack(model, q, T_meas, x, layout, targets, idx, use_ori, w_ori, gravity=No
             J[sel, 3:, layout.r.start + 3 * k:layout.r.start + 3 * k + 3] = w_ori * RW[sel]
     if layout.nc:
         Jc = Jt[:, :, model.joint_columns()[layout.cmask]] * gravity[:, None, layout.cmask]
-        J[:, :3, layout.c] = np.einsum("ij,njc->nic", R0, Jc[:, :3])
+        J[:, :3, layout.c] = _rotated(R0, Jc[:, :3])
         if use_ori:
-            J[:, 3:, layout.c] = w_ori * np.einsum("ij,njc->nic", R0, Jc[:, 3:])
+            J[:, 3:, layout.c] = w_ori * _rotated(R0, Jc[:, 3:])
     dp = T_meas[:, :3, 3] - Tp[:, :3, 3]
     r = dp if not use_ori else np.concatenate([dp, w_ori * rotation_error(T_meas[:, :3, :3], Tp[:, :3, :3])], axis=1)
     if sqrt_w is not None:
@@ -266,8 +274,15 @@ def dependent_columns(Js, estimable, nuisance, tol_rank=1e-6, preference=None) -
     A = Js[:, estimable]
     pref = np.zeros(len(estimable)) if preference is None else np.asarray(preference, float)
     A = A * (1.0 + TIE * (pref + 0.5 * (1.0 - np.arange(len(estimable)) / max(len(estimable), 1))))
+    N = Js[:, nuisance]
+    if A.shape[0] > 2 * (A.shape[1] + N.shape[1]):
+        # A tall Jacobian (many measurements) is first reduced by an orthogonal transformation (unpivoted QR,
+        # blocked LAPACK): the projection and the pivoting below depend only on the columns' inner products,
+        # which it keeps, so they run on a square matrix of the same geometry.
+        R = np.linalg.qr(np.hstack([A, N]), mode="r")
+        A, N = R[:, :A.shape[1]], R[:, A.shape[1]:]
     if len(nuisance):
-        Qb, Rb = np.linalg.qr(Js[:, nuisance])
+        Qb, Rb = np.linalg.qr(N)
         Qb = Qb[:, np.abs(np.diag(Rb)) > 1e-12 * max(np.abs(Rb).max(), 1e-300)]
         A = A - Qb @ (Qb.T @ A)
     smax = _largest_singular_value(Js)
@@ -582,7 +597,9 @@ def _leverage(Jp, Hinv, w) -> np.ndarray:
     inverse normal matrix is ``Hinv`` (k, k): the mean over its 3 rows of ``w j Hinv j^T``, the share of its
     residual the fit absorbs (a fitted row's residual has variance ``(1 - h) sigma^2``); for a row left out
     (``w`` 0) the unweighted figure, by which its residual, a prediction, is larger (``(1 + h) sigma^2``)."""
-    h = np.einsum("nik,kl,nil->n", Jp, Hinv, Jp) / 3.0
+    n, rows, k = Jp.shape
+    flat = Jp.reshape(n * rows, k)
+    h = np.einsum("ij,ij->i", flat @ Hinv, flat).reshape(n, rows).sum(axis=1) / 3.0   # one GEMM, then row dots
     return np.where(w > 0, w * h, h)
 
 

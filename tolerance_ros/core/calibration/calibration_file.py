@@ -449,10 +449,15 @@ def plain_floats(v) -> list:
     return [float(x) for x in np.asarray(v, float).ravel()]
 
 
+SAMPLES = ("position_error_m", "orientation_error_rad")   # per-measurement arrays: the report's (.json), not the file's
+
+
 def _without_samples(validation):
+    """The validation block without its per-measurement arrays (``SAMPLES``): the calibration file stays the size
+    of the model, whatever the number of measurements."""
     if not validation:
         return validation
-    return {k: v for k, v in validation.items() if k != "position_error_m"}
+    return {k: v for k, v in validation.items() if k not in SAMPLES}
 
 
 def _plain(obj):
