@@ -125,3 +125,16 @@ def test_a_number_that_is_not_finite_is_refused_and_never_written(gao, gao_calib
     unknown = dataclasses.replace(gao_calibration, validation=dict(gao_calibration.validation, improvement=math.nan))
     back = load_calibration(save_calibration(unknown, tmp_path / "unknown.yaml"), gao)
     assert back.validation["improvement"] is None
+
+
+def test_the_file_keeps_no_per_measurement_arrays_whatever_the_campaigns_size(gao, gao_calibration, tmp_path):
+    """A validation of 500,000 measurements: their error arrays are the report's (calibration.json), not the
+    calibration file's, which stays the size of the model (it failed above 4 MB before)."""
+    import dataclasses
+    many = {"before": np.zeros(500_000), "after": np.zeros(500_000)}
+    big = dataclasses.replace(gao_calibration, validation=dict(gao_calibration.validation, position_error_m=many,
+                                                               orientation_error_rad=many))
+    path = save_calibration(big, tmp_path / "c.yaml")
+    text = path.read_text()
+    assert len(text) < 200_000 and "orientation_error_rad" not in text and "position_error_m" not in text
+    assert load_calibration(path, gao).validation["improvement"] == pytest.approx(big.validation["improvement"])
