@@ -29,6 +29,7 @@ def test_simulate_writes_the_measurements_and_the_truth_in_the_calibration_forma
     truth = yaml.safe_load((tmp / "m.truth.yaml").read_text())
     assert truth["format"] == "tolerance_ros.calibration/2" and truth["model"]["parameters"] == "truth"
     assert truth["sources"]["joint_names"] == [f"joint{i}" for i in range(1, 8)]   # a list, not its text
+    assert truth["sources"]["measurements"] == "m.csv" and truth["sources"]["campaign"] == "plan.yaml"  # beside it
     errors = [p["error"] for p in truth["parameters"].values()]
     assert any(e != 0 for e in errors) and max(abs(e) for e in errors) <= 0.5 + 1e-12   # mm and mrad, within
     code, out, err = run(capsys, "validate", "--calibration", tmp / "m.truth.yaml", "--measurements", tmp / "m.csv",

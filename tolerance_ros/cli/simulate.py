@@ -140,8 +140,10 @@ def _truth(args, model, dx, T_tracker, noise, out, rows, poses, targets, registr
                         has_orientation=orientation)
     truth.nominal = nominal_fingerprint(model)
     source = getattr(model, "config_path", None) or getattr(model, "source", None)
+    plan = args.campaign or args.trajectory      # a file relative to the truth file, as its other paths; or a name
     truth.sources = {"robot": relative(source, out.parent) if source and Path(str(source)).is_file() else model.name,
-                     "measurements": out.name, "campaign": args.campaign or args.trajectory,
+                     "measurements": out.name,
+                     "campaign": relative(plan, out.parent) if plan and Path(plan).is_file() else plan,
                      "joint_names": list(model.joint_names),
                      "truth": f"simulated as built within {args.tolerances} ({args.errors}, seed {args.seed}){what}"}
     if hasattr(model, "tip_link"):
