@@ -290,7 +290,7 @@ def test_corrected_origins_round_trip_through_the_urdf_exactly(seed, tmp_path):
     base = rng.normal(0, 1e-3, 6)
     q = chain.sample_joints(25, seed)
     want = calibrated_mechanism(chain, dx, base).fk(q)
-    from tolerance_ros.core.accuracy.identification import base_matrix
+    from tolerance_ros.core.calibration.identification import base_matrix
     np.testing.assert_allclose(want, base_matrix(base) @ chain.fk(q, dx), atol=1e-13, rtol=0)
     np.testing.assert_allclose(pin_fk(calibrated_urdf_text(chain, text, dx, base), chain.tip_link, chain, q), want,
                                atol=1e-13, rtol=0)

@@ -8,7 +8,7 @@ import numpy as np
 from ..ingest import IngestError, JointOrder
 from . import checks
 from .accumulator import AccuracyAccumulator
-from .identification import identify
+from ..calibration.identification import identify
 from .io import MeasurementError, read_csv
 from .iso9283 import pose_characteristics
 from .registration import KabschAccumulator, Registration, register

@@ -68,7 +68,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..accuracy.identification import BASE_NAMES
+from .identification import BASE_NAMES
 from ..geometry import rpy_from_matrix
 from ..models.base import Mechanism, ModelError
 from ..models.loader import frame_from_dict, load_robot

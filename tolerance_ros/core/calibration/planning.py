@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..accuracy.identification import BASE_NAMES, base_jacobian, column_scale, dependent_parameters
+from .identification import BASE_NAMES, base_jacobian, column_scale, dependent_parameters
 from ..accuracy.iso9283 import iso_cube_points
 from ..models.base import Mechanism
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..accuracy.identification import BASE_NAMES, base_matrix
+from .identification import BASE_NAMES, base_matrix
 from ..accuracy.targets import AtTarget, Targets
 from ..models.base import Mechanism
 from .elastic import DeflectedChain, Load

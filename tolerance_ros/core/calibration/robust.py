@@ -2,7 +2,7 @@
 
 ``fit`` registers the tracker to the nominal base frame (globally, with each target's offset on the tool
 when asked), then identifies the candidate's parameter errors, a base correction and the targets together
-(``accuracy.identification.identify``: converged Levenberg-Marquardt, a minimal set of dependent
+(``identification.identify``: converged Levenberg-Marquardt, a minimal set of dependent
 parameters held at nominal, judged at nominal and at the solution). A regularised candidate weighs its
 Gaussian prior against the fit's own residual noise (a fixed point: fit, estimate the noise from its
 residuals, fit again); the registration carries no prior unless ``FitOptions.registration_prior`` asks.
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from ..accuracy.identification import MAX_ITERATIONS, base_matrix, identify
+from .identification import MAX_ITERATIONS, base_matrix, identify
 from ..accuracy.registration import register
 from ..models.base import PRISMATIC, Mechanism
 
