@@ -150,6 +150,15 @@ def guarded(node, callback):
     return run
 
 
+def served_robots(node) -> tuple:
+    """(``robots``, ``default_robot``) of a node that serves requests for robots (scipy required): its
+    parameters, declared."""
+    require_packages(node, ["scipy"])
+    specs = declare(node, "robots", ["gao2023_7dof"], "robots served: shipped names, robot files, or "
+                                                      "robot_description (the URDF on that topic)")
+    return specs, declare(node, "default_robot", "gao2023_7dof", "robot used when a request names none")
+
+
 def robot_set(node, specs, default) -> RobotSet:
     """The robots a node serves, with the ``tip_link`` / ``base_link`` parameters for ``robot_description``
     (MissingDependency when the reader of a URDF robot, pinocchio, is missing).

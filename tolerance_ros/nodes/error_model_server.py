@@ -35,7 +35,8 @@ from ..services.error_model import ErrorModelService
 from ..services.guards import CalibrationRefused
 from .common import (BUDGET_QOS, CALIBRATION_TOPIC, JACOBIAN_TOPIC, LATCHED_QOS, MEASUREMENT_QOS, PREFIX,
                      SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, calibration_gate, declare,
-                     follow_robot_description, guarded, require_packages, robot_set, run, status_name, take_latest)
+                     follow_robot_description, guarded, robot_set, run, served_robots, status_name,
+                     take_latest)
 
 
 class ErrorModelServer(Node):
@@ -47,10 +48,7 @@ class ErrorModelServer(Node):
 
     def setup(self):
         """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
-        require_packages(self, ["scipy"])
-        specs = declare(self, "robots", ["gao2023_7dof"], "robots served: shipped names, robot files, or "
-                                                          "robot_description (the URDF on that topic)")
-        default = declare(self, "default_robot", "gao2023_7dof", "robot used when a request names none")
+        specs, default = served_robots(self)
         max_bytes = declare(self, "max_request_bytes", 1_000_000, "size cap of a request, bytes", (1, 1 << 30))
         max_poses = declare(self, "max_poses", 10_000, "size cap of a request, configurations", (1, 10_000_000))
         max_worst = declare(self, "max_worst_case_poses", 1_000, "configurations per request with the 'worst-case' "

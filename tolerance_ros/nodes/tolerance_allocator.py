@@ -17,7 +17,7 @@ from ..services.allocation import MAX_TIME_LIMIT_S, AllocatorService
 from ..services.jobs import Outbox
 from ..services.contracts import Limits
 from .common import (ALLOCATE_TOPIC, BUDGET_QOS, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, declare,
-                     follow_robot_description, guarded, require_packages, robot_set, run)
+                     follow_robot_description, guarded, robot_set, run, served_robots)
 
 
 class ToleranceAllocator(Node):
@@ -29,10 +29,7 @@ class ToleranceAllocator(Node):
 
     def setup(self):
         """Parameters, robots, files, publishers, subscriptions and timers: what a managed node's configure does."""
-        require_packages(self, ["scipy"])
-        specs = declare(self, "robots", ["gao2023_7dof"], "robots served: shipped names, robot files, or "
-                                                          "robot_description (the URDF on that topic)")
-        default = declare(self, "default_robot", "gao2023_7dof", "robot used when a request names none")
+        specs, default = served_robots(self)
         self.budget_dir = Path(declare(self, "budget_dir", str(Path.home() / ".ros" / "tolerance_ros" / "budgets"),
                                        "directory where finished budgets are saved (YAML, mm and rad)")).expanduser()
         max_queue = declare(self, "max_queue", 4, "allocation requests that may wait behind the running one",

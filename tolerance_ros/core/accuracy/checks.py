@@ -203,6 +203,22 @@ def _check_campaign(model, q, labels, campaign, out, meas):
                          + ": the wrong campaign, or the wrong measurements?")
 
 
+def outliers(r, reference, floor: float) -> tuple:
+    """(rows of ``r`` (n,) m beyond the threshold, the threshold m): ``REJECT`` robust standard deviations of the
+    residuals of the ``reference`` rows (a mask; their median over ``CHI3_MEDIAN``), never below ``floor`` m; at
+    most ``MAX_REJECTED`` of the rows, the largest. The one rule of every robust fit (registration, calibration)."""
+    n = len(r)
+    sigma = np.median(r[reference]) / CHI3_MEDIAN
+    threshold = REJECT * max(sigma, floor)
+    new = r > threshold
+    cap = int(MAX_REJECTED * n)
+    if new.sum() > cap:
+        new = np.zeros(n, bool)
+        if cap:
+            new[np.argsort(r)[-cap:]] = True
+    return new, float(threshold)
+
+
 def robust_register(T_tool, T_meas, idx, names, tool=False, frames=False, robust=True, targets=None):
     """(Registration on the kept rows, (n,) rows left out, threshold m): register, leave out the rows whose
     residual exceeds ``REJECT`` robust standard deviations (the median residual over that of a 3-D normal
@@ -218,14 +234,7 @@ def robust_register(T_tool, T_meas, idx, names, tool=False, frames=False, robust
         r = _residuals(reg, T_tool, T_meas, idx)
         if not robust or n < 6:
             break
-        sigma = np.median(r[keep]) / CHI3_MEDIAN
-        threshold = REJECT * max(sigma, 1e-9)
-        new = r > threshold
-        cap = int(MAX_REJECTED * n)
-        if new.sum() > cap:
-            new = np.zeros(n, bool)
-            if cap:
-                new[np.argsort(r)[-cap:]] = True
+        new, threshold = outliers(r, keep, 1e-9)
         if np.array_equal(new, out):
             break
         out = new

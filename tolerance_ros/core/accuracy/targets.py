@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models.base import ErrorJacobian, Mechanism
+from ..models.base import ErrorJacobian, Mechanism, WrappedMechanism
 
 MAX_OFFSET = 5.0  # m: a target farther from the tool frame is refused as a unit mistake
 
@@ -131,21 +131,15 @@ def at_point(model: Mechanism, offset=None) -> Mechanism:
     return AtTarget(model, X)
 
 
-class AtTarget(Mechanism):
+class AtTarget(WrappedMechanism):
     """A mechanism whose tool frame is moved to a target frame ``X`` (4x4, m, in the tool frame): poses
     ``T @ X`` and the Jacobian at the target point (``shift_jacobian``); the rest is the inner model's.
     ``inner`` is the model, ``target`` the target's name."""
 
     def __init__(self, inner: Mechanism, X, target=""):
-        self.inner = inner
+        super().__init__(inner)
         self.X = np.asarray(X, float).reshape(4, 4)
         self.target = str(target)
-        for attr in ("name", "joint_names", "joint_types", "joint_limits", "param_names", "param_kinds", "nominal",
-                     "continuous"):
-            setattr(self, attr, getattr(inner, attr))
-        for attr in ("tip_link", "base_link", "source", "config_path"):
-            if hasattr(inner, attr):
-                setattr(self, attr, getattr(inner, attr))
 
     def fk_and_jacobian(self, q, dx=None, jacobian: bool = True):
         T, EJ = self.inner.fk_and_jacobian(q, dx, jacobian)
@@ -154,13 +148,6 @@ class AtTarget(Mechanism):
             return T_t, None
         arms = np.einsum("nij,j->ni", T[:, :3, :3], self.X[:3, 3])
         return T_t, ErrorJacobian(shift_jacobian(EJ.J, arms), EJ.names, EJ.units)
-
-    def joint_columns(self) -> np.ndarray:
-        return self.inner.joint_columns()
-
-    @property
-    def joint_direction(self) -> np.ndarray:
-        return self.inner.joint_direction
 
     def with_joint_limits(self, limits) -> "AtTarget":
         return AtTarget(self.inner.with_joint_limits(limits), self.X, self.target)

@@ -37,7 +37,7 @@ from .crossval import Folds, kept_figures, pose_groups, score, validate
 from .elastic import Load
 from .mechanism import calibrated_mechanism, corrected_origins
 from .result import Calibration, nominal_fingerprint
-from .robust import (MODELS, PRIOR, REGISTRATIONS, REJECT, FitData, FitOptions, estimate_sets, fit,
+from .robust import (MODELS, PRIOR, REGISTRATIONS, FitData, FitOptions, estimate_sets, fit,
                      prior_vector)
 
 __all__ = ["Calibration", "FitOptions", "MODELS", "PRIOR", "REGISTRATIONS", "calibrate", "calibrate_measurements",
@@ -299,7 +299,7 @@ def _row_list(fitted, mask, stamps, labels, names, idx, kind, where=None) -> lis
     out = []
     r, limit = fitted.ident.row_residuals, fitted.row_thresholds
     for i in np.flatnonzero(mask):
-        reason = (f"position residual {r[i] * 1e3:.4g} mm exceeds {limit[i] * 1e3:.4g} mm ({REJECT:g} robust "
+        reason = (f"position residual {r[i] * 1e3:.4g} mm exceeds {limit[i] * 1e3:.4g} mm ({checks.REJECT:g} robust "
                   f"standard deviations of the fit, at this row)")
         if kind == "suspect":
             reason += "; kept, because leaving it out would change which parameters are identifiable"

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models.base import Mechanism, ModelError
+from ..models.base import Mechanism, ModelError, WrappedMechanism
 from ..models.urdf import URDFChain
 
 GRAVITY = 9.81          # m/s^2, along -z of the chain's base frame
@@ -145,20 +145,14 @@ def gravity_loads(model: Mechanism, q, load: Load | None = None) -> np.ndarray:
     return load.torques(model, q)
 
 
-class DeflectedChain(Mechanism):
+class DeflectedChain(WrappedMechanism):
     """A serial chain whose joints deflect by ``compliance * load.torques(q)``: the calibrated robot with its
     elastostatic term. ``compliance`` (dof,) rad/(N m) or m/N; the rest is the inner chain's."""
 
     def __init__(self, inner: URDFChain, compliance, load: Load | None = None):
-        self.inner = inner
+        super().__init__(inner)
         self.compliance = np.asarray(compliance, float).reshape(inner.dof)
         self.load = load or Load.for_model(inner)
-        for attr in ("name", "joint_names", "joint_types", "joint_limits", "param_names", "param_kinds", "nominal",
-                     "continuous"):
-            setattr(self, attr, getattr(inner, attr))
-        for attr in ("tip_link", "base_link", "source", "config_path"):
-            if hasattr(inner, attr):
-                setattr(self, attr, getattr(inner, attr))
 
     def deflected(self, q) -> np.ndarray:
         """(n, dof) joints the deflected robot reaches when its joints read q."""
@@ -167,13 +161,6 @@ class DeflectedChain(Mechanism):
 
     def fk_and_jacobian(self, q, dx=None, jacobian: bool = True):
         return self.inner.fk_and_jacobian(self.deflected(q), dx, jacobian)
-
-    def joint_columns(self) -> np.ndarray:
-        return self.inner.joint_columns()
-
-    @property
-    def joint_direction(self) -> np.ndarray:
-        return self.inner.joint_direction
 
     def with_joint_limits(self, limits) -> "DeflectedChain":
         out = copy.copy(self)

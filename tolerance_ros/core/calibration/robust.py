@@ -8,11 +8,11 @@ Gaussian prior against the fit's own residual noise (a fixed point: fit, estimat
 residuals, fit again); the registration carries no prior unless ``FitOptions.registration_prior`` asks.
 
 Robust: the outliers are judged with the residuals of this fit itself, never inherited from a stiffer
-model: fit, reject the measurements whose position residual exceeds ``REJECT`` robust sigmas (the median
+model: fit, reject the measurements whose position residual exceeds ``checks.REJECT`` robust sigmas (the median
 residual over that of a 3-D normal error, never below the tracker's noise), fit again, until the set is
 stable. Each residual is first divided by its own spread: a fitted row's by ``sqrt(1 - h)`` (the fit absorbs
 its leverage ``h``), a row left out by ``sqrt(1 + h)`` (its residual is a prediction), so that a row is
-judged alike in or out of the fit and a good row once rejected comes back. At most ``MAX_REJECTED`` of the
+judged alike in or out of the fit and a good row once rejected comes back. At most ``checks.MAX_REJECTED`` of the
 measurements are rejected; a rejection that would change which parameters are identifiable is not made:
 those measurements are kept and listed as ``suspect``. SI throughout.
 """
@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from .identification import MAX_ITERATIONS, base_matrix, identify
+from ..accuracy.checks import outliers
 from ..accuracy.registration import register
 from ..models.base import PRISMATIC, Mechanism
 
@@ -30,10 +31,7 @@ REGISTRATIONS = ("base", "base+tool")
 MODELS = ("registration", "joint-offsets", "full", "full+elastic")
 DEFLECTION = (0.01, 0.03)   # m, rad: prior std of a joint's elastic deflection at its largest load (regularised fits)
 PRIOR = (0.005, 0.005)      # m, rad: default prior std of the origin errors of a regularised fit (see the docs)
-CHI3_MEDIAN = 1.5382        # median of |e| for e ~ N(0, I3): sqrt(chi2_3 median)
-REJECT = 4.594              # |e| / sigma beyond which a residual is an outlier: sqrt(chi2_3 quantile 0.9999)
 TOL_RANK = 1e-6             # a parameter whose scaled pivot is below this share of the largest is held
-MAX_REJECTED = 0.25         # at most this share of the measurements is rejected
 ROUNDS = 12                 # fit-judge-refit rounds (the rejected set and the noise settle in two to four)
 NOISE_SETTLED = 1e-3        # the prior's noise is settled when a round changes it by less than this share
 
@@ -174,18 +172,10 @@ def _spread(ident, rejected) -> np.ndarray:
 
 def _judge(r, rejected, sigma_position):
     """(rows beyond the threshold (n,), threshold m) of standardised position residuals ``r`` (n,) m (each
-    divided by its ``_spread``, so that a row is judged alike whether it is in the fit or left out of it)."""
-    n = len(r)
-    kept = r[~rejected] if np.any(~rejected) else r
-    sigma = np.median(kept) / CHI3_MEDIAN
-    threshold = REJECT * max(sigma, sigma_position)  # never below what the tracker's own noise explains
-    new = r > threshold
-    cap = int(MAX_REJECTED * n)
-    if new.sum() > cap:
-        new = np.zeros(n, bool)
-        if cap:
-            new[np.argsort(r)[-cap:]] = True
-    return new, float(threshold)
+    divided by its ``_spread``, so that a row is judged alike whether it is in the fit or left out of it): the
+    kept rows' spread, never below what the tracker's own noise explains (``checks.outliers``)."""
+    kept = ~rejected if np.any(~rejected) else np.ones(len(r), bool)
+    return outliers(r, kept, sigma_position)
 
 
 def fit(model: Mechanism, data: FitData, which: str, prior, opts: FitOptions, analysis=True) -> Fit:

@@ -349,3 +349,28 @@ class CompiledChain(Mechanism):
     @abstractmethod
     def _fk_and_jacobian_numpy(self, q, dx=None, jacobian: bool = True):
         """The numpy reference implementation of ``fk_and_jacobian``."""
+
+
+class WrappedMechanism(Mechanism):
+    """A mechanism built around another (``inner``: a tool moved to a target, a chain that deflects under its
+    load): it takes the inner model's names, joints, limits and parameters, and answers the joint questions as
+    the inner model does; a subclass gives ``fk_and_jacobian``."""
+
+    COPIED = ("name", "joint_names", "joint_types", "joint_limits", "param_names", "param_kinds", "nominal",
+              "continuous")
+    IF_ANY = ("tip_link", "base_link", "source", "config_path")
+
+    def __init__(self, inner: Mechanism):
+        self.inner = inner
+        for attr in self.COPIED:
+            setattr(self, attr, getattr(inner, attr))
+        for attr in self.IF_ANY:
+            if hasattr(inner, attr):
+                setattr(self, attr, getattr(inner, attr))
+
+    def joint_columns(self) -> np.ndarray:
+        return self.inner.joint_columns()
+
+    @property
+    def joint_direction(self) -> np.ndarray:
+        return self.inner.joint_direction
