@@ -32,6 +32,9 @@ def add_arguments(p):
                         "offset is a translation the base registration absorbs, so it is not fitted: give it when the "
                         "orientation changes")
     p.add_argument("--budget", help="tolerance budget: the bound tube along the path and the verdicts")
+    p.add_argument("--reverse", action="store_true",
+                   help="judge the return strokes (the test path driven backwards, as a line driven back and forth "
+                        "does) as the cycles, instead of the forward ones")
     p.add_argument("--latency", help="the tracker's latency, given (e.g. 8ms) instead of estimated")
     p.add_argument("--latency-window",
                    help="look for the latency within +- this about zero only (e.g. 100ms; default: of any size, a "
@@ -105,7 +108,7 @@ def run(args):
     ignored = []
     tj, qj, trajectory, command_source = _command(args, model, recorded, ignored)
     options = PathOptions(registration=args.registration, latency=latency, window=window, stations=args.stations,
-                          speed_window=speed_window, offset=offset, trajectory=trajectory)
+                          speed_window=speed_window, offset=offset, trajectory=trajectory, reverse=args.reverse)
     doc = path_report(model, stamps, points, tj, qj, budget, options, source=source)
     doc["command"] = {"source": command_source, "kind": "trajectory" if args.trajectory else "joint states",
                       "ignored_columns": ignored}

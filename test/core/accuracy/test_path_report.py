@@ -238,3 +238,19 @@ def test_a_continuous_joint_logged_unwrapped_is_judged_as_its_wrap():
     doc = path_report(chain, st.stamps, st.points, st.joint_stamps, q)
     assert doc["cycles"] == wrapped["cycles"] == 3
     assert doc["overall"]["AT_p_m"] == pytest.approx(wrapped["overall"]["AT_p_m"], rel=1e-6)
+
+
+def test_the_return_strokes_of_a_line_are_judged_where_asked(gao):
+    """A line driven back and forth without a stop: the forward strokes are the cycles, or, with ``reverse``, the
+    return strokes (the same line driven backwards), each with its own figures; the rectangle has none."""
+    st = run(gao, "line", cycles=4, dwell=0.0)
+    fwd = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints)
+    back = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints, options=PathOptions(reverse=True))
+    assert fwd["cycles"] == back["cycles"] == 4 and fwd["other_motions"] == back["other_motions"] == 4
+    assert back["path_length_m"] == pytest.approx(fwd["path_length_m"], rel=1e-3)
+    a, b = fwd["segments"][0]["along"]["command_m"], back["segments"][0]["along"]["command_m"]
+    assert np.linalg.norm(np.asarray(a[0]) - np.asarray(b[-1])) < 0.01        # the same line, backwards
+    assert back["overall"]["AT_p_m"] != fwd["overall"]["AT_p_m"]
+    rect = run(gao, "rectangle", cycles=3)
+    with pytest.raises(ValueError, match="no motion drives the test path backwards"):
+        path_report(gao, rect.stamps, rect.points, rect.joint_stamps, rect.joints, options=PathOptions(reverse=True))

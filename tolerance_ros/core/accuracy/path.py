@@ -98,9 +98,10 @@ def hole_in_motion(gaps, tj, i0: int, i1: int, tm, j0: int, j1: int) -> str | No
     return None
 
 
-def cycles_of(p, runs, same: float = SAME):
+def cycles_of(p, runs, same: float = SAME, reverse: bool = False):
     """(indices of the runs that are cycles of the test path, indices of the other motions): the test path is
-    the most frequent motion (start, end within ``same`` m, length within 1 %)."""
+    the most frequent motion (start, end within ``same`` m, length within 1 %); with ``reverse``, the motion that
+    drives it backwards (a line's return strokes; ValueError when there is none)."""
     if not runs:
         return [], []
     sig = [(p[a], p[b], arc_length(p[a:b + 1])[-1]) for a, b in runs]
@@ -114,6 +115,13 @@ def cycles_of(p, runs, same: float = SAME):
         else:
             groups.append([k])
     best = max(groups, key=len)
+    if reverse:
+        s0, s1, L = sig[best[0]]
+        back = [g for g in groups if g is not best and np.linalg.norm(sig[g[0]][0] - s1) <= same
+                and np.linalg.norm(sig[g[0]][1] - s0) <= same and abs(sig[g[0]][2] - L) <= 0.01 * L]
+        if not back:
+            raise ValueError("reverse: no motion drives the test path backwards (its return strokes)")
+        best = max(back, key=len)
     return best, [k for k in range(len(runs)) if k not in best]
 
 

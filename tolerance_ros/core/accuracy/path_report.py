@@ -75,7 +75,8 @@ class PathOptions:
     tracked target on the tool frame (None: its origin); along a path of constant orientation (the standard's)
     an offset is a translation the registration absorbs, elsewhere it must be given. ``trajectory``
     (``iso_paths.JointPath``): the program the joint states follow (their stamps its run time), whose period
-    cuts the cycles and whose knots place the corners."""
+    cuts the cycles and whose knots place the corners. ``reverse``: judge the motion that drives the test path
+    backwards (a line's return strokes) instead."""
 
     registration: str = "base"
     latency: float | None = None
@@ -88,6 +89,7 @@ class PathOptions:
     step: float | None = None
     offset: object = None
     trajectory: object = None
+    reverse: bool = False
 
 
 MAX_COMMAND_INTERVAL = 0.1   # s: joint states further apart than this (median) do not sample a path
@@ -131,7 +133,7 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, option
     jp = o.trajectory
     runs, how = split_runs(tj, p_c, runs, step if step is not None else interval,
                            None if jp is None else jp.period, None if jp is None else 0.0)
-    picked, others = P.cycles_of(p_c, runs)
+    picked, others = P.cycles_of(p_c, runs, reverse=o.reverse)
     if not picked:
         raise ValueError("the command never moves: no path to judge (joint states at rest)")
     _check(model, tm, pm, tj, qj, line.covered(tm))
