@@ -10,6 +10,7 @@ Conventions (SI, REP 103):
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import time
 from abc import ABC, abstractmethod
@@ -39,6 +40,31 @@ def warm_up_kernels(which=None) -> float:
 
 
 MAX_REACH_M = 20.0  # m: no robot arm reaches farther from its base (the largest industrial arms: about 4.7 m)
+
+
+@contextlib.contextmanager
+def _numpy_path(model):
+    """``model`` (and the models it wraps) on the numpy path for the block: a check made when a model is loaded
+    never waits for the compiled kernels (on a cold cache they would compile in the caller)."""
+    chain = []
+    m = model
+    while m is not None and m not in chain:
+        chain.append(m)
+        m = getattr(m, "inner", None)
+    saved = [m.__dict__.get("_backend", _UNSET) for m in chain]
+    for m in chain:
+        m._backend = "numpy"
+    try:
+        yield
+    finally:
+        for m, b in zip(chain, saved):
+            if b is _UNSET:
+                del m._backend
+            else:
+                m._backend = b
+
+
+_UNSET = object()
 
 
 class ModelError(ValueError):
@@ -107,7 +133,8 @@ class Mechanism(ABC):
         robot's size, against which lengths given for it are judged; computed once)."""
         if getattr(self, "_reach", None) is None:
             q = self.sample_joints(512, 7)
-            self._reach = float(np.linalg.norm(self.fk(q)[:, :3, 3], axis=1).max())
+            with _numpy_path(self), np.errstate(over="ignore", invalid="ignore"):   # absurd lengths: inf, refused
+                self._reach = float(np.linalg.norm(self.fk(q)[:, :3, 3], axis=1).max())
         return self._reach
 
     def check_size(self, where: str = "") -> "Mechanism":
