@@ -128,19 +128,26 @@ class Mechanism(ABC):
     kernel_family = None  # the compiled kernel family of fk_and_jacobian (``kernels.FAMILIES``), where compiled
     continuous = None     # (dof,) bool: joints without limits; None: none
 
-    def reach(self) -> float:
-        """The largest distance (m) of the tool point from the base origin over 512 seeded joint samples (the
-        robot's size, against which lengths given for it are judged; computed once)."""
-        if getattr(self, "_reach", None) is None:
-            q = self.sample_joints(512, 7)
-            with _numpy_path(self), np.errstate(over="ignore", invalid="ignore"):   # absurd lengths: inf, refused
-                self._reach = float(np.linalg.norm(self.fk(q)[:, :3, 3], axis=1).max())
-        return self._reach
+    def reach(self, samples: int = 512) -> float:
+        """The largest distance (m) of the tool point from the base origin over ``samples`` seeded joint samples
+        (the robot's size, against which lengths given for it are judged; the 512-sample figure is computed
+        once)."""
+        if samples == 512 and getattr(self, "_reach", None) is not None:
+            return self._reach
+        q = self.sample_joints(samples, 7)
+        with np.errstate(over="ignore", invalid="ignore"):   # absurd lengths: infinite, refused by who asks
+            reach = float(np.linalg.norm(self.fk(q)[:, :3, 3], axis=1).max())
+        if samples == 512:
+            self._reach = reach
+        return reach
 
     def check_size(self, where: str = "") -> "Mechanism":
         """This model, or ModelError when it is larger than any robot arm (its tool reaching beyond ``MAX_REACH_M``
-        from its base: lengths written in millimetres where metres were meant, as a URDF's are)."""
-        reach = self.reach()
+        from its base: lengths written in millimetres where metres were meant, as a URDF's are); judged on 16
+        samples on the numpy path, so that loading a robot stays cheap and never waits for the compiled kernels
+        (on a cold cache they would compile in the caller)."""
+        with _numpy_path(self):
+            reach = self.reach(16)
         if not reach <= MAX_REACH_M:
             raise ModelError(f"{where}robot {self.name!r}: its tool reaches {reach:.4g} m from its base, more than any "
                              f"robot arm ({MAX_REACH_M:g} m): lengths in millimetres where metres were meant? (a URDF's "
