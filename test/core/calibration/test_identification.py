@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from tolerance_ros.core.calibration.identification import identify
+from tolerance_ros.core.calibration.identification import FitOptions, Unknowns, identify
 from tolerance_ros.core.accuracy.registration import register
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
 from tolerance_ros.core.geometry import transform
@@ -22,7 +22,7 @@ def truth(gao):
 def test_identification_recovers_the_injected_errors(gao, truth):
     delta, dx, q, T = truth
     reg = register(gao.fk(q), T)
-    ident = identify(gao, q, reg.to_base(T), delta, 1e-5, 1e-5)
+    ident = identify(gao, q, reg.to_base(T), delta, FitOptions(sigma_position=1e-5, sigma_orientation=1e-5))
     names = list(gao.param_names)
     # The first joint's d and theta move the tool like a base shift/turn: they cannot be separated.
     assert {"d1", "theta1"} <= set(ident.unidentifiable)
@@ -38,7 +38,7 @@ def test_out_of_tolerance_parts_are_named(gao, truth):
     j = gao.param_index(["theta3"])[0]
     tight[j] = abs(dx[j]) / 3
     reg = register(gao.fk(q), T)
-    ident = identify(gao, q, reg.to_base(T), tight, 1e-5, 1e-5)
+    ident = identify(gao, q, reg.to_base(T), tight, FitOptions(sigma_position=1e-5, sigma_orientation=1e-5))
     assert ident.out_of_tolerance[0]["name"] == "theta3"
     assert ident.out_of_tolerance[0]["ratio"] == pytest.approx(3.0, rel=0.05)
 
@@ -56,7 +56,7 @@ def test_streaming_identification_is_the_same_result_as_the_batch_fit(gao, truth
     from tolerance_ros.core.calibration.identification import Identification
     delta, dx, q, T = truth
     Tb = register(gao.fk(q), T).to_base(T)
-    batch = identify(gao, q, Tb, delta, 1e-5)
+    batch = identify(gao, q, Tb, delta, FitOptions(sigma_position=1e-5))
     acc = AccuracyAccumulator(gao, delta)
     for a in range(0, len(q), 64):
         acc.add(Tb[a:a + 64], q[a:a + 64])
@@ -107,7 +107,8 @@ def test_holding_the_dependent_parameters_estimates_the_rest_from_the_data(gao, 
     others are estimated with uncertainties scaled by the residual noise, which estimates the tracker's."""
     delta, dx, q, T = truth
     Tb = register(gao.fk(q), T).to_base(T)
-    ident = identify(gao, q, Tb, None, 1e-5, hold="dependent", noise_from_residuals=True)
+    ident = identify(gao, q, Tb, None, FitOptions(sigma_position=1e-5), hold="dependent",
+                     noise_from_residuals=True)
     assert set(ident.held) == {"d1", "theta1", "alpha6", "theta6", "alpha7", "theta7"}
     held = gao.param_index(ident.held)
     assert np.all(ident.dx[held] == 0) and np.all(ident.std[held] == 0)
@@ -130,10 +131,11 @@ def test_holding_the_dependent_parameters_estimates_the_rest_from_the_data(gao, 
 def test_hold_by_name_and_too_few_rows(gao, truth):
     delta, dx, q, T = truth
     Tb = register(gao.fk(q), T).to_base(T)
-    ident = identify(gao, q, Tb, delta, 1e-5, 1e-5, hold=["a1", "theta7"])
+    ident = identify(gao, q, Tb, delta, FitOptions(sigma_position=1e-5, sigma_orientation=1e-5), hold=["a1", "theta7"])
     assert ident.held == ["a1", "theta7"] and ident.dx[0] == 0
     with pytest.raises(ValueError, match="cannot be estimated"):
-        identify(gao, q[:9], Tb[:9], None, 1e-5, hold="dependent", noise_from_residuals=True)
+        identify(gao, q[:9], Tb[:9], None, FitOptions(sigma_position=1e-5), hold="dependent",
+                 noise_from_residuals=True)
 
 
 def test_every_column_of_the_fit_jacobian_matches_finite_differences():
@@ -217,7 +219,8 @@ def test_identify_reaches_the_optimum_scipy_finds_on_a_dh_arm(gao, truth, regula
     prior_std = np.full(gao.n_params, 1e-3) if regularised else None
     if regularised:
         prior_std[gao.joint_columns()] = np.inf
-    ident = identify(gao, q, Tb, prior_std, 1e-5, hold="dependent", noise_from_residuals=True)
+    ident = identify(gao, q, Tb, prior_std, FitOptions(sigma_position=1e-5), hold="dependent",
+                     noise_from_residuals=True)
     conv = ident.convergence
     assert conv.converged and conv.stop in ("gradient", "step") and conv.gradient_cosine < 1e-6
     prior = np.zeros(len(ident.x))
@@ -226,7 +229,8 @@ def test_identify_reaches_the_optimum_scipy_finds_on_a_dh_arm(gao, truth, regula
     from tolerance_ros.core.accuracy.targets import Targets
     cost = _scipy_cost(gao, q, Tb, ident, prior, Targets.at_tool(), np.zeros(len(q), int))
     assert conv.cost == pytest.approx(cost, rel=1e-9)
-    capped = identify(gao, q, Tb, prior_std, 1e-5, hold="dependent", noise_from_residuals=True, iterations=1)
+    capped = identify(gao, q, Tb, prior_std, FitOptions(sigma_position=1e-5, iterations=1), hold="dependent",
+                      noise_from_residuals=True)
     assert not capped.convergence.converged and capped.convergence.stop == "iteration cap"
     assert "NOT CONVERGED" in capped.convergence.words()
 
@@ -256,9 +260,10 @@ def test_identify_reaches_the_optimum_scipy_finds_on_a_urdf_arm_with_targets_and
     cmask = np.ptp(g, axis=0) > 1e-9
     prior_std = np.where(np.array(model.param_kinds) == "length", 1e-3, 1e-3)
     prior_std[model.joint_columns()] = np.inf
-    ident = identify(model, q[rows], Tb, prior_std, 1e-5, hold="dependent", noise_from_residuals=True,
-                     targets=targets, target_index=idx, estimate_targets=True, gravity=g[rows], compliance=cmask,
-                     compliance_prior=np.full(model.dof, 1e-6))
+    ident = identify(model, q[rows], Tb, prior_std, FitOptions(sigma_position=1e-5),
+                     Unknowns(targets=targets, target_index=idx, estimate_targets=True, gravity=g[rows],
+                              compliance=cmask, compliance_prior=np.full(model.dof, 1e-6)),
+                     hold="dependent", noise_from_residuals=True)
     assert ident.convergence.converged
     prior = np.zeros(len(ident.x))
     prior[:model.n_params] = np.where(np.isinf(prior_std), 0.0, (1e-5 / prior_std) ** 2)
@@ -277,14 +282,15 @@ def test_leverages_are_the_fits_hat_matrix(gao, truth, regularised):
     q, T = q[:60], T[:60]
     Tb = register(gao.fk(q), T).to_base(T)
     delta = delta if regularised else None
-    ident = identify(gao, q, Tb, delta, 1e-5, hold="dependent", noise_from_residuals=True)
+    ident = identify(gao, q, Tb, delta, FitOptions(sigma_position=1e-5), hold="dependent", noise_from_residuals=True)
     h = ident.row_leverage
     assert np.all((h >= 0) & (h < 1))
     assert 3 * h.sum() == pytest.approx(ident.effective_unknowns, rel=1e-9)
     i = 17
     w = np.ones(len(q))
     w[i] = 0.0
-    out = identify(gao, q, Tb, delta, 1e-5, hold=ident.held, noise_from_residuals=True, weights=w, start=ident)
+    out = identify(gao, q, Tb, delta, FitOptions(sigma_position=1e-5), hold=ident.held, noise_from_residuals=True,
+                   weights=w, start=ident)
     keep = np.flatnonzero(w > 0)
     assert 3 * out.row_leverage[keep].sum() == pytest.approx(out.effective_unknowns, rel=1e-9)
     # left out: h_out / (1 + h_out) is the leverage the row has in the fit of every row (Sherman-Morrison, per axis

@@ -8,7 +8,7 @@ import numpy as np
 from ..ingest import IngestError, JointOrder
 from . import checks
 from .accumulator import AccuracyAccumulator
-from ..calibration.identification import identify
+from ..calibration.identification import FitOptions, Unknowns, identify
 from .io import MeasurementError, read_csv
 from .iso9283 import pose_characteristics
 from .registration import KabschAccumulator, Registration, register
@@ -104,7 +104,8 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
                                               meas.has_orientation)
     if len(q) <= IDENTIFY_MAX:
         ori = sigma_orientation if meas.has_orientation else None
-        ident = identify(model, q, T_base, delta, sigma_position, ori, targets=reg.targets, target_index=idx)
+        ident = identify(model, q, T_base, delta, FitOptions(sigma_position=sigma_position, sigma_orientation=ori),
+                         Unknowns(targets=reg.targets, target_index=idx))
         out["identification"] = ident.to_dict()
         if delta is not None:
             out["identification"]["groups"] = aliased_groups(model, q, T_base, delta, sigma_position, ori, reg.targets,
@@ -135,8 +136,9 @@ def aliased_groups(model, q, T_base, delta, sigma_position=1e-5, sigma_orientati
     parameters the base correction absorbs (a registration takes them: no campaign sees them); ``not_seen``: the
     held parameters these measurements do not see at all (no effect on what was measured).
     """
-    ident = identify(model, q, T_base, None, sigma_position, sigma_orientation, hold="dependent",
-                     noise_from_residuals=True, targets=targets, target_index=target_index)
+    ident = identify(model, q, T_base, None, FitOptions(sigma_position=sigma_position,
+                                                        sigma_orientation=sigma_orientation),
+                     Unknowns(targets=targets, target_index=target_index), hold="dependent", noise_from_residuals=True)
     names = list(model.param_names)
     d = np.asarray(delta, float)
     groups = []

@@ -14,7 +14,8 @@ import numpy as np
 from .. import interrupt
 from ..accuracy.iso9283 import pose_characteristics
 from ..accuracy.verdicts import pose_errors
-from .robust import FitData, FitOptions, fit, predict
+from .identification import FitOptions
+from .robust import FitData, fit, predict
 
 
 def pose_groups(q, labels=None):

@@ -13,7 +13,7 @@ SI throughout; the base correction is [x y z (m), rx ry rz (rad)] applied on the
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -439,32 +439,94 @@ def _minimise(evaluate, x, free, scale, prior, rot, cap):
     return x, J, r, Convergence(it, stop, bool(converged), cosine, max(decrement, 0.0), cost)
 
 
-def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientation=None, iterations=MAX_ITERATIONS,
-             estimate_base=True, tol_rank=1e-6, hold=None, noise_from_residuals=False, targets=None,
-             target_index=None, estimate_targets=False, gravity=None, compliance=None,
-             weights=None, estimate=None, analysis=True, compliance_prior=None, base_prior=None,
-             start=None) -> Identification:
+REGISTRATIONS = ("base", "base+tool")
+PRIOR = (0.005, 0.005)      # m, rad: default prior std of the origin errors of a regularised fit (see the docs)
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """How a calibration fits, validates and chooses (SI).
+
+    registration : 'base' (the tracker) or 'base+tool' (and each target's offset on the tool).
+    sigma_position : tracker position noise, m (weights the rows; the floor of every noise estimate).
+    sigma_orientation : tracker orientation noise, rad, or None (orientations not fitted).
+    robust : reject outliers (``fit``).  prior : (length m, angle rad) prior std of the origin errors of the
+    regularised candidates, or None.  registration_prior : (m, rad) prior std of the base correction, or
+    None (none).  folds, seed : the k-fold split by test pose.  iterations : cap of each fit's loop.
+    payload : (kg, (3,) m in the tool frame) point mass that loads the joints of the elastostatic term, or
+    None (the URDF's inertials, else a lumped 1 kg at the tool frame, see ``elastic.Load``).
+    """
+
+    registration: str = "base"
+    sigma_position: float = 1e-5
+    sigma_orientation: float | None = None
+    robust: bool = True
+    prior: tuple | None = PRIOR
+    registration_prior: tuple | None = None
+    folds: int = 10
+    seed: int = 0
+    iterations: int = MAX_ITERATIONS
+    payload: tuple | None = None
+
+    def __post_init__(self):
+        if self.registration not in REGISTRATIONS:
+            raise ValueError(f"registration: expected one of {REGISTRATIONS}, got {self.registration!r}")
+        if not (np.isfinite(self.sigma_position) and self.sigma_position > 0):
+            raise ValueError(f"sigma_position: expected a positive noise (m), got {self.sigma_position!r}")
+        if self.folds < 2:
+            raise ValueError("folds: must be >= 2")
+
+    def updated(self, **changes) -> "FitOptions":
+        """A copy with ``changes``; TypeError naming an unknown option."""
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise TypeError(f"unknown calibration option(s) {unknown}; known: {sorted(known)}")
+        return replace(self, **changes) if changes else self
+
+
+@dataclass
+class Unknowns:
+    """What an identification estimates besides the parameter errors, and from which rows. ``estimate``: the
+    names of the parameters estimated (None: all; the others held at 0); ``estimate_base``: the base
+    correction too. ``targets``, ``target_index``: the measured targets' frames in the tool frame
+    (``targets.Targets``) and each row's target (default: the tool frame itself); with ``estimate_targets``
+    their points (and, with orientation rows, their rotations) are corrected too. ``gravity`` (n, dof): each
+    row's joints' gravity load (N m, N) and ``compliance`` the (dof,) mask of the joints whose compliance
+    (rad/(N m), m/N) is estimated (the joints deflect by ``c * g``), ``compliance_prior`` (dof,) their prior
+    standard deviations (None: none)."""
+
+    estimate: list | None = None
+    estimate_base: bool = True
+    targets: Targets | None = None
+    target_index: object = None
+    estimate_targets: bool = False
+    gravity: object = None
+    compliance: object = None
+    compliance_prior: object = None
+
+
+def identify(model, q, T_meas, delta=None, options: FitOptions | None = None, unknowns: Unknowns | None = None, *,
+             hold=None, noise_from_residuals=False, weights=None, start=None, analysis=True,
+             tol_rank=1e-6) -> Identification:
     """Estimate parameter errors dx (and a base correction) from measured base-frame poses (n, 4, 4).
 
     Levenberg-Marquardt on the nonlinear model until converged (``Convergence``: the step and gradient
-    tests, or the cap ``iterations``): minimise ``|r(dx)|^2 / sigma^2 + |dx / delta|^2``. No prior on the base
-    correction and the targets unless ``base_prior`` = (length m, angle rad) is given. Identifiability from
+    tests, or the cap ``options.iterations``): minimise ``|r(dx)|^2 / sigma^2 + |dx / delta|^2`` (``options``:
+    ``FitOptions``, its ``sigma_position``, ``sigma_orientation``, ``iterations`` and ``registration_prior``).
+    No prior on the base correction and the targets unless ``options.registration_prior`` = (length m, angle
+    rad) is given. ``unknowns`` (``Unknowns``): what is estimated besides the parameter errors. Identifiability from
     the SVD of the column-scaled Jacobian at the nominal parameters (a structural property of the model and
     the poses; the perturbed model only blurs its null space): singular values below ``tol_rank`` of the
     largest leave a null space, and a parameter with a weight of 0.1 or more in it cannot be separated from
-    others. ``sigma_orientation`` (rad) adds the orientation rows (measured frames only).
+    others. ``options.sigma_orientation`` (rad) adds the orientation rows (measured frames only).
 
-    targets, target_index : the measured targets' frames in the tool frame (``targets.Targets``) and each
-    row's target (default: the tool frame itself); with ``estimate_targets`` their points (and, with
-    orientation rows, their rotations) are corrected too. gravity, compliance : (n, dof) gravity load of
-    each row's joints (N m, N) and the (dof,) mask of the joints whose compliance (rad/(N m), m/N) is
-    estimated: the joints deflect by ``c * g``; ``compliance_prior`` (dof,) their prior standard deviations
-    (rad/(N m), m/N; None: none). weights : (n,) row weights (0 leaves a row out).
+    weights : (n,) row weights (0 leaves a row out).
     analysis : False skips the identifiability analysis (rank, condition, unidentifiable, aliases, what
     the data cannot tell), for fits that only predict (cross-validation). start : an ``Identification`` of
     the same unknowns to start from (a refit with other weights or noise).
 
-    ``estimate``: the names of the parameters to estimate (None: all; the others are held at 0). ``hold``:
+    ``hold``:
     None holds no more; ``"dependent"`` also holds the parameters (and compliances) of ``dependent_columns``
     (a prior does not make a dependent parameter identifiable: it would only share the correction among
     copies; judged on columns scaled by 1 mm and 1 mrad whatever the prior, so that the choice among equal
@@ -474,24 +536,28 @@ def identify(model, q, T_meas, delta=None, sigma_position=1e-5, sigma_orientatio
     ``noise_from_residuals`` the covariance is scaled by the residual noise ``|r|^2 / (rows - effective
     unknowns)`` instead of ``sigma_position^2`` (the prior, if any, is kept).
     """
+    o, u = options or FitOptions(), unknowns or Unknowns()
+    sigma_position, sigma_orientation, iterations = o.sigma_position, o.sigma_orientation, o.iterations
+    estimate, estimate_base, targets = u.estimate, u.estimate_base, u.targets
+    gravity, compliance = u.gravity, u.compliance
     q = model.check_joints(q)
     T_meas = np.asarray(T_meas, float)
     n, p = len(q), model.n_params
     use_ori = sigma_orientation is not None
     w_ori = sigma_position / sigma_orientation if use_ori else 0.0
     targets = targets if targets is not None else Targets.at_tool()
-    idx = targets.rows(target_index if target_index is not None else [], n)
-    layout = _Layout(p, len(targets), estimate_targets, targets.frames and use_ori, compliance)
+    idx = targets.rows(u.target_index if u.target_index is not None else [], n)
+    layout = _Layout(p, len(targets), u.estimate_targets, targets.frames and use_ori, compliance)
     if layout.nc:
         gravity = np.asarray(gravity, float).reshape(n, model.dof)
     w = np.ones(n) if weights is None else np.asarray(weights, float).reshape(n)
     sqrt_w = None if weights is None else np.sqrt(w)
     scale = np.concatenate([column_scale(delta, p), np.full(layout.nt + layout.nr, SCALE_WITHOUT_BUDGET),
                             _compliance_scale(gravity, layout)])
-    prior = np.concatenate([_prior(delta, sigma_position, p, estimate_base, base_prior),
+    prior = np.concatenate([_prior(delta, sigma_position, p, estimate_base, o.registration_prior),
                             np.zeros(layout.n - p - 6)])
-    if layout.nc and compliance_prior is not None:
-        prior[layout.c] = (sigma_position / np.asarray(compliance_prior, float)[layout.cmask]) ** 2
+    if layout.nc and u.compliance_prior is not None:
+        prior[layout.c] = (sigma_position / np.asarray(u.compliance_prior, float)[layout.cmask]) ** 2
     rot = np.r_[np.arange(p + 3, p + 6), np.arange(layout.r.start, layout.r.stop)].reshape(-1, 3) \
         if estimate_base else np.arange(layout.r.start, layout.r.stop).reshape(-1, 3)
 

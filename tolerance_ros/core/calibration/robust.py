@@ -18,64 +18,20 @@ those measurements are kept and listed as ``suspect``. SI throughout.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .identification import MAX_ITERATIONS, base_matrix, identify
+from .identification import FitOptions, Unknowns, base_matrix, identify
 from ..accuracy.checks import outliers
 from ..accuracy.registration import register
 from ..models.base import PRISMATIC, Mechanism
 
-REGISTRATIONS = ("base", "base+tool")
 MODELS = ("registration", "joint-offsets", "full", "full+elastic")
 DEFLECTION = (0.01, 0.03)   # m, rad: prior std of a joint's elastic deflection at its largest load (regularised fits)
-PRIOR = (0.005, 0.005)      # m, rad: default prior std of the origin errors of a regularised fit (see the docs)
 TOL_RANK = 1e-6             # a parameter whose scaled pivot is below this share of the largest is held
 ROUNDS = 12                 # fit-judge-refit rounds (the rejected set and the noise settle in two to four)
 NOISE_SETTLED = 1e-3        # the prior's noise is settled when a round changes it by less than this share
-
-
-@dataclass(frozen=True)
-class FitOptions:
-    """How a calibration fits, validates and chooses (SI).
-
-    registration : 'base' (the tracker) or 'base+tool' (and each target's offset on the tool).
-    sigma_position : tracker position noise, m (weights the rows; the floor of every noise estimate).
-    sigma_orientation : tracker orientation noise, rad, or None (orientations not fitted).
-    robust : reject outliers (``fit``).  prior : (length m, angle rad) prior std of the origin errors of the
-    regularised candidates, or None.  registration_prior : (m, rad) prior std of the base correction, or
-    None (none).  folds, seed : the k-fold split by test pose.  iterations : cap of each fit's loop.
-    payload : (kg, (3,) m in the tool frame) point mass that loads the joints of the elastostatic term, or
-    None (the URDF's inertials, else a lumped 1 kg at the tool frame, see ``elastic.Load``).
-    """
-
-    registration: str = "base"
-    sigma_position: float = 1e-5
-    sigma_orientation: float | None = None
-    robust: bool = True
-    prior: tuple | None = PRIOR
-    registration_prior: tuple | None = None
-    folds: int = 10
-    seed: int = 0
-    iterations: int = MAX_ITERATIONS
-    payload: tuple | None = None
-
-    def __post_init__(self):
-        if self.registration not in REGISTRATIONS:
-            raise ValueError(f"registration: expected one of {REGISTRATIONS}, got {self.registration!r}")
-        if not (np.isfinite(self.sigma_position) and self.sigma_position > 0):
-            raise ValueError(f"sigma_position: expected a positive noise (m), got {self.sigma_position!r}")
-        if self.folds < 2:
-            raise ValueError("folds: must be >= 2")
-
-    def updated(self, **changes) -> "FitOptions":
-        """A copy with ``changes``; TypeError naming an unknown option."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise TypeError(f"unknown calibration option(s) {unknown}; known: {sorted(known)}")
-        return replace(self, **changes) if changes else self
 
 
 @dataclass
@@ -199,13 +155,15 @@ def fit(model: Mechanism, data: FitData, which: str, prior, opts: FitOptions, an
         cprior = deflection / np.where(top > 0, top, 1.0)
     noise = max(reg.rms / np.sqrt(3.0), sigma) if delta is not None else sigma
 
+    unknowns = Unknowns(estimate=estimate, targets=reg.targets, target_index=data.idx, estimate_targets=tool,
+                        gravity=data.gravity, compliance=cmask, compliance_prior=cprior)
+
     def identify_with(rows_out, noise, start):
-        kw = dict(sigma_position=noise, sigma_orientation=None if use_ori is None else use_ori * noise / sigma)
-        return identify(model, data.q, T_base, delta, iterations=opts.iterations, hold="dependent",
-                        noise_from_residuals=True, tol_rank=TOL_RANK, targets=reg.targets, target_index=data.idx,
-                        estimate_targets=tool, gravity=data.gravity, compliance=cmask, estimate=estimate,
-                        analysis=analysis, compliance_prior=cprior, base_prior=opts.registration_prior,
-                        weights=None if not rows_out.any() else (~rows_out).astype(float), start=start, **kw)
+        noisy = opts.updated(sigma_position=noise,
+                             sigma_orientation=None if use_ori is None else use_ori * noise / sigma)
+        return identify(model, data.q, T_base, delta, noisy, unknowns, hold="dependent", noise_from_residuals=True,
+                        tol_rank=TOL_RANK, analysis=analysis, start=start,
+                        weights=None if not rows_out.any() else (~rows_out).astype(float))
 
     rejected = np.zeros(n, bool)
     suspect = np.zeros(n, bool)
