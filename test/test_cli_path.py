@@ -255,3 +255,10 @@ def test_joint_state_files_as_exported_say_what_is_wrong_or_read_past(capsys, st
                          "--joint-states", tmp_path / "grip.csv")
     assert code == 0, err
     assert "columns of joints gao2023_7dof does not have, read past: gripper" in out
+
+
+def test_a_trajectory_with_a_latency_window_is_still_placed_on_the_trackers_clock(capsys, streams):
+    code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", streams / "path.csv",
+                         "--trajectory", streams / "rect.yaml", "--latency-window", "30ms", "--json")
+    assert code == 0, err
+    assert json.loads(out)["command"]["start_s"] == pytest.approx(1000.008, abs=5e-4)

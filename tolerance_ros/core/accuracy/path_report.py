@@ -138,10 +138,13 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, option
         raise ValueError("the command never moves: no path to judge (joint states at rest)")
     _check(model, tm, pm, tj, qj, line.covered(tm))
     latency, window, center = o.latency, o.window, o.center
-    if latency is None and window is None:       # a latency of any size: the coarse search first, on one clock
+    if latency is None and (window is None or jp is not None):
+        # a latency of any size (and a trajectory's run time against the tracker's clock, always): the coarse
+        # search first, on the clock of the epoch with the most points
         k = int(np.argmax([s.stop - s.start for s in line.point_slices]))
         js, ps = line.joint_slices[k], line.point_slices[k]
-        center, window = coarse_offset(tm[ps], pm[ps], tj[js], p_c[js]), FINE_WINDOW_S
+        center = coarse_offset(tm[ps], pm[ps], tj[js], p_c[js])
+        window = window or FINE_WINDOW_S
     tm_c = tm - center                      # the tracker's stamps about aligned (before the latency is known)
     gaps = {"joint_states": StampGaps(), "points": StampGaps()}
     for name, t, slices in (("joint_states", tj, line.joint_slices), ("points", tm, line.point_slices)):
