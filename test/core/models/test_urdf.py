@@ -324,6 +324,10 @@ def test_continuous_joints_take_unwrapped_angles_and_compare_them_modulo_a_turn(
     assert not chain.out_of_limits(q).any()
     chain.check_joints(q, allow_out_of_limits=False)
     assert screen(chain, q).keep.all()
+    from tolerance_ros.core.campaign import Campaign, TestPose
+    wrapped_campaign = Campaign("k", [TestPose(f"P{i}", joints=qi) for i, qi in enumerate(chain.within_turn(q))])
+    labels = np.array([f"P{i}" for i in range(len(q))], dtype=object)
+    assert screen(chain, q, None, wrapped_campaign, labels).keep.all()     # measured a turn up: the same pose
     assert into_limits(chain, q + 0.01, near=q)[:, 0] == pytest.approx(q[:, 0] + 0.01)
     q[0, 1] = 6.0                                  # a limited joint beyond its limits is still refused
     assert chain.out_of_limits(q)[0].tolist() == [False, True, False, False, False, False]

@@ -190,7 +190,7 @@ def _check_campaign(model, q, labels, campaign, out, meas):
         sel = np.flatnonzero((labels == name) & out.keep)
         if not len(sel):
             continue
-        d = np.abs(q[sel] - table[name])
+        d = np.abs(model.within_turn(q[sel] - table[name]))   # a continuous joint's a turn away is the same
         i, j = np.unravel_index(np.argmax(d), d.shape)
         if d[i, j] > CAMPAIGN_TOLERANCE:
             bad.append((name, model.joint_names[j], float(q[sel[i], j]), float(table[name][j]), sel[i]))
