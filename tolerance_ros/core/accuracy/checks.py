@@ -44,15 +44,6 @@ class CheckError(MeasurementError):
     """Measurements that cannot be judged against the robot as given; the message names why and what to try."""
 
 
-def robot_reach(model, samples=512) -> float:
-    """Largest distance (m) of the tool point from the base origin over seeded joint samples
-    (``Mechanism.reach``, computed once per model)."""
-    if samples == 512 and hasattr(model, "reach"):
-        return model.reach()
-    q = model.sample_joints(samples, 7)
-    return float(np.linalg.norm(model.fk(q)[:, :3, 3], axis=1).max())
-
-
 def units_problem(model, q, points) -> str | None:
     """Why the measured points (n, 3) cannot be in the units claimed (their spread against the robot's tool at
     joints q: the length unit, or the joints' angle unit when reading them in the other one explains it), or
@@ -278,7 +269,7 @@ def diagnose(model, q, T_meas, idx, names, registration, frames, reg, keep=None,
     q = np.asarray(q, float)
     keep = np.ones(len(q), bool) if keep is None else np.asarray(keep, bool)
     rms = _rms(reg.residuals[keep])
-    reach = robot_reach(model)
+    reach = model.reach()
     limit = PLAUSIBLE_RESIDUAL * reach
     against = f" against a repeat scatter of {scatter * 1e3:.3g} mm" if scatter is not None else ""
 
@@ -353,7 +344,7 @@ class StreamCheck:
     def __init__(self, model, window=50):
         from collections import deque
         self.model = model
-        self.reach = robot_reach(model)
+        self.reach = model.reach()
         self.points = deque(maxlen=window)
         self.problem = None
 

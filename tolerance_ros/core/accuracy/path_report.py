@@ -38,7 +38,7 @@ from ..ingest import StampGaps
 from .latency import FINE_WINDOW_S, coarse_offset, estimate_latency
 from .repeats import split_runs
 from .streams import Timeline, tidy
-from .checks import PLAUSIBLE_RESIDUAL, robot_reach, units_problem
+from .checks import PLAUSIBLE_RESIDUAL, units_problem
 from .registration import kabsch
 from .targets import at_point
 
@@ -200,7 +200,7 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, option
     a = (pm - t) @ R                      # base frame
     resid = np.linalg.norm(pc_a - a[inside], axis=1)
     rms = float(np.sqrt(np.mean(resid ** 2)))
-    reach = robot_reach(model)
+    reach = model.reach()
     if rms > PLAUSIBLE_RESIDUAL * reach:
         raise ValueError(f"the registered residual RMS is {rms * 1e3:.4g} mm, {rms / reach * 100:.3g} % of the robot's "
                          f"reach ({reach:.3g} m): these streams cannot be judged against {model.name} as given "

@@ -31,7 +31,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..accuracy import checks
-from ..accuracy.checks import robot_reach
 from ..models.base import Mechanism
 from .crossval import Folds, kept_figures, pose_groups, score, validate
 from .elastic import Load
@@ -256,7 +255,7 @@ def _plausibility_problems(model, cal) -> list:
     """Reasons the identified model cannot be right: errors beyond a fraction of the robot's reach or a
     plausible angle, elastic deflections beyond it, a held-out error that does not fall."""
     out = []
-    reach = robot_reach(model)
+    reach = model.reach()
     limit = PLAUSIBLE_LENGTH * reach
     for n, k, v in zip(cal.names, cal.kinds, cal.dx):
         if k == "length" and abs(v) > limit:
