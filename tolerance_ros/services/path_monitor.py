@@ -39,6 +39,7 @@ from .monitor import MIN_GAP_S
 
 OK, WARN, ERROR = 0, 1, 2
 MAX_QUEUED = 100_000     # messages of one stream queued between two flushes, at most
+GAPS = {"joints": "joint_states", "points": "points"}   # each stream's key in ``gaps`` and in the diagnostics
 
 
 class _Group:
@@ -137,8 +138,6 @@ class PathMonitor:
         if kind == "joints":
             if self.first_joint is None:
                 self.first_joint = float(t[0])
-                if self.step is None and len(t) > 2:
-                    self.step = float(np.median(np.diff(t)))
             self.counts["joint_states"] += len(t)
             self.gaps["joint_states"].add(t)
             self.tj = np.concatenate([self.tj, t])
@@ -179,9 +178,9 @@ class PathMonitor:
     def _restart(self, kind) -> list:
         """A stream's clock jumped: what is buffered cannot be paired across it. Its points are counted as not
         judged; an estimated latency is estimated again (the clocks' offset may have changed)."""
-        stream = "joint states" if kind == "joints" else "tracker points"
+        stream = self.live[kind].name
         j = self.live[kind].jumps[-1]
-        self.gaps["joint_states" if kind == "joints" else "points"].cut()
+        self.gaps[GAPS[kind]].cut()
         if not self.given_latency:
             self.latency, self.latency_doc = None, None
         n = self._drop_buffers(kind)
@@ -228,11 +227,11 @@ class PathMonitor:
     def flush(self) -> list:
         """Judge what was queued; the reports of the motions that ended (judged or not, with why)."""
         out = []
-        for kind in ("joints", "points"):
+        for kind, add in (("joints", self.add_joint_states), ("points", self.add_points)):
             stamps, values = self.queued[kind]
             if stamps:
                 self.queued[kind] = ([], [])
-                out += self._add(kind, stamps, values, self.model.dof if kind == "joints" else 3)
+                out += add(stamps, values)
         return out
 
     def diagnostic(self) -> dict:
@@ -249,8 +248,8 @@ class PathMonitor:
             values["last_not_judged"] = self.holes[-1]
         for stream, g in self.gaps.items():
             values[f"{stream}_gaps"], values[f"{stream}_missing"] = str(g.gaps), str(g.missing)
-        for stream, o in zip(("joint_states", "points"), self.live.values()):
-            values.update({f"{stream}_{k}": str(v) for k, v in o.counts.items() if v})
+        for kind, o in self.live.items():
+            values.update({f"{GAPS[kind]}_{k}": str(v) for k, v in o.counts.items() if v})
         return {"level": level, "name": self.name, "hardware_id": "", "message": message, "values": values}
 
     def finish(self) -> list:
