@@ -228,12 +228,10 @@ def _fill_in_child(order, nice=True, first=None):
     """Run ``fill_cache`` in a child process; meanwhile import numba here (``kernels.prime``: the families
     waited for then load in milliseconds, not a second); each family it reports ready is loaded here at once.
     None on success, else the reason."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(_HERE.parents[2])] + [p for p in [env.get("PYTHONPATH")] if p])
     args = child_command((["--nice"] if nice else []) + list(order) + ([f"--first={first}"] if first is not None
                                                                          else []))
     try:
-        child = subprocess.Popen(args, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+        child = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE, text=True, start_new_session=True)
     except OSError as exc:
         return str(exc)
