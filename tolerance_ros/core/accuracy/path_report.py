@@ -260,9 +260,9 @@ def trajectory_corners(model, jp, t_ref, s_ref, offset=None, angle: float = P.CO
     by more than ``angle`` rad, the knots being exact points of the path."""
     t0, t1 = float(t_ref[0]), float(t_ref[-1])
     k0 = int(np.floor(t0 / jp.period))
-    knots_t = np.concatenate([k * jp.period + jp.t for k in range(max(k0 - 1, 0), min(k0 + 2, jp.cycles))])
-    knots_t, first = np.unique(knots_t, return_index=True)
-    knots_q = np.concatenate([jp.q for k in range(max(k0 - 1, 0), min(k0 + 2, jp.cycles))])[first]
+    near = range(max(k0 - 1, 0), min(k0 + 2, jp.cycles))     # the cycles about the one sampled
+    knots_t, first = np.unique(np.concatenate([k * jp.period + jp.t for k in near]), return_index=True)
+    knots_q = np.concatenate([jp.q for _ in near])[first]
     sel = (knots_t >= t0) & (knots_t <= t1)
     if np.count_nonzero(sel) < 3:
         return np.zeros(0)
