@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..render.text import Progress, table
-from .common import CLIError, load_model, missed, point_option, quantity, relative
+from .common import CLIError, load_model, missed, point_option, quantity, relative, target_options
 
 NAME = "calibrate"
 HELP = "calibrated robot file from measured poses, validated on held-out poses"
@@ -17,6 +17,9 @@ def add_arguments(p):
     p.add_argument("--measurements", required=True,
                    help="CSV file, campaign log (.jsonl) or rosbag2 (dir, .db3, .mcap)")
     p.add_argument("--campaign", help="campaign with the test poses (joints of rows labelled by pose)")
+    p.add_argument("--target", action="append", default=[], metavar="NAME=X,Y,Z|NAME=link:LINK",
+                   help="contact campaigns: the nominal place of a target of the tool in the tool frame (a unit on "
+                        "each, e.g. A=0mm,0mm,120mm) or a URDF link fixed to the tip; one per target of the file")
     p.add_argument("--registration", choices=["base", "base+tool"], default="base",
                    help="estimate the tracker-to-base transform (and each target's offset on the tool)")
     p.add_argument("--parameters", choices=PARAMETERS, default="auto",
@@ -100,6 +103,12 @@ def run(args):
                       robust=not args.no_robust, prior=prior_option(args.prior),
                       registration_prior=prior_option(args.registration_prior, "--registration-prior"),
                       folds=args.folds, seed=args.seed, payload=payload)
+    from ..core.accuracy.io.contact_csv import is_contact_csv
+    if is_contact_csv(args.measurements):
+        return run_contacts(args, model, opts, key)
+    if args.target:
+        raise CLIError("--target: for contact campaigns (a CSV with a contact column); a tracker's targets are fitted "
+                       "with --registration base+tool")
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     log_sha256 = file_sha256(args.measurements)
@@ -138,6 +147,60 @@ def run(args):
         print(f"wrote {f}")
     for f in files["plots"]:
         print(f"plot: {f}")
+
+
+def run_contacts(args, model, opts, key):
+    """``calibrate`` on a contact campaign (``core.calibration.contact_campaign``)."""
+    from ..core.accuracy.io.contact_csv import read_contacts
+    from ..core.calibration.calibrated_robot import write_calibrated_robot
+    from ..core.calibration.calibration_file import save_calibration
+    from ..core.calibration.contact_campaign import calibrate_campaign
+    from ..core.calibration.provenance import file_sha256, new_provenance
+    from ..render.contact_report import summary_lines, write_contact_report
+    if args.campaign or args.registration != "base" or args.orientation_noise or args.payload:
+        raise CLIError("contact campaigns: --campaign, --registration, --orientation-noise and --payload do not apply "
+                       "(the rig is fitted with the parameters; contacts have no orientation)")
+    if args.parameters not in ("auto", "joint-offsets", "full"):
+        raise CLIError(f"--parameters {args.parameters}: contact campaigns identify auto, joint-offsets or full")
+    offsets = target_options(args.target, model)
+    contacts = read_contacts(args.measurements, model.joint_names, model.joint_types, skip_bad=args.skip_bad)
+    prog = Progress("calibrate (cross-validating the candidates)", not args.quiet)
+    cal = calibrate_campaign(model, contacts, offsets, args.parameters, opts.prior, opts.sigma_position, args.folds,
+                             args.seed, opts.robust, prog)
+    out = Path(args.out)
+    source = getattr(model, "config_path", None) or getattr(model, "source", None)
+    cal.sources.update({"robot": relative(source, out) if source else model.name,
+                        "measurements": relative(args.measurements, out)})
+    if hasattr(model, "tip_link"):
+        cal.sources.update(tip_link=model.tip_link, base_link=model.base_link)
+    if contacts.skipped:
+        cal.warnings.insert(0, f"{len(contacts.skipped)} malformed row(s) skipped: " + "; ".join(
+            f"line {s['line']}: {s['reason']}" for s in contacts.skipped[:5]))
+    cal.provenance = new_provenance("tolerance-ros calibrate", log=str(Path(args.measurements).resolve()),
+                                    log_sha256=file_sha256(args.measurements))
+    files = {}
+    if cal.plausibility["ok"]:
+        files = write_calibrated_robot(model, cal, out)
+        cal.sources["calibrated_robot"] = Path(files["robot"]).name
+        files["calibration"] = str(save_calibration(cal, out / "calibration.yaml", signing_key=key))
+    else:
+        files["refused"] = str(save_calibration(cal, out / "calibration.refused.yaml"))
+        for problem in reversed(cal.plausibility["problems"]):
+            missed(args, f"calibration refused: {problem}")
+    if not cal.convergence.get("converged", True):
+        missed(args, f"calibration: the fit {cal.convergence['words']}")
+    written = write_contact_report(cal, out, files)
+    files.update(report=written["report"], json=written["json"])
+    if args.json:
+        from ..render.contact_report import contact_document
+        doc = contact_document(cal)
+        doc["files"] = files
+        return doc
+    for line in summary_lines(cal):
+        print(line)
+    for f in dict.fromkeys(files[k] for k in ("robot", "urdf", "calibration", "refused", "report", "json") if k in files):
+        print(f"wrote {f}")
+    return None
 
 
 def print_calibration(cal, source):

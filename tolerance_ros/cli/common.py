@@ -205,3 +205,47 @@ def common_arguments(p, robot=True):
     p.add_argument("--json", action="store_true", help="print one JSON document (SI units) on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return p
+
+
+def target_options(specs, model=None, option="--target") -> dict:
+    """{name: (3,) m in the tool frame} of ``NAME=X,Y,Z`` (a unit on each) or ``NAME=link:LINK`` (a URDF link fixed to
+    the tip link: its origin in the tool frame)."""
+    out = {}
+    for spec in specs or []:
+        name, eq, value = spec.partition("=")
+        name = name.strip()
+        if not eq or not name:
+            raise CLIError(f"{option}: expected NAME=X,Y,Z with a unit on each (e.g. A=0mm,0mm,120mm) or NAME=link:LINK, "
+                           f"got {spec!r}")
+        if name in out:
+            raise CLIError(f"{option}: target {name!r} given twice")
+        if value.strip().startswith("link:"):
+            out[name] = link_offset(model, value.strip()[len("link:"):], option)
+            continue
+        point = point_option(value, option)
+        if point is None:
+            raise CLIError(f"{option}: expected NAME=X,Y,Z with a unit on each (e.g. {name}=0mm,0mm,120mm), got {spec!r}")
+        out[name] = point
+    return out
+
+
+def link_offset(model, link, option="--target"):
+    """(3,) m: the origin of URDF link ``link`` in the tool frame of ``model``; CLIError when the model is not a URDF
+    chain, the link is unknown, or a joint moves it against the tip link."""
+    import numpy as np
+    pin_model = getattr(model, "pin_model", None)
+    if pin_model is None:
+        raise CLIError(f"{option}: link:{link} needs a URDF robot (robot {model.name!r} has no links)")
+    if not pin_model.existFrame(link):
+        raise CLIError(f"{option}: link {link!r} is not in the URDF of {model.name!r}")
+    import pinocchio as pin
+    data = pin_model.createData()
+    tip, fid = pin_model.getFrameId(model.tip_link), pin_model.getFrameId(link)
+    places = []
+    for q in (pin.neutral(pin_model), pin.randomConfiguration(pin_model, -np.ones(pin_model.nq), np.ones(pin_model.nq))):
+        pin.framesForwardKinematics(pin_model, data, q)
+        places.append((data.oMf[tip].inverse() * data.oMf[fid]).translation.copy())
+    if np.linalg.norm(places[0] - places[1]) > 1e-9:
+        raise CLIError(f"{option}: link {link!r} moves against the tip link {model.tip_link!r} (a joint lies between "
+                       f"them); a target is fixed to the tool")
+    return places[0].tolist()

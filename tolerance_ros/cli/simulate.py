@@ -49,6 +49,13 @@ def add_arguments(p):
     p.add_argument("--target-offset", action="append", metavar="NAME=X,Y,Z", default=[],
                    help="a reflector at X,Y,Z (each with its unit, tool frame), e.g. R1=30mm,90mm,0mm; repeat for "
                         "several; the tracker then measures points (no orientation)")
+    p.add_argument("--contact", action="append", default=[], metavar="plane:ID=NX,NY,NZ@OFFSET|point:ID=X,Y,Z",
+                   help="instead of a tracker, the targets (--target-offset) touch this plane (unit normal and offset "
+                        "along it, base frame, e.g. plane:table=0,0,1@300mm) or point (e.g. point:tip=1.6m,0.2m,0.6m); "
+                        "repeat for several; writes a contact campaign and its truth (--noise: the contact's)")
+    p.add_argument("--touches", type=int, default=20,
+                   help="with --contact: postures per target and contact (default 20)")
+    p.add_argument("--session", default="s1", help="with --contact: the session the rig belongs to (default s1)")
     p.add_argument("--errors", choices=["uniform", "extreme", "normal"], default="uniform",
                    help="how the as-built errors are drawn within the tolerances (default uniform)")
     p.add_argument("--seed", type=int, default=0, help="seed of the as-built robot and the noise (default 0)")
@@ -129,6 +136,83 @@ def _run_trajectory(args, model, delta, noise, out):
     return None
 
 
+def _contact_specs(specs):
+    """[(kind, id, where)] of ``--contact`` values: a plane's (unit normal, offset m), a point's (3,) m."""
+    import re
+    out = []
+    for spec in specs:
+        m = re.match(r"^(plane|point):([A-Za-z0-9_.\-]{1,100})=(.*)$", spec.strip())
+        if not m:
+            raise CLIError(f"--contact: expected plane:ID=NX,NY,NZ@OFFSET or point:ID=X,Y,Z, got {spec!r}")
+        kind, cid, rest = m.groups()
+        if kind == "point":
+            where = point_option(rest, "--contact")
+            if where is None:
+                raise CLIError(f"--contact: point:{cid}: expected X,Y,Z with a unit on each, got {rest!r}")
+            out.append((kind, cid, np.array(where)))
+            continue
+        normal, at, offset = rest.partition("@")
+        try:
+            n = np.array([float(v) for v in normal.split(",")])
+        except ValueError:
+            n = np.zeros(0)
+        if not at or n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
+            raise CLIError(f"--contact: plane:{cid}: expected NX,NY,NZ@OFFSET (a normal of three numbers, an offset "
+                           f"with its unit, e.g. 0,0,1@300mm), got {rest!r}")
+        out.append((kind, cid, (n / np.linalg.norm(n), quantity(offset, "length", "--contact", positive=False))))
+    if len({(k, i) for k, i, _ in out}) != len(out):
+        raise CLIError("--contact: each plane and point once")
+    return out
+
+
+def _run_contacts(args, model, delta, noise, out):
+    """A contact campaign of the as-built robot (see ``core.accuracy.simulate.touch``) and its truth."""
+    import json
+    from ..core.accuracy.io.contact_csv import write_contacts
+    from ..core.accuracy.simulate import as_built_errors, touch
+    if args.campaign:
+        raise CLIError("--contact: give it instead of --campaign (the postures are found to touch the rig)")
+    if not args.target_offset:
+        raise CLIError("--contact: name the tool's points in contact with --target-offset NAME=X,Y,Z")
+    if not 1 <= args.touches <= 10000:
+        raise CLIError(f"--touches: expected 1 to 10000, got {args.touches}")
+    specs = _contact_specs(args.contact)
+    targets = _targets(args.target_offset)
+    dx = as_built_errors(delta, args.seed, args.errors)
+    rows = {"q": [], "target": [], "contact": [], "pose": []}
+    for c, (kind, cid, where) in enumerate(specs):
+        for k, name in enumerate(targets.names):
+            try:
+                q = touch(model, dx, targets.offsets[k], kind, where, args.touches,
+                          seed=[args.seed, c, k, sum(map(ord, args.session))], noise=noise)
+            except ValueError as exc:
+                raise CLIError(f"--contact {kind}:{cid}, target {name}: {exc}") from None
+            rows["q"].append(q)
+            rows["target"] += [name] * len(q)
+            rows["contact"] += [f"{kind}:{cid}"] * len(q)
+            rows["pose"] += [f"{args.session}-{kind}-{cid}-{name}-{i + 1}" for i in range(len(q))]
+    q = np.concatenate(rows["q"])
+    n = len(q)
+    comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
+               f"seed {args.seed}) touching " + ", ".join(args.contact) + f"; contact noise {args.noise}; truth in "
+               f"{out.stem}.truth.yaml and {out.stem}.rig.json")
+    write_contacts(out, np.arange(n, dtype=float), rows["pose"], [args.session] * n, rows["target"], rows["contact"], q,
+                   model.joint_names, model.joint_types, [comment])
+    truth_path = _truth(args, model, dx, np.eye(4), noise, out, n, n, targets, "contact", False, " touching the rig")
+    rig = {"session": args.session, "targets": {nm: list(map(float, o)) for nm, o in zip(targets.names, targets.offsets)},
+           "planes": [{"id": i, "normal": w[0].tolist(), "offset_m": float(w[1])} for k, i, w in specs if k == "plane"],
+           "points": [{"id": i, "xyz_m": w.tolist()} for k, i, w in specs if k == "point"]}
+    rig_path = out.with_name(f"{out.stem}.rig.json")
+    rig_path.write_text(json.dumps(rig, indent=1) + "\n")
+    doc = {"measurements": str(out), "truth": str(truth_path), "rig": str(rig_path), "rows": n, "noise_m": noise}
+    if args.json:
+        return doc
+    print(f"wrote {out}: {n} contacts of {len(targets.names)} target(s) with {len(specs)} plane(s) and point(s), "
+          f"session {args.session}")
+    print(f"wrote {truth_path}: the as-built errors and the targets (calibration format); {rig_path}: the rig")
+    return None
+
+
 def _truth(args, model, dx, T_tracker, noise, out, rows, poses, targets, registration, orientation, what):
     """The truth beside the measurements (calibration format): its path."""
     from ..core.calibration.calibrate import Calibration
@@ -165,6 +249,8 @@ def run(args):
         raise CLIError(f"--out: the measurements are a CSV file (name ending in .csv), got {args.out!r}")
     if args.trajectory:
         return _run_trajectory(args, model, delta, noise, out)
+    if args.contact:
+        return _run_contacts(args, model, delta, noise, out)
     if not args.campaign:
         raise CLIError("--campaign: required (or --trajectory for a path driven while the tracker streams)")
     campaign = load_campaign(args.campaign, model)

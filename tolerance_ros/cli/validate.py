@@ -40,6 +40,12 @@ def run(args):
             raise CLIError("--tip-link, --base-link: give them with --robot")
         model = calibration_robot(args.calibration)
     cal = load_calibration(args.calibration, model)
+    from ..core.accuracy.io.contact_csv import is_contact_csv
+    if is_contact_csv(args.measurements):
+        return run_contacts(args, model, cal)
+    if cal.registration == "contact":
+        raise CLIError(f"--measurements: {args.calibration} was made from contacts; give a contact campaign (a CSV with "
+                       f"a contact column) of another session")
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     res = predict_measurements(cal, model, meas, args.reregister, campaign, robust=not args.no_robust)
@@ -83,3 +89,34 @@ def run(args):
         print(f"NOTE: {note}")
     for w in res["warnings"]:
         print(f"WARNING: {w}")
+
+
+def run_contacts(args, model, cal):
+    """``validate`` on a contact campaign: its planes and points refitted, the calibration's model and targets held
+    (``core.calibration.contact_campaign.validate_campaign``)."""
+    from ..core.accuracy.io.contact_csv import read_contacts
+    from ..core.calibration.contact_campaign import validate_campaign
+    if args.campaign or args.reregister:
+        raise CLIError("contact campaigns: --campaign and --reregister do not apply (the session's planes and points are "
+                       "always refitted)")
+    contacts = read_contacts(args.measurements, model.joint_names, model.joint_types, skip_bad=args.skip_bad)
+    res = validate_campaign(cal, model, contacts, robust=not args.no_robust)
+    res["calibration"] = str(args.calibration)
+    res["skipped_rows"] = contacts.skipped
+    b, a = res["before"]["contact_rms_m"], res["after"]["contact_rms_m"]
+    if a >= b:
+        missed(args, f"the calibration does not predict {contacts.source} better than the nominal robot (contact RMS "
+                     f"{b * 1e3:.4f} mm before, {a * 1e3:.4f} mm after)")
+    if args.json:
+        return res
+    print(f"robot {model.name}, calibration {args.calibration}: {res['measurements']} contacts from {contacts.source}; "
+          f"their planes and points refitted, nothing else")
+    print(table(["", "before (nominal)", "after (calibrated)"],
+                [["contact RMS [mm]", f"{b * 1e3:.4f}", f"{a * 1e3:.4f}"],
+                 ["contact max [mm]", f"{res['before']['contact_max_m'] * 1e3:.4f}",
+                  f"{res['after']['contact_max_m'] * 1e3:.4f}"],
+                 ["rows rejected", res["before"]["rejected"], res["after"]["rejected"]]]))
+    print(f"contact RMS reduced by {res['improvement'] * 100:.1f} %")
+    for w in res["warnings"]:
+        print(f"WARNING: {w}")
+    return None

@@ -1,0 +1,148 @@
+"""Calibration from contact (planes and points, no tracker) on the shared FANUC URDF, against a simulated truth."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tolerance_ros.core.accuracy.simulate import touch
+from tolerance_ros.core.calibration.contact import (ContactData, ContactLayout, _Reference, _stack, calibrate_contacts,
+                                                    fit_contacts, initial_rig, validate_contacts)
+from tolerance_ros.core.models.urdf import URDFChain
+
+URDF = Path(__file__).resolve().parents[2] / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf"
+TOOL = np.array([0.012, -0.006, 0.11])      # the true target on the flange, m
+NOMINAL = np.array([[0.0, 0.0, 0.1]])       # what the user says it is
+PLANES = [((0, 0, 1.0), 0.3), ((1.0, 0, 0), 1.7), ((0, 1.0, 0), -0.9)]
+NOISE = 1e-5
+
+
+@pytest.fixture(scope="module")
+def fanuc():
+    return URDFChain(URDF)
+
+
+def planes_campaign(model, dx, planes=PLANES, n=60, seed=0, tool=TOOL, session="s1"):
+    qs, cons = [], []
+    for c, (normal, d) in enumerate(planes):
+        normal = np.array(normal) / np.linalg.norm(normal)
+        qs.append(touch(model, dx, tool, "plane", (normal, d), n, seed=[seed, c], noise=NOISE))
+        cons += [c] * n
+    q = np.concatenate(qs)
+    keys = [(session, "plane", f"p{c}") for c in range(len(planes))]
+    return ContactData(q, np.zeros(len(q), int), cons, keys, ("A",), where=[f"line {i + 3}" for i in range(len(q))])
+
+
+def free_truth(model, seed=3):
+    """As-built errors on the parameters plane contact can identify (the held ones exactly nominal), so that each
+    estimate can be held against its truth."""
+    held = fit_contacts(model, planes_campaign(model, None), NOMINAL, "full", sigma=NOISE, robust=False).held
+    rng = np.random.default_rng(seed)
+    scale = np.array([1e-4 if k == "length" else 5e-4 for k in model.param_kinds])
+    dx = rng.uniform(-1, 1, model.n_params) * scale
+    dx[model.param_index(held)] = 0.0
+    return dx, held
+
+
+def test_the_jacobian_of_every_unknown_is_the_derivative_of_the_residuals(fanuc):
+    dx = np.zeros(fanuc.n_params)
+    data = planes_campaign(fanuc, dx, n=6)
+    pts = touch(fanuc, dx, TOOL, "point", [1.6, 0.2, 0.6], 5, seed=1, noise=NOISE)
+    data = ContactData(np.r_[data.q, pts], np.zeros(len(data) + 5, int), np.r_[data.constraint, [3] * 5],
+                       data.constraints + (("s1", "point", "tip"),), ("A",))
+    ref = _Reference(initial_rig(fanuc, data, NOMINAL))
+    layout = ContactLayout(fanuc.n_params, 1, 4)
+    x = np.random.default_rng(0).standard_normal(layout.n) * 1e-3
+    J, r, _ = _stack(fanuc, data, x, ref, layout)
+    h = 1e-7
+    for j in range(layout.n):
+        e = np.zeros(layout.n)
+        e[j] = h
+        fd = -(_stack(fanuc, data, x + e, ref, layout)[1] - _stack(fanuc, data, x - e, ref, layout)[1]) / (2 * h)
+        assert np.allclose(J[:, j], fd, atol=1e-7 * max(1.0, np.abs(fd).max())), j
+
+
+def test_the_fit_reaches_the_least_squares_optimum_that_scipy_finds(fanuc):
+    from scipy.optimize import least_squares
+    dx, _ = free_truth(fanuc)
+    data = planes_campaign(fanuc, dx, n=40, seed=5)
+    f = fit_contacts(fanuc, data, NOMINAL, "full", sigma=NOISE, robust=False)
+    assert f.convergence.converged
+    free = np.flatnonzero(~np.isin(np.arange(f.layout.n), fanuc.param_index(f.held)))
+
+    def residuals(z):
+        x = np.zeros(f.layout.n)
+        x[free] = z
+        return _stack(fanuc, data, x, f.reference, f.layout)[1]
+    ref = least_squares(residuals, np.zeros(len(free)), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15,
+                        x_scale=1e-3)
+    ours = float(np.sum(residuals(f.x[free]) ** 2))
+    theirs = float(np.sum(ref.fun ** 2))
+    assert abs(ours - theirs) <= 1e-9 * theirs, (ours, theirs)
+
+
+def test_a_probe_tip_touching_one_point_from_20_orientations_gives_the_tool_point(fanuc):
+    c = np.array([1.6, 0.2, 0.6])
+    q = touch(fanuc, np.zeros(fanuc.n_params), TOOL, "point", c, 20, seed=2, noise=NOISE)
+    data = ContactData(q, np.zeros(20, int), np.zeros(20, int), [("s1", "point", "tip")], ("A",))
+    f = fit_contacts(fanuc, data, NOMINAL, "rig", sigma=NOISE)
+    rig = f.rig
+    assert f.convergence.converged and not f.rejected.any()
+    assert np.all(np.abs(rig.offsets[0] - TOOL) <= 3 * rig.offsets_std[0]), (rig.offsets[0], rig.offsets_std[0])
+    assert np.all(rig.offsets_std[0] < 5 * NOISE)
+    assert np.all(np.abs(rig.points[0] - c) <= 3 * rig.points_std[0])
+    assert 0.5 * NOISE < f.noise < 1.5 * NOISE                 # per axis, from the residuals
+
+
+def test_three_planes_recover_the_joint_offsets_and_lengths_within_their_uncertainties(fanuc):
+    dx, held = free_truth(fanuc)
+    data = planes_campaign(fanuc, dx, seed=7)
+    f = fit_contacts(fanuc, data, NOMINAL, "full", sigma=NOISE)
+    assert f.convergence.converged and f.held == held
+    est = np.flatnonzero(~np.isin(fanuc.param_names, held))
+    z = (f.dx[est] - dx[est]) / f.std[est]
+    assert np.abs(z).max() < 3.5, dict(zip(np.array(fanuc.param_names)[est], z.round(2)))
+    names = [fanuc.param_names[j] for j in est]
+    assert {"joint_2.offset", "joint_3.offset", "joint_4.offset", "joint_5.offset"} <= set(names)
+    assert any(fanuc.param_kinds[j] == "length" for j in est)
+    assert np.all(np.abs(f.rig.offsets[0] - TOOL) <= 3.5 * f.rig.offsets_std[0])
+
+
+def test_what_contact_cannot_see_is_held_and_said(fanuc):
+    f = fit_contacts(fanuc, planes_campaign(fanuc, None, n=30), NOMINAL, "full", sigma=NOISE)
+    why = f.held_why
+    scale = [n for n, w in why.items() if w.startswith("the overall scale")]
+    assert scale == ["joint_4.x"]      # the longest nominal length (the upper arm) fixes the scale
+    # joint 1 turns about the normal of the horizontal plane and moves along the two vertical ones: a motion of the rig
+    assert why["joint_1.offset"].startswith("a motion of the rig")
+    assert why["joint_6.offset"].startswith("a motion of the rig")   # the target turned about the flange's axis
+
+
+def test_a_fit_free_to_shrink_the_robot_is_not_offered(fanuc):
+    """Every length scaled with the rig meets the same contacts at scaled distances: without the scale held the fit
+    would shrink the residuals toward zero; with it the residual stays at the noise."""
+    dx, _ = free_truth(fanuc)
+    f = fit_contacts(fanuc, planes_campaign(fanuc, dx, seed=9), NOMINAL, "full", sigma=NOISE)
+    assert 0.7 * NOISE < f.rms() < 1.3 * NOISE
+
+
+def test_cross_validation_falls_from_the_nominal_and_another_session_validates(fanuc):
+    dx, _ = free_truth(fanuc, seed=4)
+    train = planes_campaign(fanuc, dx, n=40, seed=11)
+    cc = calibrate_contacts(fanuc, train, NOMINAL, sigma=NOISE, folds=5)
+    v = cc.validation
+    assert cc.which == "full" and v["rows_scored"] == len(train)
+    assert v["after"]["contact_rms_m"] < 2 * NOISE < v["before"]["contact_rms_m"]
+    moved = [((0, 0.1, 1.0), 0.25), ((1.0, 0.05, 0), 1.65), ((0, 1.0, 0.02), -0.8)]
+    other = planes_campaign(fanuc, dx, moved, n=30, seed=12, session="s2")
+    res = validate_contacts(fanuc, other, cc.fit.dx, cc.fit.rig.offsets, cc.nominal.rig.offsets, sigma=NOISE)
+    assert res["after"]["contact_rms_m"] < 2 * NOISE < res["before"]["contact_rms_m"]
+    assert [p["session"] for p in res["rig"]["planes"]] == ["s2"] * 3
+
+
+def test_one_bad_contact_is_rejected_and_named(fanuc):
+    dx, _ = free_truth(fanuc)
+    data = planes_campaign(fanuc, dx, n=40, seed=13)
+    data.q[17] = data.q[57]                      # a contact with the second plane logged as one with the first
+    cc = calibrate_contacts(fanuc, data, NOMINAL, parameters="full", prior=None, sigma=NOISE, folds=4)
+    assert [r["where"] for r in cc.rejected] == ["line 20"]
+    assert cc.fit.rms() < 1.5 * NOISE

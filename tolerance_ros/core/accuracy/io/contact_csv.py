@@ -1,0 +1,215 @@
+"""Contact campaigns (calibration without a tracker), read and written.
+
+CSV format: optional ``#`` comment lines, then a header, then a row per target in contact::
+
+    stamp[s],pose,session,target,contact,joint:joint_1[rad],...,joint:joint_6[rad]
+
+``contact`` is ``plane:<id>`` (the target lies on plane ``<id>``) or ``point:<id>`` (the target is at the fixed
+point ``<id>``); each ``session`` has planes and points of its own (a table moved between days); ``target`` names
+the point of the tool in contact (its nominal place in the tool frame comes from the command line); ``pose`` is
+the test pose (optional: without it rows at equal joints form a pose). Joint columns are the joint readings (rad,
+deg or mrad for revolute joints; m or mm for prismatic ones); a column for a joint the robot does not have is
+ignored and listed, a joint of the robot without a column is an error. Numbers as the measurement CSV reads them
+(finite; no nan or inf). Every problem is a ``MeasurementError`` naming the file, the line and the column; with
+``skip_bad`` a bad row is skipped and listed instead.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ...resources import not_a_file
+from ...units import ANGLE_UNITS, LENGTH_UNITS
+from .csv_format import _NOT_NUMERIC, _csv_row, _parse_header, separator_hint
+from .measurements import MeasurementError
+from .text import _check_text, _lines, _not_utf8, _show
+
+_TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_CONTACT = re.compile(r"^(plane|point):([A-Za-z0-9_.\-]{1,100})$")
+_NAME = re.compile(r"^[^\x00-\x1f,]{0,100}$")
+REQUIRED = ("stamp", "session", "target", "contact")
+MAX_ROWS = 1_000_000
+
+
+@dataclass
+class Contacts:
+    """Rows of a contact campaign (SI): stamps (n,) s; pose, session, target (n,) names; contact (n,)
+    'plane:<id>' or 'point:<id>'; joints (n, dof) in the order of ``joint_names``; ``ignored`` the joint columns
+    of joints the robot does not have; ``lines`` (n,) the line of each row; ``skipped`` [{line, reason}]."""
+
+    source: str
+    stamps: np.ndarray
+    pose: np.ndarray
+    session: np.ndarray
+    target: np.ndarray
+    contact: np.ndarray
+    joints: np.ndarray
+    joint_names: tuple
+    lines: np.ndarray
+    ignored: list = field(default_factory=list)
+    skipped: list = field(default_factory=list)
+
+    def __len__(self):
+        return len(self.stamps)
+
+    def select(self, keep) -> "Contacts":
+        keep = np.asarray(keep)
+        return Contacts(self.source, self.stamps[keep], self.pose[keep], self.session[keep], self.target[keep],
+                        self.contact[keep], self.joints[keep], self.joint_names, self.lines[keep], list(self.ignored),
+                        list(self.skipped))
+
+    def where(self, i) -> str:
+        return f"line {int(self.lines[i])}"
+
+
+def is_contact_csv(path) -> bool:
+    """True when ``path`` is a CSV file whose header has a ``contact`` column."""
+    p = Path(path)
+    if p.suffix.lower() != ".csv" or not p.is_file():
+        return False
+    with open(p, encoding="utf-8", errors="surrogateescape", newline="") as fh:
+        for _, line in _lines(fh):
+            if line is None:
+                return False
+            if line.strip() and not line.lstrip().startswith("#"):
+                return any(h.split("[")[0].strip() == "contact" for h in line.rstrip("\r\n").split(","))
+    return False
+
+
+def read_contacts(path, joint_names, joint_types=None, skip_bad=False) -> Contacts:
+    """The contact campaign at ``path`` for a robot with ``joint_names`` (``joint_types`` 'revolute' or
+    'prismatic' each, to check the units); see the module docstring."""
+    p = Path(path)
+    if not p.is_file():
+        raise MeasurementError(f"{path}: {not_a_file(p)}")
+    src = str(path)
+    joint_names = tuple(joint_names)
+    types = tuple(joint_types) if joint_types is not None else ("revolute",) * len(joint_names)
+    rows, skipped = [], []
+    spec = None
+    with open(p, encoding="utf-8", errors="surrogateescape", newline="") as fh:
+        for lineno, line in _lines(fh):
+            try:
+                bad = _check_text(line)
+                if bad is not None:
+                    raise MeasurementError(_not_utf8(line, bad))
+                if not line.strip() or line.lstrip().startswith("#"):
+                    continue
+                if spec is None:
+                    spec = _header(_csv_row(line, None), src, joint_names, types)
+                    continue
+                rows.append(_row(_csv_row(line, None), spec, lineno))
+                if len(rows) > MAX_ROWS:
+                    raise MeasurementError(f"more than {MAX_ROWS:,} rows; split the campaign")
+            except MeasurementError as exc:
+                if spec is None or not skip_bad or "more than" in str(exc):
+                    msg = str(exc)
+                    raise MeasurementError(msg if msg.startswith(src) else f"{src}, line {lineno}: {msg}") from None
+                skipped.append({"line": lineno, "reason": str(exc)})
+    if spec is None:
+        raise MeasurementError(f"{src}: no header (expected {','.join(f'{c}[s]' if c == 'stamp' else c for c in REQUIRED)}"
+                               f",joint:NAME[rad],...)")
+    if not rows:
+        raise MeasurementError(f"{src}: no contacts" + (f" ({len(skipped)} bad row(s) skipped, the first on line "
+                                                        f"{skipped[0]['line']}: {skipped[0]['reason']})" if skipped
+                                                        else ""))
+    stamps = np.array([r[0] for r in rows])
+    out = Contacts(src, stamps, np.array([r[1] for r in rows], dtype=object), np.array([r[2] for r in rows], dtype=object),
+                   np.array([r[3] for r in rows], dtype=object), np.array([r[4] for r in rows], dtype=object),
+                   np.array([r[5] for r in rows], float).reshape(len(rows), len(joint_names)), joint_names,
+                   np.array([r[6] for r in rows]), spec["ignored"], skipped)
+    return out
+
+
+def _header(header, src, joint_names, types):
+    cols = _parse_header(header, src)
+    missing = [c for c in REQUIRED if c not in cols]
+    if missing:
+        raise MeasurementError(f"{src}: a contact campaign needs the column(s) {missing}; its header has "
+                               f"{list(cols)}{separator_hint(header)}")
+    known = set(REQUIRED) | {"pose"}
+    unknown = [c for c in cols if c not in known and not c.startswith("joint:")]
+    if unknown:
+        raise MeasurementError(f"{src}: unknown column(s) {unknown} (a contact campaign has "
+                               f"stamp, pose, session, target, contact and joint:NAME columns)")
+    unit = cols["stamp"][1]
+    if unit not in _TIME_UNITS:
+        raise MeasurementError(f"{src}: column 'stamp' needs a time unit in brackets ({', '.join(_TIME_UNITS)}), got "
+                               f"{unit!r}")
+    for c in ("pose", "session", "target", "contact"):
+        if c in cols and cols[c][1]:
+            raise MeasurementError(f"{src}: column {c!r} holds names; it takes no unit, got [{cols[c][1]}]")
+    jcols = {c[len("joint:"):]: v for c, v in cols.items() if c.startswith("joint:")}
+    absent = [j for j in joint_names if j not in jcols]
+    if absent:
+        raise MeasurementError(f"{src}: no column for joint(s) {absent} of the robot (joint:NAME[rad] columns; the "
+                               f"file has {list(jcols) or 'none'})")
+    scale, index = [], []
+    for j, t in zip(joint_names, types):
+        i, u = jcols[j]
+        table = LENGTH_UNITS if t == "prismatic" else ANGLE_UNITS
+        if u not in table:
+            raise MeasurementError(f"{src}: column 'joint:{j}' ({t}) needs {'a length' if t == 'prismatic' else 'an angle'} "
+                                   f"unit in brackets ({', '.join(sorted(table))}), got {u!r}")
+        scale.append(table[u])
+        index.append(i)
+    return {"ncols": len(header), "stamp": (cols["stamp"][0], _TIME_UNITS[unit]),
+            "pose": cols["pose"][0] if "pose" in cols else None, "session": cols["session"][0],
+            "target": cols["target"][0], "contact": cols["contact"][0], "joints": index, "scale": np.array(scale),
+            "names": [f"joint:{j}" for j in joint_names], "ignored": sorted(set(jcols) - set(joint_names)),
+            "source": src}
+
+
+def _number(text, name):
+    t = text.strip()
+    if not t or _NOT_NUMERIC.search(t):
+        raise MeasurementError(f"{name}: not a number: {_show(text)}")
+    try:
+        v = float(t)
+    except ValueError:
+        raise MeasurementError(f"{name}: not a number: {_show(text)}") from None
+    if not np.isfinite(v):
+        raise MeasurementError(f"{name}: not a finite number: {_show(text)}")
+    return v
+
+
+def _name(text, name):
+    t = text.strip()
+    if not _NAME.match(t):
+        raise MeasurementError(f"{name}: a name of at most 100 printable characters, got {_show(t)}")
+    return t
+
+
+def _row(fields, spec, lineno):
+    if len(fields) != spec["ncols"]:
+        raise MeasurementError(f"{len(fields)} fields where the header has {spec['ncols']}")
+    i, s = spec["stamp"]
+    stamp = _number(fields[i], "stamp") * s
+    contact = fields[spec["contact"]].strip()
+    if not _CONTACT.match(contact):
+        raise MeasurementError(f"contact: expected plane:ID or point:ID (ID of letters, digits, _ . -), got "
+                               f"{_show(contact)}")
+    target = _name(fields[spec["target"]], "target")
+    if not target:
+        raise MeasurementError("target: empty (name the point of the tool in contact)")
+    pose = _name(fields[spec["pose"]], "pose") if spec["pose"] is not None else ""
+    session = _name(fields[spec["session"]], "session")
+    q = [_number(fields[k], n) * sc for k, n, sc in zip(spec["joints"], spec["names"], spec["scale"])]
+    return stamp, pose, session, target, contact, q, lineno
+
+
+def write_contacts(path, stamps, pose, session, target, contact, joints, joint_names, joint_types=None, comments=()):
+    """Write a contact campaign: joints (n, dof) in rad (m for the prismatic ones of ``joint_types``)."""
+    p = Path(path)
+    types = joint_types or ("revolute",) * len(joint_names)
+    lines = [f"# {c}" for c in comments]
+    lines.append(",".join(["stamp[s]", "pose", "session", "target", "contact"] + [
+        f"joint:{j}[{'m' if t == 'prismatic' else 'rad'}]" for j, t in zip(joint_names, types)]))
+    for k in range(len(stamps)):
+        lines.append(",".join([repr(float(stamps[k])), str(pose[k]), str(session[k]), str(target[k]), str(contact[k])]
+                              + [repr(float(v)) for v in joints[k]]))
+    p.write_text("\n".join(lines) + "\n")
+    return p

@@ -1,0 +1,167 @@
+"""A contact campaign from its file to a calibration: the rows checked as ``report`` checks measurements (joint
+limits, the angle unit, a wrong robot), the targets' nominal offsets, ``contact.calibrate_contacts``, and the
+``Calibration`` that the calibrated robot file, ``compensate`` and ``validate`` use (registration 'contact': no
+tracker, the base frame is the robot's own; the targets are the fitted tool points). SI throughout."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..accuracy.checks import CheckError
+from ..accuracy.targets import Targets
+from ..models.base import Mechanism
+from .contact import (PLANE, PLAUSIBLE_ANGLE, PLAUSIBLE_LENGTH, ContactData, calibrate_contacts, initial_rig,
+                      target_points, validate_contacts)
+from .result import Calibration, nominal_fingerprint
+
+UNIT_SLIP_SHARE = 0.5      # beyond this share of rows outside the joint limits, the unit is wrong, not the rows
+PLAUSIBLE_SPREAD = 50.0    # a plane's contacts farther from it than this many times the fit's noise: not this robot
+
+
+def contact_data(model: Mechanism, contacts, offsets: dict) -> tuple:
+    """(ContactData, (K, 3) nominal offsets, warnings) of the rows of ``contacts`` (``io.contact_csv.Contacts``)
+    for ``model``: rows with a joint outside its limits are left out and said; CheckError (bad input) when most
+    are (the angle unit), when a target has no nominal offset in ``offsets`` {name: (3,) m}, or when a plane or
+    point is touched too few times to be fitted."""
+    q = model.check_joints(contacts.joints)
+    out = model.out_of_limits(q).any(axis=1)
+    src = contacts.source
+    if out.mean() > UNIT_SLIP_SHARE:
+        revolute = [j for j in range(model.dof) if model.joint_types[j] != "prismatic"]
+        qq = q.copy()
+        qq[:, revolute] *= np.pi / 180.0
+        hint = (" (the joint values look like degrees labelled radians: read in degrees they are within)"
+                if revolute and not model.out_of_limits(qq).any(axis=1).mean() > UNIT_SLIP_SHARE else
+                " (another robot, or joints in another unit?)")
+        raise CheckError(f"{src}: {int(out.sum())} of {len(q)} rows have a joint outside the limits of robot "
+                         f"{model.name!r}{hint}")
+    warnings = [f"left out before the fit: {contacts.where(i)}: a joint outside the limits of {model.name!r}"
+                for i in np.flatnonzero(out)]
+    if contacts.ignored:
+        warnings.append(f"joint column(s) of joints outside the chain, ignored: {', '.join(contacts.ignored)}")
+    keep = ~out
+    names = list(dict.fromkeys(str(t) for t in contacts.target[keep]))
+    missing = [t for t in names if t not in offsets]
+    if missing:
+        raise CheckError(f"{src}: target(s) {missing} have no nominal place on the tool: give --target NAME=X,Y,Z "
+                         f"(e.g. {missing[0]}=0mm,0mm,120mm) or --target NAME=link:LINK")
+    keys = list(dict.fromkeys((str(s), *str(c).split(":", 1)) for s, c in zip(contacts.session[keep],
+                                                                            contacts.contact[keep])))
+    index = {k: i for i, k in enumerate(keys)}
+    constraint = np.array([index[(str(s), *str(c).split(":", 1))] for s, c in zip(contacts.session[keep],
+                                                                                  contacts.contact[keep])], int)
+    target = np.array([names.index(str(t)) for t in contacts.target[keep]], int)
+    labels = np.asarray(contacts.pose[keep], dtype=object)
+    data = ContactData(q[keep], target, constraint, keys, tuple(names),
+                       labels if any(str(v) for v in labels) else None,
+                       [contacts.where(i) for i in np.flatnonzero(keep)], contacts.stamps[keep])
+    for c, (s, kind, i) in enumerate(keys):
+        count = int(np.sum(constraint == c))
+        if kind == PLANE and count < 3:
+            raise CheckError(f"{src}: plane:{i} (session {s}) has {count} contact(s); a plane needs 3 or more, spread "
+                             f"over it")
+    nominal = np.array([offsets[t] for t in names], float).reshape(-1, 3)
+    return data, nominal, warnings
+
+
+def refuse_implausible(model: Mechanism, data: ContactData, offsets, sigma):
+    """CheckError when the contacts cannot be this robot's: with the nominal model and its rig, a plane's rows
+    spread about it beyond what any tolerance of a built robot explains (a tenth of the reach)."""
+    try:
+        rig = initial_rig(model, data, offsets)
+    except ValueError as exc:
+        raise CheckError(f"{exc}") from None
+    P = target_points(model, data.q, data.target, offsets)
+    limit = 0.1 * model.reach()
+    for c, (s, kind, i) in enumerate(data.constraints):
+        sel = data.constraint == c
+        d = np.abs(P[sel] @ rig.normals[c] - rig.d[c]) if kind == PLANE else np.linalg.norm(P[sel] - rig.points[c],
+                                                                                            axis=1)
+        if d.size and np.sqrt(np.mean(d ** 2)) > limit:
+            raise CheckError(f"{kind}:{i} (session {s}): the nominal robot puts its contacts {np.sqrt(np.mean(d ** 2)):.3g}"
+                             f" m RMS off one {kind}, more than a tenth of its reach ({model.reach():.3g} m): not this "
+                             f"robot's contacts, or joints in another unit")
+
+
+def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=None) -> Calibration:
+    """The ``Calibration`` of a ``contact.ContactCalibration``: the identified errors with their uncertainties, the
+    fitted targets as the tool points, registration 'contact', and the contact figures (``contact`` in ``sources``
+    is not used; the rig, the candidates and the validation go in ``model`` and ``validation``)."""
+    f = cc.fit
+    rig = f.rig
+    p = model.n_params
+    targets = Targets.from_offsets(list(data.target_names), list(rig.offsets))
+    rows = int(np.sum(np.where(data.kind == PLANE, 1, 3)[~f.rejected]))
+    cal = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), f.dx.copy(), f.std.copy(),
+                      np.zeros(6), np.eye(4), None, list(f.held), [], {}, float("nan"), f.condition, f.rank,
+                      int(p - len(f.held)), f.noise, float("nan"), float("nan"), len(data),
+                      len(set(map(str, data.labels))) if data.labels is not None else len(np.unique(data.q, axis=0)),
+                      rows, "contact", sources=dict(sources or {}), targets=targets, targets_std=rig.offsets_std,
+                      has_orientation=False)
+    cal.nominal = nominal_fingerprint(model)
+    cal.sources.setdefault("joint_names", list(model.joint_names))
+    cal.model = {"parameters": cc.which, "prior": None if cc.prior is None else list(cc.prior), "label": cc.label,
+                 "how": "chosen by the lowest cross-validated contact RMS", "candidates": cc.scores,
+                 "held_why": dict(f.held_why), "rig": rig.to_dict(),
+                 "nominal_targets": {n: list(map(float, o)) for n, o in zip(data.target_names, nominal)},
+                 "nominal_fit_targets": {n: list(map(float, o)) for n, o in zip(data.target_names,
+                                                                                cc.nominal.rig.offsets)},
+                 "undetermined_rig": list(f.undetermined_rig)}
+    cal.validation = cc.validation
+    cal.rejected = list(cc.rejected)
+    cal.warnings = list(cc.warnings)
+    cal.position_rms = f.rms()
+    cal.position_max = float(f.distances[~f.rejected].max())
+    cal.convergence = f.convergence.to_dict()
+    cal.convergence["words"] = f.convergence.words()
+    cal.training = {"joint_ranges": np.c_[data.q.min(axis=0), data.q.max(axis=0)].tolist()}
+    problems = []
+    reach = model.reach()
+    for n, k, v in zip(cal.names, cal.kinds, cal.dx):
+        if k == "length" and abs(v) > PLAUSIBLE_LENGTH * reach:
+            problems.append(f"{n}: identified error {v * 1e3:+.4g} mm is more than {PLAUSIBLE_LENGTH * 100:g} % of the "
+                            f"robot's reach ({reach:.3g} m)")
+        elif k == "angle" and abs(v) > PLAUSIBLE_ANGLE:
+            problems.append(f"{n}: identified error {v:+.4g} rad is more than {PLAUSIBLE_ANGLE:g} rad")
+    moved = np.linalg.norm(rig.offsets - nominal, axis=1)
+    for name, m in zip(data.target_names, moved):
+        if m > PLAUSIBLE_LENGTH * reach:
+            problems.append(f"target {name}: fitted {m * 1e3:.4g} mm from its nominal place on the tool, more than "
+                            f"{PLAUSIBLE_LENGTH * 100:g} % of the reach (its nominal place wrong, or the contacts)")
+    v = cc.validation
+    if v["after"]["contact_rms_m"] >= v["before"]["contact_rms_m"]:
+        problems.append(f"hold-out validation: the calibrated model does not reduce the contact RMS "
+                        f"({v['before']['contact_rms_m'] * 1e3:.4f} mm before, {v['after']['contact_rms_m'] * 1e3:.4f} mm"
+                        f" after)")
+    cal.plausibility = {"ok": not problems, "problems": problems}
+    return cal
+
+
+def calibrate_campaign(model: Mechanism, contacts, offsets: dict, parameters="auto", prior=None, sigma=1e-5,
+                       folds=10, seed=0, robust=True, progress=None) -> Calibration:
+    """``calibration_of`` the contact campaign ``contacts`` after the checks of ``contact_data`` and
+    ``refuse_implausible`` (CheckError: bad input)."""
+    from .contact import PRIOR
+    data, nominal, warnings = contact_data(model, contacts, offsets)
+    refuse_implausible(model, data, nominal, sigma)
+    cc = calibrate_contacts(model, data, nominal, parameters, PRIOR if prior is None else prior, sigma, folds, seed,
+                            robust, progress)
+    cal = calibration_of(model, data, nominal, cc, {"measurements": contacts.source})
+    cal.warnings = warnings + cal.warnings
+    return cal
+
+
+def validate_campaign(cal: Calibration, model: Mechanism, contacts, robust=True) -> dict:
+    """Score a contact calibration on another campaign or session (``contact.validate_contacts``): its targets
+    are the calibration's (by name), only the planes and points of the rows are fitted; 'before' is the nominal
+    robot with the targets its own rig-only fit found on the calibration's rows (else the nominal targets)."""
+    names = list(cal.targets.names)
+    doc = cal.model or {}
+    nominal_doc = doc.get("nominal_fit_targets") or doc.get("nominal_targets") or {}
+    offsets = {n: o for n, o in zip(names, cal.targets.offsets)}
+    data, nominal, warnings = contact_data(model, contacts, offsets)
+    fitted = np.array([offsets[t] for t in data.target_names])
+    nominal = np.array([nominal_doc.get(t, offsets[t]) for t in data.target_names], float)
+    res = validate_contacts(model, data, cal.dx, fitted, nominal, sigma=max(cal.sigma or 1e-5, 1e-9), robust=robust)
+    res["measurements"] = len(data)
+    res["warnings"] = warnings
+    return res
