@@ -332,6 +332,12 @@ class ContactFit:
         return float(np.sqrt(np.mean(d ** 2))) if len(d) else float("nan")
 
 
+def not_converged_words(c: Convergence) -> str:
+    """How a fit that did not converge stopped, in words."""
+    return (f"it stopped ({c.stop}) after {c.iterations} iterations, a full step still lowering the cost by "
+            f"{c.decrement:.2g} of it (largest gradient cosine {c.gradient_cosine:.1e})")
+
+
 def _estimate_mask(model, which) -> np.ndarray:
     """(p,) parameters a candidate estimates."""
     if which not in MODELS:
@@ -658,9 +664,9 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
                 for i in np.flatnonzero(final.rejected)]
     warnings = []
     if not final.convergence.converged:
-        warnings.append(f"the final fit did not converge: {final.convergence.words()}")
+        warnings.append(f"the final fit did not converge: {not_converged_words(final.convergence)}")
     if cv["not_converged"]:
-        warnings.append(f"the fits of fold(s) {cv['not_converged']} stopped at their iteration cap")
+        warnings.append(f"the fits of fold(s) {cv['not_converged']} of the cross-validation did not converge")
     if cv["rows_scored"] < len(data):
         warnings.append(f"{len(data) - cv['rows_scored']} row(s) could not be scored held out (their plane or point "
                         f"touched from too few poses outside their fold)")

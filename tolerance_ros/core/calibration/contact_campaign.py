@@ -64,22 +64,47 @@ def contact_data(model: Mechanism, contacts, offsets: dict) -> tuple:
 
 
 def refuse_implausible(model: Mechanism, data: ContactData, offsets, sigma):
-    """CheckError when the contacts cannot be this robot's: with the nominal model and its rig, a plane's rows
-    spread about it beyond what any tolerance of a built robot explains (a tenth of the reach)."""
+    """CheckError when the contacts cannot be this robot's: the nominal robot (its rig fitted) puts them farther
+    off their planes and points than ``PLAUSIBLE_LENGTH`` of its reach, or ten times farther than it does with
+    the revolute joints read in the other angle unit (degrees labelled radians, or the reverse), as a share of
+    how far the contacts spread."""
+    def misfit(q):
+        d = data if q is data.q else ContactData(q, data.target, data.constraint, data.constraints, data.target_names)
+        try:
+            rig = initial_rig(model, d, offsets)
+        except ValueError:
+            return np.inf
+        P = target_points(model, q, data.target, offsets)
+        sq = []
+        for c, (s, kind, i) in enumerate(data.constraints):
+            sel = data.constraint == c
+            e = P[sel] @ rig.normals[c] - rig.d[c] if kind == PLANE else np.linalg.norm(P[sel] - rig.points[c], axis=1)
+            sq.append(e ** 2)
+        return float(np.sqrt(np.mean(np.concatenate(sq)))) if sq else 0.0
+
+    def relative(q):
+        """The misfit as a share of how far the contacts spread: a robot that hardly moves fits any plane."""
+        P = target_points(model, q, data.target, offsets)
+        spread = float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
+        return misfit(q) / spread if spread > 0 else np.inf
     try:
-        rig = initial_rig(model, data, offsets)
+        initial_rig(model, data, offsets)
     except ValueError as exc:
         raise CheckError(f"{exc}") from None
-    P = target_points(model, data.q, data.target, offsets)
-    limit = 0.1 * model.reach()
-    for c, (s, kind, i) in enumerate(data.constraints):
-        sel = data.constraint == c
-        d = np.abs(P[sel] @ rig.normals[c] - rig.d[c]) if kind == PLANE else np.linalg.norm(P[sel] - rig.points[c],
-                                                                                            axis=1)
-        if d.size and np.sqrt(np.mean(d ** 2)) > limit:
-            raise CheckError(f"{kind}:{i} (session {s}): the nominal robot puts its contacts {np.sqrt(np.mean(d ** 2)):.3g}"
-                             f" m RMS off one {kind}, more than a tenth of its reach ({model.reach():.3g} m): not this "
-                             f"robot's contacts, or joints in another unit")
+    rms = misfit(data.q)
+    revolute = [j for j in range(model.dof) if model.joint_types[j] != "prismatic"]
+    for factor, said in ((180.0 / np.pi, "radians labelled degrees"), (np.pi / 180.0, "degrees labelled radians")):
+        q = data.q.copy()
+        q[:, revolute] *= factor
+        if revolute and not model.out_of_limits(q).any() and relative(q) * 10 < relative(data.q):
+            raise CheckError(f"units: the nominal robot puts the contacts {rms * 1e3:.4g} mm RMS off their planes and "
+                             f"points, {misfit(q) * 1e3:.4g} mm with the joints read in the other angle unit: the joint "
+                             f"values look like {said}")
+    limit = PLAUSIBLE_LENGTH * model.reach()
+    if rms > limit:
+        raise CheckError(f"the nominal robot puts the contacts {rms * 1e3:.4g} mm RMS off their planes and points, more "
+                         f"than {PLAUSIBLE_LENGTH * 100:g} % of its reach ({model.reach():.3g} m): not this robot's "
+                         f"contacts, or joints in another unit")
 
 
 def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=None) -> Calibration:

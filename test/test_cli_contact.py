@@ -1,0 +1,87 @@
+"""Calibration without a tracker from the command line: simulate --contact, calibrate and validate on contacts."""
+import json
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from helpers import run_cli as run
+
+URDF = Path(__file__).resolve().parent / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf"
+PLANES = ["plane:floor=0,0,1@300mm", "plane:wall=1,0,0@1700mm", "plane:side=0,1,0@-900mm"]
+MOVED = ["plane:floor=0,0.1,1@250mm", "plane:wall=1,0.05,0@1650mm", "plane:side=0,1,0.02@-800mm"]
+
+
+def simulate(capsys, out, planes, session, touches=30):
+    argv = ["simulate", "--robot", URDF, "--tolerances", "uniform:0.1mm,0.5mrad", "--target-offset",
+            "A=12mm,-6mm,110mm", "--touches", touches, "--session", session, "--out", out, "--json", "--quiet"]
+    for p in planes:
+        argv += ["--contact", p]
+    code, stdout, err = run(capsys, *argv)
+    assert code == 0, err
+    return json.loads(stdout)
+
+
+def test_simulate_calibrate_and_validate_on_another_session(capsys, tmp_path):
+    s1 = simulate(capsys, tmp_path / "s1.csv", PLANES, "s1")
+    simulate(capsys, tmp_path / "s2.csv", MOVED, "s2", touches=20)
+    assert s1["rows"] == 90 and Path(s1["rig"]).is_file()
+    code, out, err = run(capsys, "calibrate", "--robot", URDF, "--measurements", tmp_path / "s1.csv", "--target",
+                         "A=0mm,0mm,100mm", "--folds", 5, "--out", tmp_path / "cal", "--json", "--quiet")
+    assert code == 0, err
+    doc = json.loads(out)
+    v = doc["validation"]
+    assert doc["registration"] == "contact" and doc["model"]["parameters"] == "full"
+    assert v["after"]["contact_rms_m"] < 20e-6 < 0.2e-3 < v["before"]["contact_rms_m"]
+    assert doc["fit"]["contact_rms_m"] < 15e-6
+    rig = doc["contact"]["rig"]
+    assert [p["id"] for p in rig["planes"]] == ["floor", "wall", "side"] and rig["planes"][0]["offset_std_m"] > 0
+    assert np.allclose(rig["targets"][0]["xyz_m"], [0.012, -0.006, 0.110], atol=2e-4)
+    assert any(w.startswith("the overall scale") for w in doc["contact"]["held_why"].values())
+    written = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    assert written["validation"]["after"]["contact_rms_m"] == v["after"]["contact_rms_m"]
+    assert yaml.safe_load((tmp_path / "cal" / "calibration.yaml").read_text())["registration"]["method"] == "contact"
+    code, out, err = run(capsys, "validate", "--calibration", tmp_path / "cal" / "calibration.yaml", "--measurements",
+                         tmp_path / "s2.csv", "--robot", URDF, "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["after"]["contact_rms_m"] < 20e-6 < 0.2e-3 < res["before"]["contact_rms_m"]
+    assert {p["session"] for p in res["rig"]["planes"]} == {"s2"}
+    code, out, err = run(capsys, "validate", "--calibration", tmp_path / "cal" / "calibration.yaml", "--measurements",
+                         tmp_path / "s2.csv", "--robot", URDF)
+    assert code == 0 and "contact RMS [mm]" in out and "reduced by" in out
+
+
+def test_contact_input_errors_exit_2_with_the_reason(capsys, tmp_path):
+    simulate(capsys, tmp_path / "s1.csv", PLANES, "s1", touches=10)
+    base = ["calibrate", "--robot", URDF, "--out", tmp_path / "cal", "--quiet"]
+    code, _, err = run(capsys, *base, "--measurements", tmp_path / "s1.csv")
+    assert code == 2 and "target(s) ['A'] have no nominal place on the tool" in err
+    code, _, err = run(capsys, *base, "--measurements", tmp_path / "s1.csv", "--target", "A=0,0,100")
+    assert code == 2 and "--target" in err
+    lines = (tmp_path / "s1.csv").read_text().splitlines()
+    header = [i for i, line in enumerate(lines) if line.startswith("stamp")][0]
+    labelled = lines[:header] + [lines[header].replace("[rad]", "[deg]")] + lines[header + 1:]
+    (tmp_path / "deg.csv").write_text("\n".join(labelled) + "\n")     # radians labelled degrees: all within the limits
+    code, _, err = run(capsys, *base, "--measurements", tmp_path / "deg.csv", "--target", "A=0mm,0mm,100mm")
+    assert code == 2 and "look like radians labelled degrees" in err
+    rows = [lines[header]] + [
+        ",".join(f[:5] + [repr(float(v) * 180 / np.pi) for v in f[5:]])
+        for f in (line.split(",") for line in lines[header + 1:])]
+    (tmp_path / "rad.csv").write_text("\n".join(rows) + "\n")      # degrees labelled radians
+    code, _, err = run(capsys, *base, "--measurements", tmp_path / "rad.csv", "--target", "A=0mm,0mm,100mm")
+    assert code == 2 and "degrees labelled radians" in err
+    code, _, err = run(capsys, *base, "--measurements", tmp_path / "s1.csv", "--target", "A=0mm,0mm,100mm",
+                       "--registration", "base+tool")
+    assert code == 2 and "do not apply" in err
+
+
+def test_simulate_contact_options_are_checked(capsys, tmp_path):
+    base = ["simulate", "--robot", URDF, "--tolerances", "uniform:0.1mm,0.5mrad", "--out", tmp_path / "x.csv",
+            "--target-offset", "A=0mm,0mm,100mm"]
+    code, _, err = run(capsys, *base, "--contact", "plane:t=0,0,1@300")
+    assert code == 2 and "--contact" in err
+    code, _, err = run(capsys, *base, "--contact", "sphere:t=0,0,1@300mm")
+    assert code == 2 and "plane:ID=NX,NY,NZ@OFFSET or point:ID=X,Y,Z" in err
+    code, _, err = run(capsys, *base, "--contact", "point:far=10m,0m,0m")
+    assert code == 2 and "reach it within the joint limits" in err
