@@ -147,6 +147,9 @@ def loads_yaml(text: str, source="<text>", error=ValueError):
         return _build(loader, source, error)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
+        if "maximum nesting depth" in str(exc.problem):   # PyYAML >= 6.0.3 scans ahead and stops deep nesting itself
+            raise error(f"{source}, line {mark.line + 1 if mark is not None else 1}: nested deeper than {MAX_DEPTH} "
+                        f"levels") from None
         where = f", line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
         what = "; ".join(str(p) for p in (exc.context, exc.problem) if p)
         raise error(f"{source}{where}: not valid YAML: {what}") from None
