@@ -257,6 +257,7 @@ class CollisionModel:
         self.support = [_support_points(objs[i].geometry) for i in self.moving]
         self.links = [objs[i].name for i in self.moving]
         self.base_from_root = np.asarray(model.base_from_root, float)
+        self.base_frame = model.pin_model.getFrameId(model.base_link) if getattr(model, "base_moves", False) else None
 
     def _pair_name(self, cp) -> str:
         objs = self.geom.geometryObjects
@@ -275,13 +276,17 @@ class CollisionModel:
         hits = np.zeros((len(q), len(self.pairs)), bool)
         place = np.empty((len(q), len(self.moving), 4, 4))
         oMg = self.gdata.oMg
+        to_base = np.repeat(self.base_from_root[None], len(q), axis=0)
         for i, qi in enumerate(q):
             hits[i] = self._pair_hits(qi)
             for j, g in enumerate(self.moving):
                 place[i, j] = oMg[g].homogeneous
+            if self.base_frame is not None:   # a base link moved by joints: its frame at this configuration
+                to_base[i] = self.pin.updateFramePlacement(self.model.pin_model, self.pdata,
+                                                           self.base_frame).inverse().homogeneous
             if tick is not None and (i + 1) % chunk == 0:
                 tick((i + 1) / len(q))
-        return hits, np.einsum("ij,nkjl->nkil", self.base_from_root, place)
+        return hits, np.einsum("nij,nkjl->nkil", to_base, place)
 
     def plane_heights(self, place, planes) -> np.ndarray:
         """(n, planes, moving links) least signed distance m of each link's geometry above each plane."""

@@ -333,3 +333,85 @@ def test_continuous_joints_take_unwrapped_angles_and_compare_them_modulo_a_turn(
     assert chain.out_of_limits(q)[0].tolist() == [False, True, False, False, False, False]
     with pytest.raises(ModelError, match="outside the joint limits"):
         chain.check_joints(q, allow_out_of_limits=False)
+
+
+EITHER_WAY = [("talos_reduced.urdf", "left_sole_link", "gripper_left_base_link"),   # foot back through leg, torso
+              ("talos_reduced.urdf", "arm_left_2_link", "gripper_left_base_link"),  # a base moved by joints
+              ("ur5_robot.urdf", "tool0", "base_link")]                             # the arm run backwards
+
+
+def _between(text, base, tip, chain, q, edit=None):
+    """(n, 4, 4) pinocchio's pose of ``tip`` in ``base`` at chain configurations q; ``edit(model)`` first."""
+    model = pin.buildModelFromXML(text)
+    if edit is not None:
+        edit(model)
+    data = model.createData()
+    b, e = model.getFrameId(base), model.getFrameId(tip)
+    out = []
+    for qk in q:
+        pin.framesForwardKinematics(model, data, chain.pinocchio_configuration(qk))
+        out.append((data.oMf[b].inverse() * data.oMf[e]).homogeneous)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("name, base, tip", EITHER_WAY)
+def test_a_chain_runs_either_way_through_the_tree_as_pinocchio_says(name, base, tip):
+    """FK against pinocchio at random configurations, and each column against pinocchio's FK of the URDF with that
+    origin edited (shifts in the text, turns in the joint placement), whichever way the joint is traversed; the
+    compiled and numpy paths agree where the chain takes the kernel."""
+    path = example_urdf(name)
+    text = path.read_text()
+    chain = URDFChain(path, tip_link=tip, base_link=base)
+    q = chain.sample_joints(3, 4)
+    assert np.allclose(chain.fk(q), _between(text, base, tip, chain, q), atol=1e-12)
+    J = chain.error_jacobian(q).J
+    h = 1e-6
+    for c, pname in enumerate(chain.param_names):
+        joint, field = pname.rsplit(".", 1)
+        if field == "offset":
+            e = np.zeros(chain.dof)
+            e[chain.joint_names.index(joint)] = h
+            Tp, Tm = _between(text, base, tip, chain, q + e), _between(text, base, tip, chain, q - e)
+        elif field in ("rx", "ry", "rz"):
+            axis = ("rx", "ry", "rz").index(field)
+
+            def turned(s):
+                def edit(model):
+                    jid = model.getJointId(joint)
+                    model.jointPlacements[jid] = model.jointPlacements[jid] * pin.SE3(pin.exp3(np.eye(3)[axis] * s),
+                                                                                      np.zeros(3))
+                return edit
+            Tp, Tm = _between(text, base, tip, chain, q, turned(h)), _between(text, base, tip, chain, q, turned(-h))
+        else:
+            Tp = _between(_perturbed_xml(text, joint, field, h), base, tip, chain, q)
+            Tm = _between(_perturbed_xml(text, joint, field, -h), base, tip, chain, q)
+        assert np.allclose(J[:, :, c], pose_difference(Tp, Tm) / (2 * h), atol=1e-7), pname
+    dx = np.random.default_rng(1).standard_normal(chain.n_params) * 1e-3
+    T1, J1 = chain.fk_and_jacobian(q, dx)
+    chain.backend = "numpy"
+    T2, J2 = chain.fk_and_jacobian(q, dx)
+    assert np.allclose(T1, T2, atol=1e-13) and np.allclose(J1.J, J2.J, atol=1e-12)
+
+
+def test_a_chain_against_a_joint_names_its_direction_and_runs_on_numpy():
+    chain = URDFChain(example_urdf("talos_reduced.urdf"), tip_link="gripper_left_base_link", base_link="left_sole_link")
+    assert chain.joint_names[:6] == tuple(f"leg_left_{k}_joint" for k in range(6, 0, -1))
+    assert chain._reversed[:6].all() and not chain._reversed[6:].any() and chain.base_moves
+    assert chain.backend == "numpy"
+    with pytest.raises(ModelError, match="not moved against base_link"):
+        URDFChain(example_urdf("talos_reduced.urdf"), tip_link="arm_left_2_link", base_link="arm_left_2_link")
+
+
+def test_a_chain_run_against_its_joints_writes_a_calibrated_urdf_that_gives_its_poses():
+    """The origin errors of a joint traversed upward are the same physical errors: written into the URDF, they give
+    the calibrated chain's poses; a base correction cannot go into such a first joint's origin and is refused."""
+    from tolerance_ros.core.calibration.calibrated_robot import calibrated_urdf_text
+    path = example_urdf("talos_reduced.urdf")
+    chain = URDFChain(path, tip_link="gripper_left_base_link", base_link="left_sole_link")
+    dx = np.random.default_rng(2).normal(0, 2e-3, chain.n_params)
+    q = chain.sample_joints(10, 3)
+    text = calibrated_urdf_text(chain, path.read_text(), dx, np.zeros(6))
+    edited = URDFChain(text, tip_link="gripper_left_base_link", base_link="left_sole_link")
+    np.testing.assert_allclose(edited.fk(q), chain.fk(q, dx), atol=1e-13, rtol=0)
+    with pytest.raises(ValueError, match="base correction cannot go"):
+        calibrated_urdf_text(chain, path.read_text(), dx, np.r_[1e-3, 0, 0, 0, 0, 0])

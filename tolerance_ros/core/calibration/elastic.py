@@ -60,10 +60,10 @@ class Load:
     @classmethod
     def for_model(cls, model: Mechanism, payload=None) -> "Load | None":
         """The load of ``model``: its inertials (plus ``payload`` = (kg, (3,) m in the tool frame) when
-        given), the payload alone, or the default lumped point mass; None for a model that is not a URDF chain
-        (no gravity direction is known for it)."""
-        if not isinstance(model, URDFChain):
-            return None
+        given), the payload alone, or the default lumped point mass; None for a model that is not a URDF chain, or
+        one whose base link moves with joints (no gravity direction is known for it)."""
+        if not isinstance(model, URDFChain) or getattr(model, "base_moves", False):
+            return None   # a chain from a moving link (a foot, a head) has no gravity direction of its own
         if payload is not None:
             mass, point = payload
             return cls("inertials+payload" if has_inertials(model) else "point-mass", float(mass),

@@ -67,6 +67,10 @@ def corrected_origins(model: URDFChain, dx, B=None):
         else:
             O[:3, :3] = O[:3, :3] @ axis_angle_matrix(axis, off)
         if k == 0 and not identity:
+            if getattr(model, "_reversed", np.zeros(1, bool))[0]:
+                raise ValueError(f"calibrated URDF: the chain of {model.name!r} starts from {model.base_link!r} "
+                                 f"against its first joint's direction; a base correction cannot go into that "
+                                 f"joint's origin (use the calibration file, which carries it)")
             F0 = model._fixed[0]
             O = np.linalg.inv(F0) @ B @ F0 @ O
         out[k] = np.r_[O[:3, 3], rpy_from_matrix(O[:3, :3])[0]]

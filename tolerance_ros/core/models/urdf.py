@@ -10,6 +10,12 @@ zero offset (rad, or m for a prismatic joint). Fixed joints carry no parameters 
 order an error of a fixed origin is an error of the next movable origin, which already has all six
 components.
 
+A chain runs from ``base_link`` to ``tip_link`` either way through the tree: the joints from the base link up to
+the links' common ancestor are traversed from child to parent (a foot's sole back through the leg to the torso,
+each such joint's transform inverted, ``M(q)^-1 O^-1``), then down to the tip; the base link may be moved by
+joints (a chain from a camera's link). Such a chain's parameters are its joints' physical origin errors as
+above, whichever way it runs; a chain with joints traversed upward runs on the numpy path.
+
 pinocchio parses the file and validates the tree; the batched forward kinematics and the Jacobian are
 our own code (a compiled kernel, and numpy as the reference), checked against pinocchio's FK in the tests.
 """
@@ -79,24 +85,20 @@ class URDFChain(CompiledChain):
         self.tip_chosen = tip_link is None
         where = f"robot {self.name!r}" if source == "<string>" else f"{source} (robot {self.name!r})"
         tip_fid, tip_link = self._tip_frame(model, root, tip_link, where)
-        chain = []
-        jid = frame_joint(model.frames[tip_fid])
-        while jid > 0:
-            chain.append(jid)
-            jid = model.parents[jid]
-        chain.reverse()
-        if not chain:
-            raise ModelError(f"tip_link: {tip_link!r} is not moved by any joint")
         base_T = np.eye(4)
+        base_joint = 0
         if base_link is not None:
             if not model.existFrame(base_link):
                 raise ModelError(f"base_link: no link named {base_link!r} in the URDF"
                                  f"{did_you_mean(base_link, [f.name for f in model.frames])}")
             bf = model.frames[model.getFrameId(base_link)]
-            if frame_joint(bf) != 0:
-                raise ModelError(f"base_link: {base_link!r} moves with joint "
-                                 f"{model.names[frame_joint(bf)]!r}; it must be fixed to the root")
+            base_joint = frame_joint(bf)
             base_T = np.linalg.inv(bf.placement.homogeneous)
+        upward, chain = _path(model, base_joint, frame_joint(model.frames[tip_fid]))
+        if not chain and not upward:
+            raise ModelError(f"tip_link: {tip_link!r} is not moved by any joint" if base_joint == 0 else
+                             f"tip_link: {tip_link!r} is not moved against base_link {base_link!r} by any joint")
+        chain = upward + chain
         names, types, limits, axes, origins, fixed, continuous = [], [], [], [], [], [], []
         for jid in chain:
             jname = model.names[jid]
@@ -128,6 +130,8 @@ class URDFChain(CompiledChain):
             O[:3, :3] = rpy_to_matrix(rpy)
             O[:3, 3] = xyz
             F = model.jointPlacements[jid].homogeneous @ np.linalg.inv(O)
+            if jid in upward:   # traversed from child to parent: (F O M)^-1 = M^-1 O^-1 F^-1, F^-1 after
+                F = np.linalg.inv(F)
             fixed.append(np.eye(4) if np.abs(F - np.eye(4)).max() < 1e-12 else F)
             iq = model.idx_qs[jid]
             continuous.append(jtype == "continuous" or jm.nq == 2)
@@ -161,8 +165,15 @@ class URDFChain(CompiledChain):
         self.base_link = base_link or root_link(root) or model.frames[0].name
         self._axes = np.array(axes)
         self._fixed = np.array(fixed)
-        self._fixed[0] = base_T @ self._fixed[0]
-        self.base_from_root = base_T  # (4, 4): the chain's base frame from pinocchio's world (the URDF root)
+        self._reversed = np.array([jid in upward for jid in chain], dtype=bool)
+        self._start = base_T        # before the first element: the base link's frame in its joint's frame
+        if not self._reversed.any():
+            self._fixed[0] = base_T @ self._fixed[0]
+        else:
+            self._backend = "numpy"  # the compiled kernel runs chains from parent to child only
+        self.base_moves = base_joint != 0   # the base link is moved by joints (its frame is not fixed to the root)
+        self.base_from_root = base_T  # (4, 4): the chain's base frame from pinocchio's world (the URDF root), or
+        #                               from its joint's frame where the base moves
         self._tool = model.frames[tip_fid].placement.homogeneous.copy()
         self.param_names = tuple(f"{j}.{f}" for j in names for f in ORIGIN_FIELDS + ("offset",))
         self.param_kinds = tuple(k for t in types for k in ("length",) * 3 + ("angle",) * 3 +
@@ -207,6 +218,8 @@ class URDFChain(CompiledChain):
 
     def _fk_and_jacobian_numpy(self, q, dx=None, jacobian=True):
         """The numpy reference implementation of ``fk_and_jacobian``."""
+        if self._reversed.any():
+            return self._fk_and_jacobian_either_way(q, dx, jacobian)
         q = self.check_joints(q)
         n, dof = q.shape
         dx = self.check_dx(dx, n)
@@ -257,6 +270,76 @@ class URDFChain(CompiledChain):
                 Jt[c + 6, :3] = w_joint
         return T, ErrorJacobian(Jt.transpose(2, 1, 0), self.param_names, self.param_units)
 
+    def _fk_and_jacobian_either_way(self, q, dx=None, jacobian=True):
+        """``fk_and_jacobian`` of a chain with joints traversed from child to parent (see the module docstring).
+
+        Each column is the exact derivative of the end pose in one parameter: a shift along a world direction, or
+        a turn about a world axis through a point (position rows ``w x (P_end - point)``); a traversed-upward
+        joint's element ``M(q + off)^-1 O^-1 F^-1`` turns by ``-rz, -ry, -rx`` about its joint frame's axes and
+        shifts by ``-xyz`` along its parent's."""
+        q = self.check_joints(q)
+        n, dof = q.shape
+        dx = self.check_dx(dx, n)
+        p = self.nominal if dx is None else self.nominal + dx
+        P = np.broadcast_to(p, (n, self.n_params)).T
+        start = self._start
+        R = np.repeat(start[:3, :3][:, :, None], n, axis=2)
+        o = np.repeat(start[:3, 3][:, None], n, axis=1)
+        ex, ey, ez = np.eye(3)
+        all_cols = []   # per parameter: (sign, world direction (3, n)) or (sign, axis (3, n), point (3, n))
+        for k in range(dof):
+            x, y, z, rx, ry, rz, off = P[7 * k:7 * k + 7]
+            F, axis, rev = self._fixed[k], self._axes[k], self.joint_types[k] == REVOLUTE
+            theta = q[:, k] + off
+            if not self._reversed[k]:
+                RW = _mul(R, F[:3, :3])
+                oW = o + _apply(R, F[:3, 3])
+                RN = _mul(RW, rpy_to_matrix(self.origin_rpy[k]))
+                RX = _mul(RN, axis_angle_matrix(ex, rx))
+                RY = _mul(RX, axis_angle_matrix(ey, ry))
+                RJ = _mul(RY, axis_angle_matrix(ez, rz))
+                oJ = oW + _apply(RW, np.stack([x, y, z]))
+                w = _apply(RJ, axis)
+                cols = [(1.0, RW[:, 0]), (1.0, RW[:, 1]), (1.0, RW[:, 2]),
+                        (1.0, RN[:, 0], oJ), (1.0, RX[:, 1], oJ), (1.0, RJ[:, 2], oJ)]
+                cols.append((1.0, w, oJ) if rev else (1.0, w))
+                R, o = (_mul(RJ, axis_angle_matrix(axis, theta)), oJ) if rev else (RJ, oJ + w * theta)
+            else:
+                w = _apply(R, axis)
+                joint = (-1.0, w, o) if rev else (-1.0, w)
+                if rev:
+                    RG = _mul(R, axis_angle_matrix(axis, -theta))
+                    oG = o
+                else:
+                    RG, oG = R, o - w * theta
+                R1 = _mul(RG, axis_angle_matrix(ez, -rz))
+                R2 = _mul(R1, axis_angle_matrix(ey, -ry))
+                R3 = _mul(R2, axis_angle_matrix(ex, -rx))
+                R4 = _mul(R3, rpy_to_matrix(self.origin_rpy[k]).T)
+                o4 = oG - _apply(R4, np.stack([x, y, z]))
+                cols = [(-1.0, R4[:, 0]), (-1.0, R4[:, 1]), (-1.0, R4[:, 2]),
+                        (-1.0, R2[:, 0], oG), (-1.0, R1[:, 1], oG), (-1.0, RG[:, 2], oG), joint]
+                R = _mul(R4, F[:3, :3])
+                o = o4 + _apply(R4, F[:3, 3])
+            all_cols += cols
+        Rend = _mul(R, self._tool[:3, :3])
+        Pend = o + _apply(R, self._tool[:3, 3])
+        T = np.zeros((n, 4, 4))
+        T[:, :3, :3] = np.moveaxis(Rend, 2, 0)
+        T[:, :3, 3] = Pend.T
+        T[:, 3, 3] = 1.0
+        if not jacobian:
+            return T, None
+        Jt = np.zeros((self.n_params, 6, n))
+        for c, col in enumerate(all_cols):
+            if len(col) == 2:
+                Jt[c, :3] = col[0] * col[1]
+            else:
+                sign, w, point = col
+                Jt[c, :3] = sign * cross3(w, Pend - point)
+                Jt[c, 3:] = sign * w
+        return T, ErrorJacobian(Jt.transpose(2, 1, 0), self.param_names, self.param_units)
+
     def pinocchio_configuration(self, q) -> np.ndarray:
         """pinocchio configuration vector for one chain configuration ``q`` (dof,); other joints neutral."""
         pin = _pin()
@@ -268,6 +351,22 @@ class URDFChain(CompiledChain):
             else:
                 cfg[iq] = q[k]
         return cfg
+
+
+def _path(model, base_joint, tip_joint):
+    """(joints traversed from child to parent, from the base link's joint up; joints traversed from parent to child,
+    down to the tip's joint): the path between two joints of pinocchio's tree through their common ancestor."""
+    def up(j):
+        out = []
+        while j > 0:
+            out.append(j)
+            j = model.parents[j]
+        return out
+    above_base, above_tip = up(base_joint), up(tip_joint)
+    common = set(above_base) & set(above_tip)
+    upward = [j for j in above_base if j not in common]
+    downward = [j for j in above_tip if j not in common]
+    return upward, downward[::-1]
 
 
 def root_link(root):
