@@ -127,6 +127,8 @@ def run(args):
     files = {}
     if cal.plausibility["ok"]:
         files = write_calibrated_robot(model, cal, out)
+        if "note" in files:
+            cal.warnings.append(files.pop("note"))
         cal.sources["calibrated_robot"] = Path(files["robot"]).name
         files["calibration"] = str(save_calibration(cal, out / "calibration.yaml", signing_key=key))
     else:
@@ -181,6 +183,8 @@ def run_contacts(args, model, opts, key):
     files = {}
     if cal.plausibility["ok"]:
         files = write_calibrated_robot(model, cal, out)
+        if "note" in files:
+            cal.warnings.append(files.pop("note"))
         cal.sources["calibrated_robot"] = Path(files["robot"]).name
         files["calibration"] = str(save_calibration(cal, out / "calibration.yaml", signing_key=key))
     else:

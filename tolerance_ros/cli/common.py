@@ -136,8 +136,12 @@ def point_option(text, option):
 def load_model(args):
     """The model of ``--robot`` (with ``--tip-link`` / ``--base-link``); says which tip it took when the
     choice was made for the user (a URDF whose only moving leaf link is the tip)."""
-    model = load_robot(args.robot, getattr(args, "tip_link", None), getattr(args, "base_link", None))
-    if getattr(model, "tip_chosen", False) and not args.quiet:
+    sensor = getattr(args, "sensor_link", None)
+    if sensor:
+        model = sensor_chain(args, sensor)
+    else:
+        model = load_robot(args.robot, getattr(args, "tip_link", None), getattr(args, "base_link", None))
+    if getattr(model, "tip_chosen", False) and not sensor and not args.quiet:
         print(f"robot {model.name}: tip link {model.tip_link!r}, the only leaf link the joints move "
               f"(choose another with --tip-link)", file=sys.stderr)
     return model
@@ -196,12 +200,37 @@ def relative(path, start) -> str:
     return rel if Path(rel).parts[:3] != (os.pardir,) * 3 else str(target)
 
 
+def sensor_chain(args, sensor):
+    """The chain of ``--sensor-link``: from the sensor's link to the marker, which the tool holds (``--tip-link``, or
+    the tool the URDF ends in) or, where the sensor is on the tool itself, which is fixed in the cell (the chain
+    then runs back to the URDF's root)."""
+    if getattr(args, "base_link", None):
+        raise CLIError("--sensor-link: the chain starts from the sensor's link; give it instead of --base-link")
+    first = load_robot(args.robot, getattr(args, "tip_link", None))
+    if not hasattr(first, "tip_link"):
+        raise CLIError(f"--sensor-link: needs a URDF robot (robot {first.name!r} has no links)")
+    tip = first.tip_link
+    if tip == sensor:
+        tip = first.base_link            # the sensor on the tool: a marker fixed in the cell, on the root
+    model = load_robot(args.robot, tip, sensor)
+    if not args.quiet:
+        print(f"robot {model.name}: the sensor on {sensor!r} measures a marker on {tip!r}"
+              + (" (fixed in the cell)" if tip == first.base_link else " (held by the tool)")
+              + f": {model.dof} joints between them", file=sys.stderr)
+    return model
+
+
 def common_arguments(p, robot=True):
     """The options every command takes (``--robot`` and its chain where it needs a robot)."""
     if robot:
         p.add_argument("--robot", required=True, help="shipped robot name or YAML/URDF path")
         p.add_argument("--tip-link", help="URDF robots: the link the chain ends in (the tool)")
-        p.add_argument("--base-link", help="URDF robots: the link the chain starts from (fixed to the root)")
+        p.add_argument("--base-link", help="URDF robots: the link the chain starts from (default: the root; a link "
+                                           "below joints runs them backwards, e.g. a foot's sole to a gripper)")
+        p.add_argument("--sensor-link", metavar="LINK",
+                       help="URDF robots: the measuring frame is on this robot link (a camera on the wrist or a head): "
+                            "the chain runs from it to the marker, held by the tool (--tip-link), or fixed in the cell "
+                            "when LINK is the tool itself; the sensor's placement on LINK is fitted as the registration")
     p.add_argument("--json", action="store_true", help="print one JSON document (SI units) on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return p

@@ -42,8 +42,16 @@ def write_calibrated_robot(model: Mechanism, cal: Calibration, out_dir) -> dict:
             raise CalibrationError("calibrated URDF: the robot was built from a string; give it a file")
         stem = Path(model.source).stem
         urdf = out_dir / f"{stem}_calibrated.urdf"
-        urdf.write_text(calibrated_urdf_text(model, Path(model.source).read_text(), cal.dx, cal.base))
-        files = {"urdf": str(urdf)}
+        base, files = cal.base, {}
+        if model._reversed[0] and np.any(base):
+            # a chain from a sensor's link against its first joint: no joint origin holds a correction of where the
+            # chain starts; it belongs with the sensor's placement on that link, which the calibration file carries
+            base = np.zeros(6)
+            files["note"] = (f"the calibrated URDF carries the joints' errors; the base correction (where the chain "
+                             f"starts on {model.base_link!r}: with the measuring frame's placement, the sensor's mount) "
+                             f"stays in the calibration file")
+        urdf.write_text(calibrated_urdf_text(model, Path(model.source).read_text(), cal.dx, base))
+        files["urdf"] = str(urdf)
         cfg = getattr(model, "config_path", None)
         data = read_yaml(cfg, CalibrationError) if cfg and Path(cfg).suffix in (".yaml", ".yml") else \
             {"name": model.name, "kind": "urdf"}
