@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -278,3 +279,32 @@ def link_offset(model, link, option="--target"):
         raise CLIError(f"{option}: link {link!r} moves against the tip link {model.tip_link!r} (a joint lies between "
                        f"them); a target is fixed to the tool")
     return places[0].tolist()
+
+
+def contact_specs(specs, option="--contact"):
+    """[(kind, id, where)] of ``--contact`` values: a plane's (unit normal, offset m), a point's (3,) m."""
+    import numpy as np
+    out = []
+    for spec in specs:
+        m = re.match(r"^(plane|point):([A-Za-z0-9_.\-]{1,100})=(.*)$", spec.strip())
+        if not m:
+            raise CLIError(f"{option}: expected plane:ID=NX,NY,NZ@OFFSET or point:ID=X,Y,Z, got {spec!r}")
+        kind, cid, rest = m.groups()
+        if kind == "point":
+            where = point_option(rest, option)
+            if where is None:
+                raise CLIError(f"{option}: point:{cid}: expected X,Y,Z with a unit on each, got {rest!r}")
+            out.append((kind, cid, np.array(where)))
+            continue
+        normal, at, offset = rest.partition("@")
+        try:
+            n = np.array([float(v) for v in normal.split(",")])
+        except ValueError:
+            n = np.zeros(0)
+        if not at or n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
+            raise CLIError(f"{option}: plane:{cid}: expected NX,NY,NZ@OFFSET (a normal of three numbers, an offset "
+                           f"with its unit, e.g. 0,0,1@300mm), got {rest!r}")
+        out.append((kind, cid, (n / np.linalg.norm(n), quantity(offset, "length", option, positive=False))))
+    if len({(k, i) for k, i, _ in out}) != len(out):
+        raise CLIError(f"{option}: each plane and point once")
+    return out

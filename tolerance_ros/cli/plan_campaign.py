@@ -6,7 +6,7 @@ from pathlib import Path
 
 from ..core.budget import load_budget
 from ..render.text import Progress, table
-from .common import CAPS, CLIError, joints_option, load_model, quantity
+from .common import CAPS, CLIError, contact_specs, joints_option, load_model, quantity, target_options
 
 NAME = "plan-campaign"
 HELP = "test poses that make the identification best conditioned"
@@ -62,6 +62,11 @@ def add_arguments(p):
     p.add_argument("--srdf", metavar="FILE",
                    help="link pairs not checked for self-collision (its disable_collisions; default: adjacent "
                         "links and those in contact at the zero configuration)")
+    p.add_argument("--contact", action="append", default=[], metavar="plane:ID=NX,NY,NZ@OFFSET|point:ID=X,Y,Z",
+                   help="plan contacts instead of tracker poses: the targets (--target) touch this plane or point (its "
+                        "nominal place, base frame); repeatable (docs/calibration.md, 'Without a tracker')")
+    p.add_argument("--target", action="append", default=[], metavar="NAME=X,Y,Z|NAME=link:LINK",
+                   help="with --contact: a target of the tool (tool frame, a unit on each); repeatable")
     p.add_argument("--out", metavar="FILE", help="campaign file to write (without it nothing is written, as allocate)")
     p.add_argument("--plot", metavar="DIR", help="write singular_values.png into DIR")
 
@@ -103,6 +108,48 @@ def run_path(args, model):
     return None
 
 
+def run_contacts(args, model):
+    """``--contact``: contacts that make the contact calibration well determined (``contact_planning``)."""
+    from ..core.calibration.contact_planning import plan_contacts
+    from ..core.calibration.planning import CRITERIA, REFERENCES, campaign_dict
+    if not args.contact or not args.target:
+        raise CLIError("--contact, --target: give both (the planes or points, and the targets of the tool that touch "
+                       "them)")
+    if args.candidates < args.n:
+        raise CLIError(f"--n: {args.n} contacts cannot be chosen from {args.candidates} candidates")
+    if args.n * args.candidates > MAX_WORK:
+        raise CLIError(f"--n x --candidates: {args.n} x {args.candidates} exceeds the cap of {MAX_WORK}")
+    specs = contact_specs(args.contact)
+    targets = target_options(args.target, model)
+    try:
+        pl = plan_contacts(model, specs, targets, args.n, args.candidates, args.criterion, args.seed)
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+    idx = CRITERIA[args.criterion]
+    which = "; ".join(f"C{i + 1} {c} with {t}" for i, (c, t) in enumerate(zip(pl.contact, pl.target)))
+    desc = (f"{args.n} contacts chosen by tolerance-ros plan-campaign: {idx} ({REFERENCES[idx]}) over {pl.candidates} "
+            f"candidates touching {', '.join(args.contact)} (seed {args.seed}), nominal robot and rig: {which}")
+    if args.out:
+        import yaml
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(f"# {desc}\n" + yaml.safe_dump(campaign_dict(model, pl.q, f"{model.name}_contacts",
+                                                                     args.cycles or 1, description=desc),
+                                                        sort_keys=False, default_flow_style=None, width=120))
+    if args.json:
+        return pl.to_dict() | {"robot": model.name, "campaign_file": args.out}
+    print(f"robot {model.name}: {args.n} contacts maximising {idx} ({REFERENCES[idx]}) over {pl.candidates} "
+          f"candidates; {len(pl.columns)} unknowns (parameters and rig), held: {', '.join(pl.held) or 'none'}")
+    rows = [[label, d.get("rank"), f"{d['O1'] * 1e3:.4g}", f"{d['O2']:.4g}", f"{d['O3'] * 1e3:.4g}",
+             f"{d['O4'] * 1e3:.4g}", f"{d['condition']:.4g}"]
+            for label, d in (("planned", pl.planned), ("random (median of 20)", pl.random))]
+    print(table(["contact set", "rank", "O1 mm", "O2", "O3 mm", "O4 mm", "condition"], rows))
+    print(table(["pose", "contact", "target"], [[f"C{i + 1}", c, t] for i, (c, t) in
+                                                enumerate(zip(pl.contact, pl.target))]))
+    print(f"wrote {args.out}" if args.out else "campaign not saved (give --out FILE.yaml to save it)")
+    return None
+
+
 def run(args):
     from ..core.calibration.planning import CRITERIA, REFERENCES, campaign_dict, plan
     from ..core.campaign import load_campaign
@@ -110,6 +157,8 @@ def run(args):
     model = load_model(args)
     if args.path:
         return run_path(args, model)
+    if args.contact or args.target:
+        return run_contacts(args, model)
     if args.cycles is None:
         args.cycles = 3
     for name in ("candidates", "cycles"):

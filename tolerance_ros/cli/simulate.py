@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import CLIError, load_model, point_option, quantity, relative
+from .common import CLIError, contact_specs, load_model, point_option, quantity, relative
 
 NAME = "simulate"
 HELP = "tracker measurements of a campaign on a simulated as-built robot, with the truth beside"
@@ -136,35 +136,6 @@ def _run_trajectory(args, model, delta, noise, out):
     return None
 
 
-def _contact_specs(specs):
-    """[(kind, id, where)] of ``--contact`` values: a plane's (unit normal, offset m), a point's (3,) m."""
-    import re
-    out = []
-    for spec in specs:
-        m = re.match(r"^(plane|point):([A-Za-z0-9_.\-]{1,100})=(.*)$", spec.strip())
-        if not m:
-            raise CLIError(f"--contact: expected plane:ID=NX,NY,NZ@OFFSET or point:ID=X,Y,Z, got {spec!r}")
-        kind, cid, rest = m.groups()
-        if kind == "point":
-            where = point_option(rest, "--contact")
-            if where is None:
-                raise CLIError(f"--contact: point:{cid}: expected X,Y,Z with a unit on each, got {rest!r}")
-            out.append((kind, cid, np.array(where)))
-            continue
-        normal, at, offset = rest.partition("@")
-        try:
-            n = np.array([float(v) for v in normal.split(",")])
-        except ValueError:
-            n = np.zeros(0)
-        if not at or n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
-            raise CLIError(f"--contact: plane:{cid}: expected NX,NY,NZ@OFFSET (a normal of three numbers, an offset "
-                           f"with its unit, e.g. 0,0,1@300mm), got {rest!r}")
-        out.append((kind, cid, (n / np.linalg.norm(n), quantity(offset, "length", "--contact", positive=False))))
-    if len({(k, i) for k, i, _ in out}) != len(out):
-        raise CLIError("--contact: each plane and point once")
-    return out
-
-
 def _run_contacts(args, model, delta, noise, out):
     """A contact campaign of the as-built robot (see ``core.accuracy.simulate.touch``) and its truth."""
     import json
@@ -176,7 +147,7 @@ def _run_contacts(args, model, delta, noise, out):
         raise CLIError("--contact: name the tool's points in contact with --target-offset NAME=X,Y,Z")
     if not 1 <= args.touches <= 10000:
         raise CLIError(f"--touches: expected 1 to 10000, got {args.touches}")
-    specs = _contact_specs(args.contact)
+    specs = contact_specs(args.contact)
     targets = _targets(args.target_offset)
     dx = as_built_errors(delta, args.seed, args.errors)
     rows = {"q": [], "target": [], "contact": [], "pose": []}

@@ -146,3 +146,17 @@ def test_one_bad_contact_is_rejected_and_named(fanuc):
     cc = calibrate_contacts(fanuc, data, NOMINAL, parameters="full", prior=None, sigma=NOISE, folds=4)
     assert [r["where"] for r in cc.rejected] == ["line 20"]
     assert cc.fit.rms() < 1.5 * NOISE
+
+
+def test_planned_contacts_are_better_determined_than_random_ones_and_touch_their_rig(fanuc):
+    from tolerance_ros.core.calibration.contact_planning import plan_contacts
+    specs = [("plane", f"p{c}", (np.array(n), d)) for c, (n, d) in enumerate(PLANES)]
+    pl = plan_contacts(fanuc, specs, {"A": NOMINAL[0]}, 30, candidates=600, seed=1)
+    assert pl.planned["rank"] == pl.planned["unknowns"] == len(pl.columns)
+    assert pl.planned["O1"] > pl.random["O1"] and pl.planned["condition"] < pl.random["condition"]
+    assert "joint_4.x" in pl.held and "joint_1.offset" in pl.held     # the scale; a motion of the rig
+    T = fanuc.fk(pl.q)
+    P = T[:, :3, 3] + T[:, :3, :3] @ NOMINAL[0]
+    for (kind, cid, (n, d)) in specs:
+        rows = [i for i, c in enumerate(pl.contact) if c == f"plane:{cid}"]
+        assert rows and np.abs(P[rows] @ n - d).max() < 1e-9
