@@ -88,16 +88,16 @@ def test_simulate_contact_options_are_checked(capsys, tmp_path):
 
 
 def test_plan_campaign_for_contacts_writes_the_planned_postures(capsys, tmp_path):
-    argv = ["plan-campaign", "--robot", URDF, "--target", "A=0mm,0mm,100mm", "--n", 12, "--candidates", 300,
+    argv = ["plan-campaign", "--robot", URDF, "--target", "A=0mm,0mm,100mm", "--n", 36, "--candidates", 300,
             "--out", tmp_path / "c.yaml", "--quiet"]
     for p in PLANES:
         argv += ["--contact", p]
     code, out, err = run(capsys, *argv, "--json")
     assert code == 0, err
     doc = json.loads(out)
-    assert doc["poses"] == 12 and set(doc["contacts"]) <= {"plane:floor", "plane:wall", "plane:side"}
+    assert doc["poses"] == 36 and set(doc["contacts"]) <= {"plane:floor", "plane:wall", "plane:side"}
     assert doc["observability"]["planned"]["condition"] < doc["observability"]["random"]["condition"]
     camp = yaml.safe_load((tmp_path / "c.yaml").read_text())
-    assert len(camp["poses"]) == 12 and "plane:" in camp["description"]
+    assert len(camp["poses"]) == 36 and "plane:" in camp["description"]
     code, _, err = run(capsys, "plan-campaign", "--robot", URDF, "--contact", PLANES[0], "--quiet")
     assert code == 2 and "give both" in err
