@@ -103,12 +103,12 @@ def run(args):
                       robust=not args.no_robust, prior=prior_option(args.prior),
                       registration_prior=prior_option(args.registration_prior, "--registration-prior"),
                       folds=args.folds, seed=args.seed, payload=payload)
-    from ..core.accuracy.io.contact_csv import is_contact_csv
-    if is_contact_csv(args.measurements):
+    from ..core.accuracy.io.contact_csv import is_contact_campaign
+    if is_contact_campaign(args.measurements):
         return run_contacts(args, model, opts, key)
     if args.target:
-        raise CLIError("--target: for contact campaigns (a CSV with a contact column); a tracker's targets are fitted "
-                       "with --registration base+tool")
+        raise CLIError("--target: for contact campaigns (a CSV with a contact column, or a campaign log with contact "
+                       "events); a tracker's targets are fitted with --registration base+tool")
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     log_sha256 = file_sha256(args.measurements)
@@ -153,7 +153,7 @@ def run(args):
 
 def run_contacts(args, model, opts, key):
     """``calibrate`` on a contact campaign (``core.calibration.contact_campaign``)."""
-    from ..core.accuracy.io.contact_csv import read_contacts
+    from ..core.accuracy.io.contact_csv import read_contact_campaign
     from ..core.calibration.calibrated_robot import write_calibrated_robot
     from ..core.calibration.calibration_file import save_calibration
     from ..core.calibration.contact_campaign import calibrate_campaign
@@ -164,8 +164,8 @@ def run_contacts(args, model, opts, key):
                        "(the rig is fitted with the parameters; contacts have no orientation)")
     if args.parameters not in ("auto", "joint-offsets", "full"):
         raise CLIError(f"--parameters {args.parameters}: contact campaigns identify auto, joint-offsets or full")
-    offsets = target_options(args.target, model)
-    contacts = read_contacts(args.measurements, model.joint_names, model.joint_types, skip_bad=args.skip_bad)
+    contacts, logged = read_contact_campaign(args.measurements, model.joint_names, model.joint_types, args.skip_bad)
+    offsets = {k: v for k, v in logged.items() if v is not None} | target_options(args.target, model)
     prog = Progress("calibrate (cross-validating the candidates)", not args.quiet)
     cal = calibrate_campaign(model, contacts, offsets, args.parameters, opts.prior, opts.sigma_position, args.folds,
                              args.seed, opts.robust, prog)

@@ -40,12 +40,12 @@ def run(args):
             raise CLIError("--tip-link, --base-link: give them with --robot")
         model = calibration_robot(args.calibration)
     cal = load_calibration(args.calibration, model)
-    from ..core.accuracy.io.contact_csv import is_contact_csv
-    if is_contact_csv(args.measurements):
+    from ..core.accuracy.io.contact_csv import is_contact_campaign
+    if is_contact_campaign(args.measurements):
         return run_contacts(args, model, cal)
     if cal.registration == "contact":
         raise CLIError(f"--measurements: {args.calibration} was made from contacts; give a contact campaign (a CSV with "
-                       f"a contact column) of another session")
+                       f"a contact column, or a log with contact events) of another session")
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     res = predict_measurements(cal, model, meas, args.reregister, campaign, robust=not args.no_robust)
@@ -94,12 +94,12 @@ def run(args):
 def run_contacts(args, model, cal):
     """``validate`` on a contact campaign: its planes and points refitted, the calibration's model and targets held
     (``core.calibration.contact_campaign.validate_campaign``)."""
-    from ..core.accuracy.io.contact_csv import read_contacts
+    from ..core.accuracy.io.contact_csv import read_contact_campaign
     from ..core.calibration.contact_campaign import validate_campaign
     if args.campaign or args.reregister:
         raise CLIError("contact campaigns: --campaign and --reregister do not apply (the session's planes and points are "
                        "always refitted)")
-    contacts = read_contacts(args.measurements, model.joint_names, model.joint_types, skip_bad=args.skip_bad)
+    contacts, _ = read_contact_campaign(args.measurements, model.joint_names, model.joint_types, args.skip_bad)
     res = validate_campaign(cal, model, contacts, robust=not args.no_robust)
     res["calibration"] = str(args.calibration)
     res["skipped_rows"] = contacts.skipped

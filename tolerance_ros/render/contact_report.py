@@ -5,17 +5,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..core.calibration.contact_campaign import contact_fit
 from ..core.jsonio import dumps
 
 
 def contact_document(cal) -> dict:
     """The JSON document of a contact calibration (SI)."""
     doc = cal.to_dict()
-    doc["fit"]["contact_rms_m"] = cal.position_rms
-    doc["fit"]["contact_max_m"] = cal.position_max
-    doc["fit"]["noise_m"] = cal.sigma
-    doc["fit"].pop("position_rms_m", None)
-    doc["fit"].pop("position_max_m", None)
+    doc["fit"] = contact_fit(cal)
     doc["contact"] = {"rig": cal.model.get("rig"), "held_why": cal.model.get("held_why"),
                       "undetermined_rig": cal.model.get("undetermined_rig"),
                       "nominal_targets_m": cal.model.get("nominal_targets"),

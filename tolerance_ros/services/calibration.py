@@ -11,6 +11,10 @@ Request (on ``tolerance/calibrate/request``, std_msgs/String JSON; the shape of 
      "time_limit": 300}
     {"id": ..., "command": "status"}, {"id": ..., "command": "cancel", "target": <id of a job>}
 
+A log of contacts (``tolerance/contact`` requests latched by the monitor, or a contact CSV) is calibrated from
+contact (``core.calibration.contact_campaign``): ``"targets": {"A": [x, y, z]}`` (m, tool frame) gives the targets'
+nominal places where the logged requests did not; its validation figures are ``contact_rms_m``.
+
 Answers: ``{"status": "accepted", "queued": n}`` at once, progress on ``.../progress``, then ``{"status":
 "done", "success": true|false, "robot", "measurements", "model", "validation": {before, after, improvement},
 "plausibility", "rejected", "repeatability", "calibration_file"}``. A calibration that the plausibility checks
@@ -38,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.accuracy.io import MeasurementError, read_measurements
+from ..core.accuracy.io.contact_csv import is_contact_campaign, read_contact_campaign
 from ..core.calibration.calibrate import MODELS, PRIOR, FitOptions, calibrate_measurements
 from ..core.calibration.envelope import Envelope
 from ..core.calibration.provenance import file_sha256, new_provenance
@@ -52,7 +57,7 @@ FIELDS = {"command": ((str,), False), "robot": ((str,), False), "log": ((str,), 
           "registration": ((str,), False), "parameters": ((str,), False), "prior": ((list, type(None)), False),
           "noise": ((int, float), False), "orientation_noise": ((int, float, type(None)), False),
           "folds": ((int,), False), "seed": ((int,), False), "robust": ((bool,), False),
-          "time_limit": ((int, float), False), "target": ((str, int), False)}
+          "time_limit": ((int, float), False), "target": ((str, int), False), "targets": ((dict,), False)}
 PARAMETERS = ("auto",) + MODELS
 
 
@@ -74,6 +79,7 @@ class CalibrationJob:
     seed: int = 0
     robust: bool = True
     time_limit_s: float = DEFAULT_TIME_LIMIT_S
+    targets: dict | None = None     # contact logs: {target: (3,) m in the tool frame}, beside the logged ones
 
 
 MAX_NAME_CHARS = 255     # characters of one part of a log's path (the file systems' own limit)
@@ -146,12 +152,20 @@ def parse_calibrate_request(text, robots, limits: Limits, current_log=None, max_
     onoise = req.get("orientation_noise")
     time_limit = number(req.get("time_limit", min(DEFAULT_TIME_LIMIT_S, max_time_limit_s)), "time_limit",
                         MIN_TIME_LIMIT_S, max_time_limit_s)
+    targets = req.get("targets")
+    if targets is not None:
+        if len(targets) > 20:
+            raise ContractError("invalid_request", "targets: at most 20")
+        for k, v in targets.items():
+            if not isinstance(v, list) or len(v) != 3:
+                raise ContractError("invalid_request", f"targets.{str(k)[:40]}: expected [x, y, z] (m, tool frame)")
+            targets[k] = tuple(number(c, f"targets.{str(k)[:40]}", -5.0, 5.0) for c in v)
     return CalibrationJob(req["id"], name, model, log, window, registration, parameters, prior,
                           number(req.get("noise", 1e-5), "noise", 1e-9, 1.0),
                           None if onoise is None else number(onoise, "orientation_noise", 1e-12, 1.0),
                           int(number(req.get("folds", 10), "folds", 2, 100, integer=True)),
                           int(number(req.get("seed", 0), "seed", 0, 2 ** 31, integer=True)),
-                          bool(req.get("robust", True)), time_limit)
+                          bool(req.get("robust", True)), time_limit, targets)
 
 
 def run_calibration(job: CalibrationJob, progress=None, made_by="tolerance_ros calibrate service", snapshot=None):
@@ -163,6 +177,8 @@ def run_calibration(job: CalibrationJob, progress=None, made_by="tolerance_ros c
         Path(snapshot).parent.mkdir(parents=True, exist_ok=True)
         log = str(shutil.copyfile(log, snapshot))
     log_sha256 = file_sha256(log)
+    if is_contact_campaign(log):
+        return _run_contacts(job, log, log_sha256, progress, made_by)
     meas = read_measurements(log, joint_names=job.mechanism.joint_names, skip_bad=True)
     if job.window is not None:
         keep = (meas.stamps >= job.window[0]) & (meas.stamps <= job.window[1])
@@ -183,6 +199,35 @@ def run_calibration(job: CalibrationJob, progress=None, made_by="tolerance_ros c
             "fit": cal.fit_dict(), "plausibility": cal.plausibility, "rejected": cal.rejected,
             "suspect": cal.suspect, "warnings": cal.warnings, "repeatability": cal.repeatability,
             "provenance": dict(cal.provenance)}
+    return resp, cal
+
+
+def _run_contacts(job: CalibrationJob, log, log_sha256, progress, made_by):
+    """``run_calibration`` of a log of contacts (``core.calibration.contact_campaign``): the targets' offsets from
+    the request, else from the contact requests logged."""
+    from ..core.calibration.contact_campaign import calibrate_campaign, contact_fit
+    if job.registration != "base" or job.orientation_noise is not None or job.parameters not in (
+            "auto", "joint-offsets", "full"):
+        raise ContractError("invalid_request", "a log of contacts: registration, orientation_noise do not apply and "
+                                               "parameters is auto, joint-offsets or full")
+    model = job.mechanism
+    contacts, logged = read_contact_campaign(log, model.joint_names, model.joint_types, skip_bad=True)
+    if job.window is not None:
+        keep = (contacts.stamps >= job.window[0]) & (contacts.stamps <= job.window[1])
+        if not keep.any():
+            raise MeasurementError(f"window: no contact of {job.log} is stamped in [{job.window[0]:.9g}, "
+                                   f"{job.window[1]:.9g}] s")
+        contacts = contacts.select(keep)
+    offsets = {k: v for k, v in logged.items() if v is not None} | dict(job.targets or {})
+    cal = calibrate_campaign(model, contacts, offsets, job.parameters, job.prior, job.noise, job.folds, job.seed,
+                             job.robust, progress)
+    cal.sources.update(measurements=job.log)
+    cal.provenance = new_provenance(made_by, log=log, log_sha256=log_sha256, request_id=job.id)
+    resp = {"id": job.id, "ok": True, "status": "done", "success": bool(cal.plausibility["ok"]), "robot": job.robot,
+            "measurements": cal.measurements, "skipped": len(contacts.skipped), "model": cal.model,
+            "validation": {k: v for k, v in cal.validation.items() if k != "distances_m"},
+            "fit": contact_fit(cal), "plausibility": cal.plausibility, "rejected": cal.rejected,
+            "warnings": cal.warnings, "provenance": dict(cal.provenance)}
     return resp, cal
 
 

@@ -11,6 +11,7 @@ late reader's queue or a network lost, or a publisher never sent) are a warning 
 """
 from __future__ import annotations
 
+import json
 import re
 import time
 from collections import deque
@@ -63,7 +64,9 @@ class MonitorLogic:
         self.pending = deque()                    # (seq, stamp, T, arrival, target index)
         self.seq = 0
         self.counts = {"received": 0, "paired": 0, "unpaired": 0, "rejected": 0, "joint_states": 0,
-                       "joint_states_rejected": 0, "not_judged": 0}
+                       "joint_states_rejected": 0, "not_judged": 0, "contacts": 0}
+        self.contacts = 0                         # contact requests latched (the seq of their log events)
+        self._state_arrival = -np.inf             # clock() when the newest joint state arrived
         self.check = StreamCheck(model)
         topic = "measured_pose" if self.orientation else "measured_point"
         self.streams = ["joint_states"] + [f"{topic}/{n}" if n else topic for n in self.targets.names]
@@ -139,7 +142,46 @@ class MonitorLogic:
         self.counts["joint_states"] += 1
         self.gaps["joint_states"].add(t, received)
         self.states.add(t, q)
+        self._state_arrival = self.clock()
         return self.resolve()
+
+    def on_contact(self, text) -> dict:
+        """A ``tolerance/contact`` request (JSON text, ``CONTACT_FIELDS``): the tool's targets touch a plane or a
+        point now; the newest joint state (no older than ``max_wait`` s) is latched into the campaign log, one
+        ``contact`` event per target. Returns the answer: ``{"ok": true, "rows", "stamp", "joints"}`` or ``{"ok":
+        false, "error": code, "message"}``; never raises."""
+        try:
+            req = parse_contact(text)
+        except ValueError as exc:
+            return {"ok": False, "error": "invalid_request", "message": str(exc)}
+        rid = req.get("id")
+        if not len(self.states):
+            return {"id": rid, "ok": False, "error": "no_joint_state",
+                    "message": "no joint state received yet: nothing to latch"}
+        age = self.clock() - self._state_arrival
+        if age > self.max_wait:
+            return {"id": rid, "ok": False, "error": "stale_joint_state",
+                    "message": f"the newest joint state arrived {age:.3g} s ago (more than max_wait {self.max_wait:g} "
+                               f"s): the joint states stopped, nothing latched"}
+        k = len(self.states) - 1
+        stamp, q = float(self.states.stamps[k]), np.array(self.states.q[k], float)   # the newest stamp
+        beyond = self.check.joint_problem(q)
+        if beyond:
+            return {"id": rid, "ok": False, "error": "invalid_joint_state",
+                    "message": f"the joint state cannot be this robot's: {beyond}"}
+        offsets = req["targets"]
+        for name, off in offsets.items():
+            if off is None and name in self._target_index:
+                X = self.targets.X[self._target_index[name]]
+                offsets[name] = [float(v) for v in X[:3, 3]]
+        for name, off in offsets.items():
+            self._write({"event": "contact", "seq": self.contacts, "stamp": stamp, "contact": req["contact"],
+                         "session": req["session"], "target": name, "offset_m": off, "pose": req.get("pose"),
+                         "joint_names": list(self.model.joint_names), "joints": [float(v) for v in q]})
+        self.contacts += 1
+        self.counts["contacts"] += len(offsets)
+        return {"id": rid, "ok": True, "rows": len(offsets), "stamp": stamp, "joints": [float(v) for v in q],
+                "contact": req["contact"], "session": req["session"], "logged": self.log is not None}
 
     def on_pose(self, stamp, frame_id, position, quaternion=None, target="", received=None) -> list:
         """A measured pose (position m, quaternion x y z w; None for a measured point, and ignored when the
@@ -358,6 +400,56 @@ def monitor_targets(measurement: str, names: str, offsets) -> Targets:
     if np.abs(off).max(initial=0.0) > 5.0:
         raise ValueError("target_offsets: a target more than 5 m from the tool frame (metres expected)")
     return Targets.from_offsets(listed, off.reshape(-1, 3), frames=measurement == "pose")
+
+
+CONTACT = re.compile(r"^(plane|point):[A-Za-z0-9_.\-]{1,100}$")
+MAX_CONTACT_TARGETS = 20
+
+
+def parse_contact(text) -> dict:
+    """The fields of a ``tolerance/contact`` request: ``{"contact": "plane:table1", "targets": ["A", "B"] or {"A":
+    [x, y, z] (m, tool frame)}, "session": "s1", "pose": optional name, "id": optional}``; targets as
+    {name: offset or None}. ValueError naming the field."""
+    if not isinstance(text, str) or len(text) > 10_000:
+        raise ValueError("request: expected JSON text of at most 10000 characters")
+    def constant(c):
+        raise ValueError(f"{c} is not a number")
+    try:
+        req = json.loads(text, parse_constant=constant)
+    except ValueError as exc:
+        raise ValueError(f"request: not valid JSON ({str(exc)[:80]})") from None
+    if not isinstance(req, dict):
+        raise ValueError("request: expected a JSON object")
+    unknown = sorted(set(req) - {"contact", "targets", "session", "pose", "id"})
+    if unknown:
+        raise ValueError(f"request: unknown field(s) {unknown[:5]}; a contact has contact, targets, session, pose, id")
+    contact = req.get("contact")
+    if not isinstance(contact, str) or not CONTACT.match(contact):
+        raise ValueError("contact: expected 'plane:ID' or 'point:ID' (ID of letters, digits, _ . -)")
+    session = req.get("session", "")
+    pose = req.get("pose")
+    for field, v in (("session", session), ("pose", pose)):
+        if v is not None and (not isinstance(v, str) or len(v) > 100 or any(ord(c) < 32 or c == "," for c in v)):
+            raise ValueError(f"{field}: expected a name of at most 100 printable characters without commas")
+    targets = req.get("targets")
+    if isinstance(targets, list):
+        targets = {t: None for t in targets} if len(set(map(str, targets))) == len(targets) else None
+    if not isinstance(targets, dict) or not 1 <= len(targets) <= MAX_CONTACT_TARGETS:
+        raise ValueError(f"targets: expected 1 to {MAX_CONTACT_TARGETS} distinct names, or {{name: [x, y, z]}} (m, "
+                         f"tool frame)")
+    out = {}
+    for name, off in targets.items():
+        if not isinstance(name, str) or not name or len(name) > 100 or any(ord(c) < 32 or c == "," for c in name):
+            raise ValueError("targets: a name of at most 100 printable characters without commas")
+        if off is not None:
+            if not isinstance(off, list) or len(off) != 3 or not all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in off):
+                raise ValueError(f"targets.{name}: expected [x, y, z] (three finite numbers, m)")
+            if max(abs(v) for v in off) > 5.0:
+                raise ValueError(f"targets.{name}: more than 5 m from the tool frame (metres expected)")
+            off = [float(v) for v in off]
+        out[name] = off
+    return {"contact": contact, "targets": out, "session": session, "pose": pose, "id": req.get("id")}
 
 
 def tracker_frame(T_tracker_base) -> tuple:

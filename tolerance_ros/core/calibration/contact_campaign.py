@@ -161,6 +161,15 @@ def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=Non
     return cal
 
 
+def contact_fit(cal: Calibration) -> dict:
+    """The ``fit`` block of a contact calibration: the calibration's, its distances named as contact figures (m)."""
+    out = cal.fit_dict()
+    out.pop("position_rms_m", None)
+    out.pop("position_max_m", None)
+    out.update(contact_rms_m=cal.position_rms, contact_max_m=cal.position_max, noise_m=cal.sigma)
+    return out
+
+
 def calibrate_campaign(model: Mechanism, contacts, offsets: dict, parameters="auto", prior=None, sigma=1e-5,
                        folds=10, seed=0, robust=True, progress=None) -> Calibration:
     """``calibration_of`` the contact campaign ``contacts`` after the checks of ``contact_data`` and

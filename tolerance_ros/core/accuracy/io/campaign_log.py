@@ -60,7 +60,7 @@ def read_log(path, skip_bad=False) -> Measurements:
                 if ev == "start":
                     session += 1
                     continue
-                if ev in ("budget", "calibration"):
+                if ev in ("budget", "calibration", "contact"):   # contacts: ``contact_csv.read_contact_log``
                     continue
                 if ev not in ("measurement", "paired", "unpaired"):
                     raise MeasurementError(f"event: expected start, budget, calibration, measurement, paired or "

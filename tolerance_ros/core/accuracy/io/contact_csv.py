@@ -65,6 +65,84 @@ class Contacts:
         return f"line {int(self.lines[i])}"
 
 
+def is_contact_campaign(path) -> bool:
+    """True for a contact campaign: a CSV with a ``contact`` column, or a campaign log with ``contact`` events."""
+    p = Path(path)
+    if p.suffix.lower() in (".jsonl", ".log") and p.is_file():
+        with open(p, encoding="utf-8", errors="surrogateescape") as fh:
+            for _, line in _lines(fh):
+                if line is not None and '"event": "contact"' in line.replace('"event":"contact"', '"event": "contact"'):
+                    return True
+        return False
+    return is_contact_csv(p)
+
+
+def read_contact_campaign(path, joint_names, joint_types=None, skip_bad=False) -> tuple:
+    """(Contacts, {target: (3,) m or None}) of a contact CSV (no offsets in it: {}) or a campaign log (the
+    offsets its contact requests carried)."""
+    if Path(path).suffix.lower() in (".jsonl", ".log"):
+        return read_contact_log(path, joint_names, skip_bad)
+    return read_contacts(path, joint_names, joint_types, skip_bad), {}
+
+
+def read_contact_log(path, joint_names, skip_bad=False) -> tuple:
+    """(Contacts, {target: offset (3,) m or None}) of the ``contact`` events of the accuracy monitor's campaign log
+    (``services.monitor.MonitorLogic.on_contact``); other events are not read. A malformed contact event is an
+    error naming its line, or with ``skip_bad`` is listed in ``skipped``."""
+    import json
+    p = Path(path)
+    if not p.is_file():
+        raise MeasurementError(f"{path}: {not_a_file(p)}")
+    src = str(path)
+    joint_names = tuple(joint_names)
+    rows, skipped, offsets = [], [], {}
+    with open(p, encoding="utf-8", errors="surrogateescape") as fh:
+        for lineno, line in _lines(fh):
+            if line is None or '"contact"' not in line:
+                continue
+            try:
+                rec = json.loads(line)
+                if not isinstance(rec, dict) or rec.get("event") != "contact":
+                    continue
+                names, joints = rec.get("joint_names"), rec.get("joints")
+                if not isinstance(names, list) or not isinstance(joints, list) or len(names) != len(joints):
+                    raise MeasurementError("joint_names, joints: expected two lists of one length")
+                by = dict(zip(names, joints))
+                missing = [j for j in joint_names if j not in by]
+                if missing:
+                    raise MeasurementError(f"joints: no value for joint(s) {missing} of the robot")
+                q = [_number(repr(by[j]) if isinstance(by[j], (int, float)) else str(by[j]), f"joint:{j}")
+                     for j in joint_names]
+                contact = rec.get("contact")
+                if not isinstance(contact, str) or not _CONTACT.match(contact):
+                    raise MeasurementError(f"contact: expected plane:ID or point:ID, got {_show(str(contact))}")
+                target = _name(str(rec.get("target", "")), "target")
+                if not target:
+                    raise MeasurementError("target: empty")
+                off = rec.get("offset_m")
+                if off is not None:
+                    off = [_number(repr(v) if isinstance(v, (int, float)) else str(v), "offset_m") for v in off]
+                    if len(off) != 3:
+                        raise MeasurementError("offset_m: expected [x, y, z]")
+                if offsets.get(target) is None:
+                    offsets[target] = off
+                stamp = _number(repr(rec.get("stamp")), "stamp")
+                rows.append((stamp, _name(str(rec.get("pose") or ""), "pose"), _name(str(rec.get("session") or ""),
+                                                                                     "session"),
+                             target, contact, q, lineno))
+            except (MeasurementError, ValueError) as exc:
+                if not skip_bad:
+                    raise MeasurementError(f"{src}, line {lineno}: {exc}") from None
+                skipped.append({"line": lineno, "reason": str(exc)})
+    if not rows:
+        raise MeasurementError(f"{src}: no contact events")
+    out = Contacts(src, np.array([r[0] for r in rows]), np.array([r[1] for r in rows], dtype=object),
+                   np.array([r[2] for r in rows], dtype=object), np.array([r[3] for r in rows], dtype=object),
+                   np.array([r[4] for r in rows], dtype=object), np.array([r[5] for r in rows], float), joint_names,
+                   np.array([r[6] for r in rows]), [], skipped)
+    return out, offsets
+
+
 def is_contact_csv(path) -> bool:
     """True when ``path`` is a CSV file whose header has a ``contact`` column."""
     p = Path(path)

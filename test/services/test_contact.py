@@ -1,0 +1,114 @@
+"""Contacts on the graph, ROS-free: the monitor latches the joint state of a ``tolerance/contact`` request into its
+campaign log, and the calibrate service fits that log (calibration from contact, no tracker)."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tolerance_ros.core.accuracy.io.contact_csv import is_contact_campaign, read_contact_log
+from tolerance_ros.core.accuracy.io.campaign_log import read_log
+from tolerance_ros.core.accuracy.simulate import as_built_errors, touch
+from tolerance_ros.core.calibration.calibration_file import calibration_from_text
+from tolerance_ros.services.calibration import CalibrationService
+from tolerance_ros.services.monitor import MonitorLogic
+from tolerance_ros.services.robots import RobotSet
+
+URDF = Path(__file__).resolve().parents[1] / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf"
+PLANES = [("floor", (0, 0, 1.0), 0.3), ("wall", (1.0, 0, 0), 1.7), ("side", (0, 1.0, 0), -0.9)]
+TOOL = [0.012, -0.006, 0.11]
+
+
+class Clock:
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        return self.t
+
+
+@pytest.fixture(scope="module")
+def robots():
+    return RobotSet([str(URDF)], str(URDF))
+
+
+def monitor(model, path, clock):
+    return MonitorLogic(model, None, None, slop=0.01, max_wait=0.5, log_path=path, clock=clock, orientation=False)
+
+
+def test_a_contact_request_latches_the_newest_joint_state_into_the_log(robots, tmp_path):
+    model = robots.select(None)[1]
+    clock = Clock()
+    mon = monitor(model, tmp_path / "log.jsonl", clock)
+    bad = mon.on_contact(json.dumps({"contact": "plane:t", "targets": ["A"]}))
+    assert not bad["ok"] and bad["error"] == "no_joint_state"
+    q = np.array([0.1, -0.2, 0.3, 0.4, -0.5, 0.6])
+    mon.on_joint_state(10.0, list(model.joint_names)[::-1] + ["gripper"], list(q[::-1]) + [0.02])
+    mon.on_joint_state(9.0, list(model.joint_names), list(q + 1.0))     # older stamp, arriving later: not latched
+    ans = mon.on_contact(json.dumps({"id": 7, "contact": "plane:table1", "targets": {"A": TOOL, "B": [0, 0, 0.1]},
+                                     "session": "s1", "pose": "P1"}))
+    assert ans["ok"] and ans["rows"] == 2 and ans["stamp"] == 10.0 and np.allclose(ans["joints"], q)
+    clock.t = 2.0
+    stale = mon.on_contact(json.dumps({"contact": "plane:table1", "targets": ["A"]}))
+    assert not stale["ok"] and stale["error"] == "stale_joint_state" and "nothing latched" in stale["message"]
+    mon.close()
+    contacts, offsets = read_contact_log(tmp_path / "log.jsonl", model.joint_names)
+    assert is_contact_campaign(tmp_path / "log.jsonl") and len(contacts) == 2
+    assert list(contacts.target) == ["A", "B"] and set(contacts.contact) == {"plane:table1"}
+    assert np.allclose(contacts.joints, q) and offsets == {"A": TOOL, "B": [0.0, 0.0, 0.1]}
+    assert mon.counts["contacts"] == 2
+
+
+@pytest.mark.parametrize("text, words", [
+    ("not json", "not valid JSON"),
+    ('{"contact": "line:x", "targets": ["A"]}', "contact: expected"),
+    ('{"contact": "plane:t", "targets": []}', "targets: expected 1 to 20"),
+    ('{"contact": "plane:t", "targets": {"A": [0, 0, NaN]}}', "NaN is not a number"),
+    ('{"contact": "plane:t", "targets": {"A": [0, 0, 100]}}', "more than 5 m"),
+    ('{"contact": "plane:t", "targets": ["A"], "speed": 1}', "unknown field"),
+    ('{"contact": "plane:t", "targets": ["A", "A"]}', "distinct names"),
+    ('[1, 2]', "expected a JSON object"),
+])
+def test_a_bad_contact_request_is_answered_with_the_field_and_the_monitor_goes_on(robots, tmp_path, text, words):
+    model = robots.select(None)[1]
+    mon = monitor(model, tmp_path / "log.jsonl", Clock())
+    mon.on_joint_state(1.0, list(model.joint_names), [0.0] * 6)
+    ans = mon.on_contact(text)
+    assert not ans["ok"] and ans["error"] == "invalid_request" and words in ans["message"]
+    assert mon.on_contact(json.dumps({"contact": "point:p", "targets": ["A"]}))["ok"]
+
+
+def test_the_calibrate_service_fits_the_contacts_the_monitor_logged(robots, tmp_path):
+    model = robots.select(None)[1]
+    dx = as_built_errors(np.array([1e-4 if k == "length" else 5e-4 for k in model.param_kinds]), 3)
+    clock = Clock()
+    log = tmp_path / "log.jsonl"
+    mon = monitor(model, log, clock)
+    stamp = 0.0
+    for c, (name, n, d) in enumerate(PLANES):
+        for q in touch(model, dx, TOOL, "plane", (np.array(n), d), 30, seed=[4, c], noise=1e-5):
+            stamp += 1.0
+            mon.on_joint_state(stamp, list(model.joint_names), list(q))
+            assert mon.on_contact(json.dumps({"contact": f"plane:{name}", "targets": ["A"], "session": "s1"}))["ok"]
+    mon.close()
+    with pytest.raises(Exception, match="no paired measurements"):
+        read_log(log)                        # a log of contacts has no tracker measurements to read
+    out = []
+    svc = CalibrationService(robots, lambda kind, doc: out.append((kind, doc)), current_log=lambda: str(log))
+    try:
+        svc.handle(json.dumps({"id": "c1", "log": "current", "targets": {"A": [0, 0, 0.1]}, "folds": 5}))
+        import time
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not any(k == "response" and d.get("status") == "done" for k, d in out):
+            time.sleep(0.05)
+        resp = next(d for k, d in out if k == "response" and d.get("status") == "done")
+    finally:
+        svc.close()
+    from tolerance_ros.testing.schemas import validator
+    validator("calibrate.response").validate(json.loads(json.dumps(resp)))
+    v = resp["validation"]
+    assert resp["success"] and resp["measurements"] == 90
+    assert v["after"]["contact_rms_m"] < 2e-5 < 2e-4 < v["before"]["contact_rms_m"]
+    put = [d for k, d in out if k == "calibration"]
+    cal = calibration_from_text(put[0]["text"], model)
+    assert cal.registration == "contact" and np.allclose(cal.targets.offsets[0], TOOL, atol=2e-4)
