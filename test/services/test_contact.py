@@ -112,3 +112,15 @@ def test_the_calibrate_service_fits_the_contacts_the_monitor_logged(robots, tmp_
     put = [d for k, d in out if k == "calibration"]
     cal = calibration_from_text(put[0]["text"], model)
     assert cal.registration == "contact" and np.allclose(cal.targets.offsets[0], TOOL, atol=2e-4)
+
+
+def test_a_camera_on_a_robot_link_measures_in_that_links_frame(tmp_path):
+    """A chain from the wrist (eye in hand) to the base: a PoseStamped must name the wrist's link as its frame."""
+    from tolerance_ros.core.models.urdf import URDFChain
+    model = URDFChain(URDF, tip_link="base_link", base_link="flange")
+    mon = MonitorLogic(model, None, None, slop=0.01, max_wait=0.5, clock=Clock())
+    mon.on_joint_state(1.0, list(model.joint_names), [0.1] * 6)
+    mon.on_pose(1.0, "camera_optical", (0.5, 0.1, 0.9), (0, 0, 0, 1))
+    assert mon.counts["rejected"] == 1 and "sensor is on the robot link 'flange'" in mon.last_reasons[-1]
+    mon.on_pose(1.0, "flange", (0.5, 0.1, 0.9), (0, 0, 0, 1))
+    assert mon.counts["rejected"] == 1 and mon.counts["received"] == 2

@@ -9,6 +9,9 @@ targets' offsets come from parameters or from a calibration file. The robot may 
 ``robot_description``. The same streams feed the path monitor (``services.path_monitor``, parameter
 ``path_monitor``): when a motion of the robot ends it publishes the ISO 9283 path figures of its path on
 ``tolerance/path_report`` (std_msgs/String, JSON, SI) and a second /diagnostics status against the budget.
+A ``tolerance/contact`` request (std_msgs/String JSON, ``services.monitor.parse_contact``) latches the newest joint
+state into the campaign log as contacts with a plane or a point (calibration without a tracker); the answer is on
+``tolerance/contact/result``.
 
 The calibrate service (``services.calibration``) reads only logs under ``log_dir``, stamps each calibration
 with its provenance (made by this node, from a log of known SHA-256), signs it with ``signing_key`` when one
@@ -40,8 +43,8 @@ from ..services.jobs import Outbox
 from ..core.units import parse_quantity
 from ..services.monitor import WARN, MonitorLogic, monitor_targets, tracker_frame
 from ..services.path_monitor import PathMonitor
-from .common import (BUDGET_QOS, CALIBRATE_TOPIC, CALIBRATION_TOPIC, LATCHED_QOS, MEASUREMENT_QOS, PREFIX,
-                     SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, calibration_gate, calibration_in_force,
+from .common import (BUDGET_QOS, CALIBRATE_TOPIC, CALIBRATION_TOPIC, CONTACT_TOPIC, LATCHED_QOS, MEASUREMENT_QOS,
+                     PREFIX, SERVICE_REQUEST_QOS, SERVICE_RESPONSE_QOS, STATUS_QOS, calibration_gate, calibration_in_force,
                      declare, follow_robot, guarded, require_packages, robot_set, run, status_name)
 
 MARKER_TYPES = {"sphere": Marker.SPHERE, "arrow": Marker.ARROW, "text": Marker.TEXT_VIEW_FACING}
@@ -136,6 +139,8 @@ class AccuracyMonitor(Node):
         self.create_subscription(String, f"{CALIBRATE_TOPIC}/request", guarded(self, self.on_calibrate_request),
                                  SERVICE_REQUEST_QOS)
         self.create_subscription(String, CALIBRATION_TOPIC, guarded(self, self.on_calibration), LATCHED_QOS)
+        self.contact_pub = self.create_publisher(String, f"{CONTACT_TOPIC}/result", SERVICE_RESPONSE_QOS)
+        self.create_subscription(String, CONTACT_TOPIC, guarded(self, self.on_contact), SERVICE_REQUEST_QOS)
         self.create_timer(0.05, guarded(self, self.flush_calibrate_outbox))
         self.calibration_text = None
         follow_robot(self, self.robots, self.start, check=self.files_for)
@@ -299,6 +304,13 @@ class AccuracyMonitor(Node):
     def current_log(self):
         """The campaign log being written (what a calibrate request's ``"log": "current"`` means)."""
         return None if self.logic is None or self.logic.log is None else self.logic.log.name
+
+    def on_contact(self, msg):
+        """A ``tolerance/contact`` request: the joint state latched into the campaign log (``MonitorLogic.on_contact``),
+        the answer on ``tolerance/contact/result``."""
+        answer = (self.logic.on_contact(msg.data) if self.logic is not None else
+                  {"ok": False, "error": "not_ready", "message": "the robot is not known yet (robot_description)"})
+        self.contact_pub.publish(String(data=dumps_fast(answer)))
 
     def on_calibrate_request(self, msg):
         self.calibrator.handle(msg.data)

@@ -51,6 +51,7 @@ PREFIX = "tolerance"  # relative: under the node's namespace
 JACOBIAN_TOPIC = f"{PREFIX}/compute_error_jacobian"
 ALLOCATE_TOPIC = f"{PREFIX}/allocate_tolerances"
 CALIBRATE_TOPIC = f"{PREFIX}/calibrate"
+CONTACT_TOPIC = f"{PREFIX}/contact"     # requests to latch the joint state as a contact (calibration from contact)
 CALIBRATION_TOPIC = "tolerance_calibration"  # latched: the calibration in force (a calibration file's text, SI)
 
 

@@ -58,6 +58,8 @@ class MonitorLogic:
         self.targets = targets if targets is not None else Targets.at_tool(frames=self.orientation)
         self._target_index = {n: k for k, n in enumerate(self.targets.names)}
         self.pose_tolerance = pose_tolerance
+        # a chain from a link moved by joints (a camera on the wrist or a head): its measurements name that link
+        self.sensor_link = model.base_link if getattr(model, "base_moves", False) else None
         self.clock = clock
         self.states = StateBuffer(model.dof, state_buffer)
         self.joint_order = JointOrder(model.joint_names)
@@ -204,6 +206,9 @@ class MonitorLogic:
             rec["stamp"] = t = stamp_seconds(stamp)
             if not frame_ok:
                 raise IngestError("frame_id: not UTF-8 text (a lone surrogate); written to the log escaped")
+            if self.sensor_link is not None and frame != self.sensor_link:
+                raise IngestError(f"frame_id: {frame!r}; the sensor is on the robot link {self.sensor_link!r} (the "
+                                  f"chain's base, moved by joints) and measures in its frame")
             if quaternion is None and self.orientation:
                 raise IngestError("orientation: missing (the monitor measures poses)")
             T = pose_from_values(position, quaternion if quaternion is not None else (0.0, 0.0, 0.0, 1.0))
