@@ -178,8 +178,9 @@ def _run_contacts(args, model, delta, noise, out):
     doc = {"measurements": str(out), "truth": str(truth_path), "rig": str(rig_path), "rows": n, "noise_m": noise}
     if args.json:
         return doc
-    print(f"wrote {out}: {n} contacts of {len(targets.names)} target(s) with {len(specs)} plane(s) and point(s), "
-          f"session {args.session}")
+    planes = sum(k == "plane" for k, _, _ in specs)
+    print(f"wrote {out}: {n} contacts of {len(targets.names)} target(s) with {planes} plane(s) and "
+          f"{len(specs) - planes} point(s), session {args.session}")
     print(f"wrote {truth_path}: the as-built errors and the targets (calibration format); {rig_path}: the rig")
     return None
 

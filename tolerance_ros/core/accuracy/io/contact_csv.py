@@ -282,6 +282,7 @@ def _row(fields, spec, lineno):
 def write_contacts(path, stamps, pose, session, target, contact, joints, joint_names, joint_types=None, comments=()):
     """Write a contact campaign: joints (n, dof) in rad (m for the prismatic ones of ``joint_types``)."""
     p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
     types = joint_types or ("revolute",) * len(joint_names)
     lines = [f"# {c}" for c in comments]
     lines.append(",".join(["stamp[s]", "pose", "session", "target", "contact"] + [
