@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from tolerance_ros.testing.fuzz_corpus import (ENCODINGS, NESTED_ID, PAYLOADS, UNKNOWN, allocate_request, budget_messages, encode,
                          expected_id, jacobian_request, joint_states, measured_poses, must_refuse, names_twice,
-                         readers, urdf_text)
+                         json_values, readers, urdf_text)
 from helpers import example_urdf
 from tolerance_ros.testing.schemas import validator
 from tolerance_ros.core import interrupt
@@ -263,3 +263,28 @@ def test_the_joint_state_source_gives_a_finite_state_at_every_finite_time(gao, t
     from tolerance_ros.services.joint_source import JointStateSequence
     step, _, q, _ = JointStateSequence(gao, "random", count=5, dwell=0.5, loop=t > 0).at(t)
     assert 0 <= step < 5 and np.isfinite(q).all()
+
+
+
+@pytest.fixture(scope="module")
+def contact_monitor(gao):
+    """A monitor with a joint state to latch, on a clock that stands still (the state never goes stale)."""
+    from tolerance_ros.services.monitor import MonitorLogic
+    mon = MonitorLogic(gao, None, None, clock=lambda: 0.0)
+    mon.on_joint_state(1.0, list(gao.joint_names), [0.1] * gao.dof)
+    return mon
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=list(HealthCheck), database=None)
+@given(doc=st.dictionaries(st.sampled_from(["contact", "targets", "session", "pose", "id", "speed"]),
+                           st.one_of(json_values(), st.sampled_from(["plane:t", "point:p1", "plane:", "line:x"]),
+                                     st.lists(st.sampled_from(["A", "B", "", "A,B", "\x00"]), max_size=4),
+                                     st.dictionaries(st.sampled_from(["A", "B"]),
+                                                     st.lists(st.floats(allow_nan=True), max_size=4)))),
+       raw=st.sampled_from(["json", "json", "text"]))
+def test_every_contact_request_is_latched_or_answered_with_a_code(contact_monitor, doc, raw):
+    """Mutated tolerance/contact requests: each latches rows or is answered invalid_request with the field; the
+    monitor keeps taking requests (a valid one afterwards is latched)."""
+    ans = contact_monitor.on_contact(json.dumps(doc) if raw == "json" else str(doc))
+    assert ans["ok"] or (ans["error"] == "invalid_request" and ans["message"]), ans
+    assert contact_monitor.on_contact('{"contact": "plane:t", "targets": ["A"]}')["ok"]

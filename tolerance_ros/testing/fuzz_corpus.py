@@ -545,6 +545,18 @@ def _build_readers():
     def measurements_ok(m):
         assert np.isfinite(m.T).all() and np.isfinite(m.stamps).all()
 
+    from tolerance_ros.core.accuracy.io.contact_csv import read_contacts, write_contacts
+    import tempfile
+    from pathlib import Path
+    with tempfile.TemporaryDirectory() as tmp:
+        q = gao.sample_joints(6, 3)
+        contact_csv = write_contacts(Path(tmp) / "c.csv", np.arange(6.0), [f"P{i}" for i in range(6)], ["s1"] * 6,
+                                     ["A", "B"] * 3, ["plane:t", "point:p"] * 3, q, gao.joint_names,
+                                     gao.joint_types, ["contacts"]).read_bytes()
+
+    def contacts_ok(c):
+        assert np.isfinite(c.joints).all() and np.isfinite(c.stamps).all() and c.joints.shape[1] == gao.dof
+
     def campaign_ok(c):
         try:
             q = c.joints_for(gao)
@@ -566,4 +578,6 @@ def _build_readers():
         Reader("calibration", ".yaml", yaml_file(_calibration_doc(gao)),
                lambda p: load_calibration(p, gao).mechanism(gao), CalibrationError, finite_model, "yaml"),
         Reader("measurement CSV", ".csv", csv_file(csv), read_csv, MeasurementError, measurements_ok, "csv"),
+        Reader("contact CSV", ".csv", csv_file(contact_csv),
+               lambda p: read_contacts(p, gao.joint_names, gao.joint_types), MeasurementError, contacts_ok, "csv"),
     ]}
