@@ -101,3 +101,9 @@ def test_plan_campaign_for_contacts_writes_the_planned_postures(capsys, tmp_path
     assert len(camp["poses"]) == 36 and "plane:" in camp["description"]
     code, _, err = run(capsys, "plan-campaign", "--robot", URDF, "--contact", PLANES[0], "--quiet")
     assert code == 2 and "give both" in err
+
+
+def test_report_on_a_contact_campaign_says_what_it_is(capsys, tmp_path):
+    simulate(capsys, tmp_path / "s1.csv", PLANES[:1], "s1", touches=5)
+    code, _, err = run(capsys, "report", "--robot", URDF, "--measurements", tmp_path / "s1.csv")
+    assert code == 2 and "a contact campaign" in err and "calibrate and validate read it" in err

@@ -148,6 +148,10 @@ class _Spec:
 def _spec_from_header(header, source):
     cols = _parse_header(header, source)
     unknown = [c for c in cols if c not in _KNOWN and not c.startswith("joint:")]
+    if "contact" in unknown and "x" not in cols:
+        raise MeasurementError(f"{source}: a contact campaign (its contact column), not measured poses: calibrate and "
+                               f"validate read it (calibration without a tracker, docs/calibration.md); report and "
+                               f"path-report need a tracker's measurements")
     if unknown:
         raise MeasurementError(f"{source}: column {unknown[0]!r} is not a measurement column (known: "
                                f"{', '.join(_KNOWN)}, joint:<name>); convert a file with columns of its own with "
