@@ -127,7 +127,6 @@ def against_scipy(tmp):
 
 
 def main():
-    from tolerance_ros.core.models.urdf import URDFChain  # noqa: F401 (pinocchio present)
     from tolerance_ros.testing.example_robots import example_urdf
     print(f"machine: {machine()}, {load_average()}\n")
     ok = []
