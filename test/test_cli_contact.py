@@ -107,3 +107,18 @@ def test_report_on_a_contact_campaign_says_what_it_is(capsys, tmp_path):
     simulate(capsys, tmp_path / "s1.csv", PLANES[:1], "s1", touches=5)
     code, _, err = run(capsys, "report", "--robot", URDF, "--measurements", tmp_path / "s1.csv")
     assert code == 2 and "a contact campaign" in err and "calibrate and validate read it" in err
+
+
+def test_simulate_flush_writes_the_targets_of_a_posture_as_rows_of_one_stamp_and_pose(capsys, tmp_path):
+    code, _, err = run(capsys, "simulate", "--robot", URDF, "--tolerances", "uniform:0.1mm,0.5mrad", "--contact",
+                       PLANES[0], "--target-offset", "A=0mm,0mm,100mm", "--target-offset", "B=30mm,0mm,100mm",
+                       "--flush", "--touches", 5, "--out", tmp_path / "f.csv", "--quiet")
+    assert code == 0, err
+    from tolerance_ros.core.accuracy.io.contact_csv import read_contacts
+    from tolerance_ros.core.models.urdf import URDFChain
+    model = URDFChain(URDF)
+    c = read_contacts(tmp_path / "f.csv", model.joint_names)
+    assert len(c) == 10 and list(c.target[:2]) == ["A", "B"] and c.pose[0] == c.pose[1] and c.stamps[0] == c.stamps[1]
+    T = model.fk(c.joints[:2])      # nominal: both on the floor within the as-built errors
+    heights = [(T[i, :3, 3] + T[i, :3, :3] @ off)[2] for i, off in enumerate(([0, 0, 0.1], [0.03, 0, 0.1]))]
+    assert np.allclose(heights, 0.3, atol=2e-3)

@@ -56,6 +56,9 @@ def add_arguments(p):
     p.add_argument("--touches", type=int, default=20,
                    help="with --contact: postures per target and contact (default 20)")
     p.add_argument("--session", default="s1", help="with --contact: the session the rig belongs to (default s1)")
+    p.add_argument("--flush", action="store_true",
+                   help="with --contact: the targets touch a plane all at once (fingertips flush on a table), one "
+                        "posture for all of them, instead of one at a time")
     p.add_argument("--errors", choices=["uniform", "extreme", "normal"], default="uniform",
                    help="how the as-built errors are drawn within the tolerances (default uniform)")
     p.add_argument("--seed", type=int, default=0, help="seed of the as-built robot and the noise (default 0)")
@@ -150,24 +153,32 @@ def _run_contacts(args, model, delta, noise, out):
     specs = contact_specs(args.contact)
     targets = _targets(args.target_offset)
     dx = as_built_errors(delta, args.seed, args.errors)
-    rows = {"q": [], "target": [], "contact": [], "pose": []}
+    rows = {"q": [], "target": [], "contact": [], "pose": [], "stamp": []}
     for c, (kind, cid, where) in enumerate(specs):
-        for k, name in enumerate(targets.names):
+        flush = args.flush and kind == "plane" and len(targets.names) > 1
+        groups = [(list(range(len(targets.names))), "all")] if flush else [([k], n) for k, n in
+                                                                         enumerate(targets.names)]
+        for g, (ks, label) in enumerate(groups):
             try:
-                q = touch(model, dx, targets.offsets[k], kind, where, args.touches,
-                          seed=[args.seed, c, k, sum(map(ord, args.session))], noise=noise)
+                q = touch(model, dx, targets.offsets[ks], kind, where, args.touches,
+                          seed=[args.seed, c, g, int(flush), sum(map(ord, args.session))], noise=noise)
             except ValueError as exc:
-                raise CLIError(f"--contact {kind}:{cid}, target {name}: {exc}") from None
-            rows["q"].append(q)
-            rows["target"] += [name] * len(q)
-            rows["contact"] += [f"{kind}:{cid}"] * len(q)
-            rows["pose"] += [f"{args.session}-{kind}-{cid}-{name}-{i + 1}" for i in range(len(q))]
-    q = np.concatenate(rows["q"])
+                raise CLIError(f"--contact {kind}:{cid}, target(s) {', '.join(targets.names[k] for k in ks)}: {exc}") \
+                    from None
+            for i, qi in enumerate(q):        # the targets of a flush contact: rows of one stamp and pose
+                stamp = float(len(rows["stamp"]) and rows["stamp"][-1] + 1.0)
+                for k in ks:
+                    rows["q"].append(qi)
+                    rows["target"].append(targets.names[k])
+                    rows["contact"].append(f"{kind}:{cid}")
+                    rows["pose"].append(f"{args.session}-{kind}-{cid}-{label}-{i + 1}")
+                    rows["stamp"].append(stamp)
+    q = np.array(rows["q"])
     n = len(q)
     comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
-               f"seed {args.seed}) touching " + ", ".join(args.contact) + f"; contact noise {args.noise}; truth in "
-               f"{out.stem}.truth.yaml and {out.stem}.rig.json")
-    write_contacts(out, np.arange(n, dtype=float), rows["pose"], [args.session] * n, rows["target"], rows["contact"], q,
+               f"seed {args.seed}) touching " + ", ".join(args.contact) + f"{' (flush)' if args.flush else ''}; contact "
+               f"noise {args.noise}; truth in {out.stem}.truth.yaml and {out.stem}.rig.json")
+    write_contacts(out, np.array(rows["stamp"]), rows["pose"], [args.session] * n, rows["target"], rows["contact"], q,
                    model.joint_names, model.joint_types, [comment])
     truth_path = _truth(args, model, dx, np.eye(4), noise, out, n, n, targets, "contact", False, " touching the rig")
     rig = {"session": args.session, "targets": {nm: list(map(float, o)) for nm, o in zip(targets.names, targets.offsets)},

@@ -14,7 +14,7 @@ def contact_document(cal) -> dict:
     doc = cal.to_dict()
     doc["fit"] = contact_fit(cal)
     doc["contact"] = {"rig": cal.model.get("rig"), "held_why": cal.model.get("held_why"),
-                      "undetermined_rig": cal.model.get("undetermined_rig"),
+                      "undetermined_rig": cal.model.get("undetermined_rig"), "rig_held": cal.model.get("rig_held"),
                       "nominal_targets_m": cal.model.get("nominal_targets"),
                       "nominal_fit_targets_m": cal.model.get("nominal_fit_targets")}
     return doc

@@ -174,16 +174,18 @@ def path_streams(model: Mechanism, jp, dx=None, T_tracker_base=None, joint_rate:
                        true_times=tt, true_points=true, T_tracker_base=A, latency=latency, dx=dx, noise=noise)
 
 
-def touch(model: Mechanism, dx, offset, kind, where, n, seed=0, noise=0.0, spread=None):
-    """(n, dof) joints at which the as-built robot (``dx``) puts the target at ``offset`` (3,) m of its tool
-    frame on a plane or point, found by Newton steps of least joint change from seeded postures within the
-    limits (ValueError when fewer than ``n`` of them reach it within the limits). ``kind`` 'plane' with
-    ``where`` = (unit normal (3,), offset d m): ``n . P = d + e``; 'point' with ``where`` (3,) m: ``P = c + e``;
-    ``e`` a seeded normal error of std ``noise`` m (one per row, per axis for a point). ``spread``: (3,) m, a
-    plane's contacts are drawn from postures whose target lies within this box of the plane's nearest point
-    to the base (default: anywhere the postures reach)."""
+def touch(model: Mechanism, dx, offset, kind, where, n, seed=0, noise=0.0):
+    """(n, dof) joints at which the as-built robot (``dx``) puts its target at ``offset`` (3,) m of its tool frame
+    on a plane or a point, or its several targets ``offset`` (K, 3) on one plane at once (flush, as fingertips on
+    a table), found by damped Newton steps of least joint change from seeded postures within the limits
+    (ValueError when fewer than ``n`` of them reach it within the limits). ``kind`` 'plane' with ``where`` =
+    (unit normal (3,), offset d m): ``n . P = d + e``; 'point' with ``where`` (3,) m: ``P = c + e``; ``e`` a
+    seeded normal error of std ``noise`` m (per target and row, per axis for a point)."""
     rng = np.random.default_rng(seed)
-    offset = np.asarray(offset, float)
+    offsets = np.asarray(offset, float).reshape(-1, 3)
+    K = len(offsets)
+    if kind == "point" and K != 1:
+        raise ValueError("point contact: one target at a time (several cannot be at one point)")
     cols = model.joint_columns()
     sign = model.joint_direction
     out = []
@@ -191,32 +193,34 @@ def touch(model: Mechanism, dx, offset, kind, where, n, seed=0, noise=0.0, sprea
     while sum(len(o) for o in out) < n and tries < 40:
         tries += 1
         q = model.sample_joints(max(20 * n, 200), rng)
+        m = len(q)
         if kind == "plane":
             normal, d = np.asarray(where[0], float), float(where[1])
-            e = rng.standard_normal(len(q)) * noise
+            e = rng.standard_normal((m, K)) * noise
         else:
             c = np.asarray(where, float)
-            e = rng.standard_normal((len(q), 3)) * noise
-        for _ in range(30):
+            e = rng.standard_normal((m, 3)) * noise
+
+        def misfit(q):
             T, EJ = model.fk_and_jacobian(q, dx)
-            arms = np.einsum("nij,j->ni", T[:, :3, :3], offset)
-            P = T[:, :3, 3] + arms
-            Jq = (EJ.J[:, :3, cols] - np.cross(arms[:, :, None], EJ.J[:, 3:, cols], axis=1)) * sign
-            if kind == "plane":
-                f = P @ normal - d - e
-                g = np.einsum("i,nij->nj", normal, Jq)
-                q = q - (f / np.maximum(np.einsum("nj,nj->n", g, g), 1e-300))[:, None] * g
-            else:
-                f = P - c - e
-                A = Jq @ Jq.transpose(0, 2, 1) + 1e-6 * np.eye(3)   # damped least squares: no jump at a singularity
-                q = q - np.einsum("nji,nj->ni", Jq, np.linalg.solve(A, f[:, :, None])[:, :, 0])
-        T = model.fk(q, dx)
-        P = T[:, :3, 3] + np.einsum("nij,j->ni", T[:, :3, :3], offset)
-        miss = np.abs(P @ normal - d - e) if kind == "plane" else np.linalg.norm(P - c - e, axis=1)
-        ok = (miss < 1e-9) & ~model.out_of_limits(q).any(axis=1)
-        if kind == "plane" and spread is not None:
-            foot = normal * d
-            ok &= np.all(np.abs(P - foot) <= np.asarray(spread, float), axis=1)
+            rows, jac = [], []
+            for k in range(K):
+                arms = T[:, :3, :3] @ offsets[k]
+                P = T[:, :3, 3] + arms
+                Jq = (EJ.J[:, :3, cols] - np.cross(arms[:, :, None], EJ.J[:, 3:, cols], axis=1)) * sign
+                if kind == "plane":
+                    rows.append((P @ normal - d - e[:, k])[:, None])
+                    jac.append(np.einsum("i,nij->nj", normal, Jq)[:, None])
+                else:
+                    rows.append(P - c - e)
+                    jac.append(Jq)
+            return np.concatenate(rows, axis=1), np.concatenate(jac, axis=1)
+        for _ in range(30):
+            f, Jc = misfit(q)
+            A = Jc @ Jc.transpose(0, 2, 1) + 1e-6 * np.eye(f.shape[1])   # damped: no jump at a singularity
+            q = q - np.einsum("nji,nj->ni", Jc, np.linalg.solve(A, f[:, :, None])[:, :, 0])
+        f, _ = misfit(q)
+        ok = (np.abs(f).max(axis=1) < 1e-9) & ~model.out_of_limits(q).any(axis=1)
         out.append(q[ok])
     q = np.concatenate(out) if out else np.zeros((0, model.dof))
     if len(q) < n:

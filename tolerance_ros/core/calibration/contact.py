@@ -314,6 +314,7 @@ class ContactFit:
     condition: float = float("nan")
     undetermined_rig: list = field(default_factory=list)
     threshold: np.ndarray | None = None
+    rig_held: list = field(default_factory=list)
 
     @property
     def dx(self) -> np.ndarray:
@@ -404,8 +405,18 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
 
     J0, _, _ = _stack(base_model, data, np.zeros(layout.n), ref, layout)
     why = {}
+    rig_cols = np.flatnonzero(~held[p:]) + p
+    rig_held = []
+    if len(rig_cols):
+        # the rig's own directions the contacts cannot see (a target's shift along the plane it touches flush, a
+        # common height that is the plane's offset) are held where they were put: free, a fit would drift along
+        # them into degenerate solutions (``_unseen_rig``)
+        names = layout.names(model, data)
+        for j in _unseen_rig(J0, rig_cols, rig_cols >= layout.g.start, sigma):
+            held[j] = True
+            rig_held.append(names[j])
     if fixed is None:
-        why = _hold_scale(model, held)
+        why.update(_hold_scale(model, held))
     cand = np.flatnonzero(~held[:p])
     nuisance = np.flatnonzero(~held[p:]) + p
     if len(cand) and fixed is None:
@@ -460,7 +471,7 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
     cov = np.zeros((layout.n, layout.n))
     cov[np.ix_(free, free)] = Hinv * np.outer(sf, sf) * noise ** 2
     out = ContactFit(layout, ref, x, [model.param_names[j] for j in np.flatnonzero(held[:p])], why, rejected, noise,
-                     cov, conv, dist, threshold=threshold)
+                     cov, conv, dist, threshold=threshold, rig_held=rig_held)
     if analysis:
         lam, V = np.linalg.eigh(Jf.T @ Jf) if len(free) else (np.zeros(0), np.zeros((0, 0)))
         top = lam.max() if lam.size else 0.0
@@ -483,6 +494,37 @@ class _Fixed:
 
     def fk_and_jacobian(self, q, dx=None, jacobian=True):
         return self.model.fk_and_jacobian(q, self.dx, jacobian)
+
+
+UNSEEN = 0.1   # a rig unknown the contacts determine worse than this share of its scale (1 mm, 1 mrad) is held
+
+
+def _unseen_rig(J, cols, keep_first, sigma) -> list:
+    """The rig columns to hold, in the order held: while one of ``cols`` has a standard deviation beyond ``UNSEEN``
+    of its scale (the rig alone fitted to rows of noise ``sigma``, m, at nominal: infinite in an exact null
+    direction, large where only the robot's own errors tilt a flush tool), the worst is held, a target's before a
+    plane's or point's (``keep_first`` marks those). Free, such a direction lets a fit drift far: fingertips
+    flush on a table, their places along it free, are moved onto one point, where a single contact per posture
+    is fitted exactly by the robot's many parameters (a zero residual, a degenerate calibration)."""
+    A = J[:, cols] * SCALE_WITHOUT_BUDGET / sigma
+    free = list(range(len(cols)))
+    out = []
+    while free:
+        H = A[:, free].T @ A[:, free]
+        lam, V = np.linalg.eigh(H)
+        top = max(lam[-1], 1e-300)
+        inv = np.where(lam > 1e-12 * top, 1.0 / np.where(lam > 0, lam, 1.0), np.inf)
+        with np.errstate(invalid="ignore"):
+            var = np.where(np.abs(V) > 1e-9, V ** 2, 0.0) @ np.where(np.isinf(inv), 1e300, inv)
+        worst = np.sqrt(var)
+        if worst.max() <= UNSEEN:
+            break
+        order = np.lexsort((-worst, np.asarray(keep_first)[free]))   # targets first, then the largest spread
+        bad = [i for i in order if worst[i] > UNSEEN]
+        k = free[bad[0]]
+        out.append(cols[k])
+        free.remove(k)
+    return out
 
 
 def _robust_sigma(dist, plane) -> float:
@@ -670,6 +712,9 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
     if cv["rows_scored"] < len(data):
         warnings.append(f"{len(data) - cv['rows_scored']} row(s) could not be scored held out (their plane or point "
                         f"touched from too few poses outside their fold)")
+    if final.rig_held:
+        warnings.append("held where given (contact cannot see them): " + ", ".join(final.rig_held)
+                        + "; a target's place along the plane it touches flush, or its height beside the plane's offset")
     if final.undetermined_rig:
         warnings.append("the contacts do not determine " + ", ".join(final.undetermined_rig)
                         + " (left at their nominal or first estimate)")

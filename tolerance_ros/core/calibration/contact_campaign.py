@@ -130,7 +130,7 @@ def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=Non
                  "nominal_targets": {n: list(map(float, o)) for n, o in zip(data.target_names, nominal)},
                  "nominal_fit_targets": {n: list(map(float, o)) for n, o in zip(data.target_names,
                                                                                 cc.nominal.rig.offsets)},
-                 "undetermined_rig": list(f.undetermined_rig)}
+                 "undetermined_rig": list(f.undetermined_rig), "rig_held": list(f.rig_held)}
     cal.validation = cc.validation
     cal.rejected = list(cc.rejected)
     cal.warnings = list(cc.warnings)
