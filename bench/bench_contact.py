@@ -10,8 +10,8 @@ Three campaigns, each run as a user runs it (`tolerance-ros simulate --contact`,
   with its planes refitted; beside it scipy's least_squares (Levenberg-Marquardt, tolerances 1e-15) on the same
   objective and unknowns, from the same start: its cost over ours and its time;
 - whole body: TALOS (example-robot-data) from the left foot's sole through the leg, the torso and the arm to
-  the gripper (15 joints, 105 parameters), three fingertips on a table, two sessions (the shape of FIGAROH's
-  real set).
+  the gripper (15 joints, 105 parameters), three fingertips flush on a table (60 postures), two sessions (the
+  shape of FIGAROH's real set).
 
 Exits 1 when a calibration does not reduce the held-out contact RMS, or the other session is not predicted
 better than by the nominal robot, or scipy finds a lower cost than ours by more than 1e-9 of it.
@@ -49,9 +49,9 @@ def run(*argv):
     return code, out.getvalue()
 
 
-def contacts(robot, out, specs, targets, touches, session, chain=(), tolerances="uniform:0.1mm,0.5mrad"):
+def contacts(robot, out, specs, targets, touches, session, chain=(), tolerances="uniform:0.1mm,0.5mrad", flush=False):
     argv = ["simulate", "--robot", robot, *chain, "--tolerances", tolerances, "--touches", touches,
-            "--session", session, "--out", out, "--json", "--quiet"]
+            "--session", session, "--out", out, "--json", "--quiet"] + (["--flush"] if flush else [])
     for s in specs:
         argv += ["--contact", s]
     for t in targets:
@@ -142,11 +142,12 @@ def main():
         nominal = ["F1=0mm,0mm,-100mm", "F2=30mm,0mm,-100mm", "F3=0mm,30mm,-100mm"]
         for label, robot, specs, specs2, targets, given, touches, ch in (
                 ("FANUC, tip on three planes", FANUC, planes, moved, ["A=12mm,-6mm,110mm"], ["A=0mm,0mm,100mm"], 40, ()),
-                ("TALOS sole to gripper, 3 fingertips on a table", talos, ["plane:table=0,0,1@900mm"],
-                 ["plane:table=0,0.02,1@850mm"], fingers, nominal, 40, chain)):
+                ("TALOS sole to gripper, 3 fingertips flush on a table", talos, ["plane:table=0,0,1@900mm"],
+                 ["plane:table=0,0.02,1@850mm"], fingers, nominal, 60, chain)):
             stem = "planes" if robot == FANUC else "talos"
-            contacts(robot, tmp / f"{stem}1.csv", specs, targets, touches, "s1", ch)
-            contacts(robot, tmp / f"{stem}2.csv", specs2, targets, touches // 2, "s2", ch)
+            flush = robot != FANUC
+            contacts(robot, tmp / f"{stem}1.csv", specs, targets, touches, "s1", ch, flush=flush)
+            contacts(robot, tmp / f"{stem}2.csv", specs2, targets, touches // 2, "s2", ch, flush=flush)
             doc, code, seconds = calibrate(robot, tmp / f"{stem}1.csv", tmp / f"{stem}_cal", given, ch)
             v = doc["validation"]
             other, vcode = validate(robot, tmp / f"{stem}_cal" / "calibration.yaml", tmp / f"{stem}2.csv", ch)
