@@ -313,8 +313,8 @@ def test_every_subscription_is_fuzzed(error_model, allocator, monitor, tracker, 
     assert error_model.topics() == ["joint_states", "tolerance/compute_error_jacobian/request", "tolerance_budget",
                                     "tolerance_calibration"]
     assert allocator.topics() == ["tolerance/allocate_tolerances/request"]
-    assert monitor.topics() == ["joint_states", "measured_pose", "tolerance/calibrate/request", "tolerance_budget",
-                                "tolerance_calibration"]
+    assert monitor.topics() == ["joint_states", "measured_pose", "tolerance/calibrate/request", "tolerance/contact",
+                                "tolerance_budget", "tolerance_calibration"]
     assert tracker.topics() == ["joint_states"]
     assert source.topics() == []
     assert compensator.topics() == ["joint_trajectory_in", "tolerance_calibration"]
@@ -589,6 +589,24 @@ def test_monitor_answers_every_calibrate_request(monitor, text):
     calibrate_answers(monitor)
     for msg in monitor.take("tolerance/calibrate/progress"):
         loads_strict(msg.data)
+
+
+@FUZZ
+@given(text=request_texts(st.fixed_dictionaries({}, optional={
+    "contact": st.one_of(st.sampled_from(["plane:table", "point:p1", "plane:", "line:x"]), scalars()),
+    "targets": st.one_of(st.lists(st.sampled_from(["A", "B", "", "\x00"]), max_size=3), json_values(),
+                         st.dictionaries(st.sampled_from(["A", "B"]), st.lists(st.floats(allow_nan=True), max_size=4))),
+    "session": st.one_of(st.text(max_size=8), scalars()), "pose": json_values(), "id": st.sampled_from(ODD_IDS),
+    "zz": scalars()})))
+def test_monitor_answers_every_contact_request(monitor, text):
+    """Each tolerance/contact request is answered once on tolerance/contact/result: latched, or refused with a code
+    (the monitor goes on)."""
+    monitor.call("tolerance/contact", String(data=text))
+    answers = monitor.take("tolerance/contact/result")
+    assert len(answers) == 1
+    doc = json.loads(answers[0].data)
+    assert doc["ok"] or (doc["error"] in ("invalid_request", "no_joint_state", "stale_joint_state",
+                                          "invalid_joint_state", "not_ready") and doc["message"]), doc
 
 
 @CALIBRATION_FUZZ
