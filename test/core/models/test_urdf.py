@@ -386,18 +386,21 @@ def test_a_chain_runs_either_way_through_the_tree_as_pinocchio_says(name, base, 
             Tp = _between(_perturbed_xml(text, joint, field, h), base, tip, chain, q)
             Tm = _between(_perturbed_xml(text, joint, field, -h), base, tip, chain, q)
         assert np.allclose(J[:, :, c], pose_difference(Tp, Tm) / (2 * h), atol=1e-7), pname
-    dx = np.random.default_rng(1).standard_normal(chain.n_params) * 1e-3
-    T1, J1 = chain.fk_and_jacobian(q, dx)
-    chain.backend = "numpy"
-    T2, J2 = chain.fk_and_jacobian(q, dx)
-    assert np.allclose(T1, T2, atol=1e-13) and np.allclose(J1.J, J2.J, atol=1e-12)
+    rng = np.random.default_rng(1)
+    for dx in (rng.standard_normal(chain.n_params) * 1e-3, rng.standard_normal((len(q), chain.n_params)) * 1e-3):
+        chain.backend = "numba" if chain.compiled and pytest.importorskip("numba") else "numpy"
+        T1, J1 = chain.fk_and_jacobian(q, dx)
+        chain.backend = "numpy"
+        T2, J2 = chain.fk_and_jacobian(q, dx)
+        assert np.allclose(T1, T2, atol=1e-13) and np.allclose(J1.J, J2.J, atol=1e-12)
 
 
-def test_a_chain_against_a_joint_names_its_direction_and_runs_on_numpy():
+def test_a_chain_against_a_joint_names_its_direction_and_has_a_compiled_kernel():
     chain = URDFChain(example_urdf("talos_reduced.urdf"), tip_link="gripper_left_base_link", base_link="left_sole_link")
     assert chain.joint_names[:6] == tuple(f"leg_left_{k}_joint" for k in range(6, 0, -1))
     assert chain._reversed[:6].all() and not chain._reversed[6:].any() and chain.base_moves
-    assert chain.backend == "numpy"
+    pytest.importorskip("numba")
+    assert chain.backend == "numba"
     with pytest.raises(ModelError, match="not moved against base_link"):
         URDFChain(example_urdf("talos_reduced.urdf"), tip_link="arm_left_2_link", base_link="arm_left_2_link")
 

@@ -30,7 +30,7 @@ from numba.extending import intrinsic
 
 from .jit import NO_DX, NO_J, njit
 
-__all__ = ["BLOCK", "NO_DX", "NO_J", "SINCOS_LIMIT", "dh_chain", "sincos", "urdf_chain", "warm_up"]
+__all__ = ["BLOCK", "NO_DX", "NO_J", "SINCOS_LIMIT", "dh_chain", "sincos", "urdf_chain", "urdf_either_way", "warm_up"]
 """What ``base.CompiledChain`` and the tests read from this module (``NO_DX`` and ``NO_J``: the kernels' empty
 arrays, read here so that ``base`` imports no numba)."""
 
@@ -528,6 +528,165 @@ def _urdf_rows(flat, k, dof, lines, revolute, stream):
 
 
 
+@njit
+def _rot(out, a0, a1, a2, angle):
+    """out (3, 3) = the rotation by ``angle`` (rad) about the unit axis (a0, a1, a2) (Rodrigues, as numpy's)."""
+    c, s = math.cos(angle), math.sin(angle)
+    v = 2.0 * math.sin(angle / 2.0) ** 2
+    out[0, 0], out[0, 1], out[0, 2] = c + a0 * a0 * v, a0 * a1 * v - a2 * s, a0 * a2 * v + a1 * s
+    out[1, 0], out[1, 1], out[1, 2] = a1 * a0 * v + a2 * s, c + a1 * a1 * v, a1 * a2 * v - a0 * s
+    out[2, 0], out[2, 1], out[2, 2] = a2 * a0 * v - a1 * s, a2 * a1 * v + a0 * s, c + a2 * a2 * v
+
+
+@njit
+def _mm(out, A, B):
+    """out (3, 3) = A[:3, :3] @ B[:3, :3] (out distinct from A and B)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
+
+
+@njit
+def _column(cols, c, kind, sign, R, axis_col, point):
+    """Parameter column c: kind 0 a shift along R[:, axis_col], 1 a turn about it through ``point``; ``sign``."""
+    cols[c, 0], cols[c, 1] = kind, sign
+    for i in range(3):
+        cols[c, 2 + i] = R[i, axis_col]
+        cols[c, 5 + i] = point[i]
+
+
+@njit
+def urdf_either_way(q, nominal, dx, revolute, reversed_, fixed, origin_rpy, axes, start, tool, T, J, jacobian):
+    """URDF chain with joints traversed from child to parent (``reversed_``): the element of such a joint is
+    ``M(q + offset)^-1 O^-1 fixed^-1`` (``fixed`` given inverted), turning by -rz, -ry, -rx about its joint frame's
+    axes and shifting by -xyz along its parent's; the others as ``urdf_chain`` (``start`` before the first
+    element). The numpy reference is ``URDFChain._fk_and_jacobian_either_way``; J column by column."""
+    bad = _first_nonfinite(q)
+    if bad >= 0:
+        return bad
+    n, dof = q.shape
+    per_pose = dx.shape[0] > 1
+    p = 7 * dof
+    R = np.empty((3, 3))
+    W = np.empty((3, 3))
+    N = np.empty((3, 3))
+    X = np.empty((3, 3))
+    Y = np.empty((3, 3))
+    Z = np.empty((3, 3))
+    G = np.empty((3, 3))
+    E = np.empty((3, 3))
+    rpy = np.empty((dof, 3, 3))
+    rpy_t = np.empty((dof, 3, 3))
+    for j in range(dof):
+        _rpy(rpy, j, origin_rpy[j, 0], origin_rpy[j, 1], origin_rpy[j, 2])
+        for a in range(3):
+            for b in range(3):
+                rpy_t[j, a, b] = rpy[j, b, a]
+    o = np.empty(3)
+    oj = np.empty(3)
+    w = np.empty(3)
+    cols = np.empty((p, 8))   # kind, sign, direction (3), point (3)
+    for k in range(n):
+        row = k if per_pose else 0
+        for a in range(3):
+            o[a] = start[a, 3]
+            for b in range(3):
+                R[a, b] = start[a, b]
+        for j in range(dof):
+            c0 = 7 * j
+            x, y, z = _param(nominal, dx, row, c0), _param(nominal, dx, row, c0 + 1), _param(nominal, dx, row, c0 + 2)
+            rx, ry, rz = (_param(nominal, dx, row, c0 + 3), _param(nominal, dx, row, c0 + 4),
+                          _param(nominal, dx, row, c0 + 5))
+            theta = q[k, j] + _param(nominal, dx, row, c0 + 6)
+            a0, a1, a2 = axes[j, 0], axes[j, 1], axes[j, 2]
+            F = fixed[j]
+            if not reversed_[j]:
+                _mm(W, R, F)                                  # RW
+                for a in range(3):
+                    oj[a] = o[a] + R[a, 0] * F[0, 3] + R[a, 1] * F[1, 3] + R[a, 2] * F[2, 3]
+                _mm(N, W, rpy[j])                             # RN
+                _rot(E, 1.0, 0.0, 0.0, rx)
+                _mm(X, N, E)                                  # RX
+                _rot(E, 0.0, 1.0, 0.0, ry)
+                _mm(Y, X, E)
+                _rot(E, 0.0, 0.0, 1.0, rz)
+                _mm(Z, Y, E)                                  # RJ
+                for a in range(3):
+                    oj[a] += W[a, 0] * x + W[a, 1] * y + W[a, 2] * z
+                    w[a] = Z[a, 0] * a0 + Z[a, 1] * a1 + Z[a, 2] * a2
+                for i in range(3):
+                    _column(cols, c0 + i, 0, 1.0, W, i, oj)
+                _column(cols, c0 + 3, 1, 1.0, N, 0, oj)
+                _column(cols, c0 + 4, 1, 1.0, X, 1, oj)
+                _column(cols, c0 + 5, 1, 1.0, Z, 2, oj)
+                cols[c0 + 6, 0], cols[c0 + 6, 1] = (1 if revolute[j] else 0), 1.0
+                for a in range(3):
+                    cols[c0 + 6, 2 + a], cols[c0 + 6, 5 + a] = w[a], oj[a]
+                if revolute[j]:
+                    _rot(E, a0, a1, a2, theta)
+                    _mm(R, Z, E)
+                    for a in range(3):
+                        o[a] = oj[a]
+                else:
+                    for a in range(3):
+                        o[a] = oj[a] + w[a] * theta
+                        for b in range(3):
+                            R[a, b] = Z[a, b]
+            else:
+                for a in range(3):
+                    w[a] = R[a, 0] * a0 + R[a, 1] * a1 + R[a, 2] * a2
+                cols[c0 + 6, 0], cols[c0 + 6, 1] = (1 if revolute[j] else 0), -1.0
+                for a in range(3):
+                    cols[c0 + 6, 2 + a], cols[c0 + 6, 5 + a] = w[a], o[a]
+                if revolute[j]:
+                    _rot(E, a0, a1, a2, -theta)
+                    _mm(G, R, E)                              # RG, at oG = o
+                else:
+                    for a in range(3):
+                        o[a] -= w[a] * theta
+                        for b in range(3):
+                            G[a, b] = R[a, b]
+                _rot(E, 0.0, 0.0, 1.0, -rz)
+                _mm(X, G, E)                                  # R1
+                _rot(E, 0.0, 1.0, 0.0, -ry)
+                _mm(Y, X, E)                                  # R2
+                _rot(E, 1.0, 0.0, 0.0, -rx)
+                _mm(Z, Y, E)                                  # R3
+                _mm(N, Z, rpy_t[j])                           # R4
+                _column(cols, c0 + 3, 1, -1.0, Y, 0, o)
+                _column(cols, c0 + 4, 1, -1.0, X, 1, o)
+                _column(cols, c0 + 5, 1, -1.0, G, 2, o)
+                for a in range(3):
+                    oj[a] = o[a] - (N[a, 0] * x + N[a, 1] * y + N[a, 2] * z)   # o4
+                for i in range(3):
+                    _column(cols, c0 + i, 0, -1.0, N, i, oj)
+                _mm(R, N, F)
+                for a in range(3):
+                    o[a] = oj[a] + N[a, 0] * F[0, 3] + N[a, 1] * F[1, 3] + N[a, 2] * F[2, 3]
+        _mm(E, R, tool)
+        for a in range(3):
+            oj[a] = o[a] + R[a, 0] * tool[0, 3] + R[a, 1] * tool[1, 3] + R[a, 2] * tool[2, 3]
+            for b in range(3):
+                T[k, a, b] = E[a, b]
+            T[k, a, 3] = oj[a]
+            T[k, 3, a] = 0.0
+        T[k, 3, 3] = 1.0
+        if jacobian:
+            for c in range(p):
+                sign = cols[c, 1]
+                u0, u1, u2 = cols[c, 2], cols[c, 3], cols[c, 4]
+                if cols[c, 0] == 0.0:
+                    J[k, 0, c], J[k, 1, c], J[k, 2, c] = sign * u0, sign * u1, sign * u2
+                    J[k, 3, c], J[k, 4, c], J[k, 5, c] = 0.0, 0.0, 0.0
+                else:
+                    r0, r1, r2 = oj[0] - cols[c, 5], oj[1] - cols[c, 6], oj[2] - cols[c, 7]
+                    J[k, 0, c] = sign * (u1 * r2 - u2 * r1)
+                    J[k, 1, c] = sign * (u2 * r0 - u0 * r2)
+                    J[k, 2, c] = sign * (u0 * r1 - u1 * r0)
+                    J[k, 3, c], J[k, 4, c], J[k, 5, c] = sign * u0, sign * u1, sign * u2
+    return -1
+
+
 def warm_up(which=("dh", "urdf")):
     """Compile, or load from the cache, dh_chain and/or urdf_chain in the signature the models call."""
     q = np.zeros((1, 1))
@@ -539,3 +698,5 @@ def warm_up(which=("dh", "urdf")):
     if "urdf" in which:
         urdf_chain(q, np.zeros(7), NO_DX, revolute, eye.reshape(1, 4, 4).copy(), np.zeros((1, 3)),
                    np.array([[0.0, 0.0, 1.0]]), eye, T, np.empty((1, 6, 7)), True, 0)
+        urdf_either_way(q, np.zeros(7), NO_DX, revolute, revolute.copy(), eye.reshape(1, 4, 4).copy(), np.zeros((1, 3)),
+                        np.array([[0.0, 0.0, 1.0]]), eye, eye, T, np.empty((1, 6, 7)), True)

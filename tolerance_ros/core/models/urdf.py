@@ -14,7 +14,8 @@ A chain runs from ``base_link`` to ``tip_link`` either way through the tree: the
 the links' common ancestor are traversed from child to parent (a foot's sole back through the leg to the torso,
 each such joint's transform inverted, ``M(q)^-1 O^-1``), then down to the tip; the base link may be moved by
 joints (a chain from a camera's link). Such a chain's parameters are its joints' physical origin errors as
-above, whichever way it runs; a chain with joints traversed upward runs on the numpy path.
+above, whichever way it runs; a chain with joints traversed upward has a compiled kernel of its own
+(``chain_kernels.urdf_either_way``, column by column).
 
 pinocchio parses the file and validates the tree; the batched forward kinematics and the Jacobian are
 our own code (a compiled kernel, and numpy as the reference), checked against pinocchio's FK in the tests.
@@ -169,8 +170,6 @@ class URDFChain(CompiledChain):
         self._start = base_T        # before the first element: the base link's frame in its joint's frame
         if not self._reversed.any():
             self._fixed[0] = base_T @ self._fixed[0]
-        else:
-            self._backend = "numpy"  # the compiled kernel runs chains from parent to child only
         self.base_moves = base_joint != 0   # the base link is moved by joints (its frame is not fixed to the root)
         self.base_from_root = base_T  # (4, 4): the chain's base frame from pinocchio's world (the URDF root), or
         #                               from its joint's frame where the base moves
@@ -211,6 +210,9 @@ class URDFChain(CompiledChain):
         return 7 * np.arange(self.dof) + 6
 
     def _run_kernel(self, kernels, q, dx, T, J, jacobian):
+        if self._reversed.any():
+            return kernels.urdf_either_way(q, self.nominal, dx, self._revolute, self._reversed, self._fixed,
+                                           self.origin_rpy, self._axes, self._start, self._tool, T, J, jacobian)
         from .jacobian_writers import writer_for
         return kernels.urdf_chain(q, self.nominal, dx, self._revolute, self._fixed, self.origin_rpy, self._axes,
                                   self._tool, T, J,
