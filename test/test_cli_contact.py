@@ -3,6 +3,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 from helpers import run_cli as run
@@ -122,3 +123,22 @@ def test_simulate_flush_writes_the_targets_of_a_posture_as_rows_of_one_stamp_and
     T = model.fk(c.joints[:2])      # nominal: both on the floor within the as-built errors
     heights = [(T[i, :3, 3] + T[i, :3, :3] @ off)[2] for i, off in enumerate(([0, 0, 0.1], [0.03, 0, 0.1]))]
     assert np.allclose(heights, 0.3, atol=2e-3)
+
+
+def test_a_target_given_as_a_urdf_link_is_that_links_origin_in_the_tool_frame():
+    from tolerance_ros.cli.common import CLIError, target_options
+    from tolerance_ros.core.models.urdf import URDFChain
+    model = URDFChain(URDF)                                  # tip: the flange, 0.215 m beyond link6 along its x
+    place = target_options(["W=link:link6", "A=1mm,2mm,3mm"], model)
+    T = model.fk(model.sample_joints(1, 3))[0]
+    import pinocchio as pin
+    pin_model = model.pin_model
+    data = pin_model.createData()
+    pin.framesForwardKinematics(pin_model, data, model.pinocchio_configuration(model.sample_joints(1, 3)[0]))
+    link6 = data.oMf[pin_model.getFrameId("link6")].translation
+    assert np.allclose(T[:3, 3] + T[:3, :3] @ place["W"], link6, atol=1e-12)
+    assert np.allclose(place["A"], [0.001, 0.002, 0.003])
+    with pytest.raises(CLIError, match="moves against the tip link"):
+        target_options(["B=link:link3"], model)
+    with pytest.raises(CLIError, match="is not in the URDF"):
+        target_options(["B=link:nowhere"], model)
