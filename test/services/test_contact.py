@@ -68,6 +68,8 @@ def test_a_contact_request_latches_the_newest_joint_state_into_the_log(robots, t
     ('{"contact": "plane:t", "targets": ["A"], "speed": 1}', "unknown field"),
     ('{"contact": "plane:t", "targets": ["A", "A"]}', "distinct names"),
     ('[1, 2]', "expected a JSON object"),
+    ('{"contact": "plane:t", "targets": [[]]}', "distinct names"),
+    ('{"contact": "plane:t", "targets": [1, 2]}', "distinct names"),
 ])
 def test_a_bad_contact_request_is_answered_with_the_field_and_the_monitor_goes_on(robots, tmp_path, text, words):
     model = robots.select(None)[1]

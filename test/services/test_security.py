@@ -47,7 +47,8 @@ def test_the_operator_and_launch_serve_their_own_nodes_anywhere_and_drive_only_t
     assert {f"/arm/{n}/change_state" for n in SUITE_NODES} <= launch["request"] <= operator["request"]
     assert launch["publish"] == {"/rosout", "/parameter_events"}
     assert operator["publish"] == {"/rosout", "/parameter_events", "/arm/tolerance/compute_error_jacobian/request",
-                                   "/arm/tolerance/allocate_tolerances/request", "/arm/tolerance/calibrate/request"}
+                                   "/arm/tolerance/allocate_tolerances/request", "/arm/tolerance/calibrate/request",
+                                   "/arm/tolerance/contact"}
     assert LAUNCH in ENCLAVES
 
 

@@ -438,7 +438,8 @@ def parse_contact(text) -> dict:
             raise ValueError(f"{field}: expected a name of at most 100 printable characters without commas")
     targets = req.get("targets")
     if isinstance(targets, list):
-        targets = {t: None for t in targets} if len(set(map(str, targets))) == len(targets) else None
+        names_only = all(isinstance(t, str) for t in targets) and len(set(targets)) == len(targets)
+        targets = {t: None for t in targets} if names_only else None
     if not isinstance(targets, dict) or not 1 <= len(targets) <= MAX_CONTACT_TARGETS:
         raise ValueError(f"targets: expected 1 to {MAX_CONTACT_TARGETS} distinct names, or {{name: [x, y, z]}} (m, "
                          f"tool frame)")
