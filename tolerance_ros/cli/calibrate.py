@@ -76,8 +76,6 @@ def payload_option(text):
 def run(args):
     from ..core.accuracy.io import read_measurements
     from ..core.calibration.calibrate import FitOptions, calibrate_measurements
-    from ..core.calibration.calibrated_robot import write_calibrated_robot
-    from ..core.calibration.calibration_file import save_calibration
     from ..core.calibration.elastic import Load
     from ..core.calibration.provenance import ProvenanceError, file_sha256, load_signing_key, new_provenance
     from ..core.campaign import load_campaign
@@ -124,19 +122,7 @@ def run(args):
         cal.sources.update(tip_link=model.tip_link, base_link=model.base_link)
     cal.provenance = new_provenance("tolerance-ros calibrate", log=str(Path(args.measurements).resolve()),
                                     log_sha256=log_sha256)
-    files = {}
-    if cal.plausibility["ok"]:
-        files = write_calibrated_robot(model, cal, out)
-        if "note" in files:
-            cal.warnings.append(files.pop("note"))
-        cal.sources["calibrated_robot"] = Path(files["robot"]).name
-        files["calibration"] = str(save_calibration(cal, out / "calibration.yaml", signing_key=key))
-    else:
-        files["refused"] = str(save_calibration(cal, out / "calibration.refused.yaml"))
-        for problem in reversed(cal.plausibility["problems"]):  # the first, most basic reason on the last line
-            missed(args, f"calibration refused: {problem}")
-    if not cal.convergence.get("converged", True):
-        missed(args, f"calibration: the fit {cal.convergence['words']}")
+    files = write_files(args, model, cal, out, key)
     written = write_calibration_report(cal, out, files)
     files.update(report=written["report"], json=written["json"], plots=written["plots"])
     if args.json:
@@ -151,11 +137,30 @@ def run(args):
         print(f"plot: {f}")
 
 
+def write_files(args, model, cal, out, key) -> dict:
+    """The calibrated robot and calibration.yaml of an accepted calibration, calibration.refused.yaml of a refused
+    one (its reasons the run's missed targets, the most basic last); a fit that did not converge is missed too."""
+    from ..core.calibration.calibrated_robot import write_calibrated_robot
+    from ..core.calibration.calibration_file import save_calibration
+    files = {}
+    if cal.plausibility["ok"]:
+        files = write_calibrated_robot(model, cal, out)
+        if "note" in files:
+            cal.warnings.append(files.pop("note"))
+        cal.sources["calibrated_robot"] = Path(files["robot"]).name
+        files["calibration"] = str(save_calibration(cal, out / "calibration.yaml", signing_key=key))
+    else:
+        files["refused"] = str(save_calibration(cal, out / "calibration.refused.yaml"))
+        for problem in reversed(cal.plausibility["problems"]):  # the first, most basic reason on the last line
+            missed(args, f"calibration refused: {problem}")
+    if not cal.convergence.get("converged", True):
+        missed(args, f"calibration: the fit {cal.convergence['words']}")
+    return files
+
+
 def run_contacts(args, model, opts, key):
     """``calibrate`` on a contact campaign (``core.calibration.contact_campaign``)."""
     from ..core.accuracy.io.contact_csv import read_contact_campaign
-    from ..core.calibration.calibrated_robot import write_calibrated_robot
-    from ..core.calibration.calibration_file import save_calibration
     from ..core.calibration.contact_campaign import calibrate_campaign
     from ..core.calibration.provenance import file_sha256, new_provenance
     from ..render.contact_report import summary_lines, write_contact_report
@@ -180,19 +185,7 @@ def run_contacts(args, model, opts, key):
             f"line {s['line']}: {s['reason']}" for s in contacts.skipped[:5]))
     cal.provenance = new_provenance("tolerance-ros calibrate", log=str(Path(args.measurements).resolve()),
                                     log_sha256=file_sha256(args.measurements))
-    files = {}
-    if cal.plausibility["ok"]:
-        files = write_calibrated_robot(model, cal, out)
-        if "note" in files:
-            cal.warnings.append(files.pop("note"))
-        cal.sources["calibrated_robot"] = Path(files["robot"]).name
-        files["calibration"] = str(save_calibration(cal, out / "calibration.yaml", signing_key=key))
-    else:
-        files["refused"] = str(save_calibration(cal, out / "calibration.refused.yaml"))
-        for problem in reversed(cal.plausibility["problems"]):
-            missed(args, f"calibration refused: {problem}")
-    if not cal.convergence.get("converged", True):
-        missed(args, f"calibration: the fit {cal.convergence['words']}")
+    files = write_files(args, model, cal, out, key)
     written = write_contact_report(cal, out, files)
     files.update(report=written["report"], json=written["json"])
     if args.json:

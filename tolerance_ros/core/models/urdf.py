@@ -248,12 +248,7 @@ class URDFChain(CompiledChain):
                 R = RJ
                 o = oJ + w_joint * (q[:, k] + off)
             lines.append(((RW[:, 0], RW[:, 1], RW[:, 2]), (RN[:, 0], RX[:, 1], RJ[:, 2]), w_joint, oJ))
-        Rend = _mul(R, self._tool[:3, :3])
-        Pend = o + _apply(R, self._tool[:3, 3])
-        T = np.zeros((n, 4, 4))
-        T[:, :3, :3] = np.moveaxis(Rend, 2, 0)
-        T[:, :3, 3] = Pend.T
-        T[:, 3, 3] = 1.0
+        T, Pend = self._tool_pose(R, o)
         if not jacobian:
             return T, None
         Jt = np.zeros((self.n_params, 6, n))
@@ -324,12 +319,7 @@ class URDFChain(CompiledChain):
                 R = _mul(R4, F[:3, :3])
                 o = o4 + _apply(R4, F[:3, 3])
             all_cols += cols
-        Rend = _mul(R, self._tool[:3, :3])
-        Pend = o + _apply(R, self._tool[:3, 3])
-        T = np.zeros((n, 4, 4))
-        T[:, :3, :3] = np.moveaxis(Rend, 2, 0)
-        T[:, :3, 3] = Pend.T
-        T[:, 3, 3] = 1.0
+        T, Pend = self._tool_pose(R, o)
         if not jacobian:
             return T, None
         Jt = np.zeros((self.n_params, 6, n))
@@ -341,6 +331,16 @@ class URDFChain(CompiledChain):
                 Jt[c, :3] = sign * cross3(w, Pend - point)
                 Jt[c, 3:] = sign * w
         return T, ErrorJacobian(Jt.transpose(2, 1, 0), self.param_names, self.param_units)
+
+    def _tool_pose(self, R, o):
+        """((n, 4, 4) tool poses, (3, n) tool points) of the last joint frames' rotations R (3, 3, n) and origins o
+        (3, n)."""
+        Pend = o + _apply(R, self._tool[:3, 3])
+        T = np.zeros((o.shape[1], 4, 4))
+        T[:, :3, :3] = np.moveaxis(_mul(R, self._tool[:3, :3]), 2, 0)
+        T[:, :3, 3] = Pend.T
+        T[:, 3, 3] = 1.0
+        return T, Pend
 
     def pinocchio_configuration(self, q) -> np.ndarray:
         """pinocchio configuration vector for one chain configuration ``q`` (dof,); other joints neutral."""
