@@ -147,7 +147,10 @@ class Mechanism(ABC):
         samples on the numpy path, so that loading a robot stays cheap and never waits for the compiled kernels
         (on a cold cache they would compile in the caller)."""
         with _numpy_path(self):
-            reach = self.reach(16)
+            try:
+                reach = self.reach(16)
+            except ModelError as exc:   # a workspace no posture of which assembles (a 3-PUPS box of 1e308 mm)
+                raise ModelError(f"{where}{exc}") from None
         if not reach <= MAX_REACH_M:
             raise ModelError(f"{where}robot {self.name!r}: its tool reaches {reach:.4g} m from its base, more than any "
                              f"robot arm ({MAX_REACH_M:g} m): lengths in millimetres where metres were meant? (a URDF's "
