@@ -98,7 +98,7 @@ def test_three_planes_recover_the_joint_offsets_and_lengths_within_their_uncerta
     dx, held = free_truth(fanuc)
     data = planes_campaign(fanuc, dx, seed=7)
     f = fit_contacts(fanuc, data, NOMINAL, "full", sigma=NOISE)
-    assert f.convergence.converged and f.held == held
+    assert f.convergence.converged and f.held == held and f.held_judged_at == "nominal and solution"
     est = np.flatnonzero(~np.isin(fanuc.param_names, held))
     z = (f.dx[est] - dx[est]) / f.std[est]
     assert np.abs(z).max() < 3.5, dict(zip(np.array(fanuc.param_names)[est], z.round(2)))

@@ -315,6 +315,7 @@ class ContactFit:
     undetermined_rig: list = field(default_factory=list)
     threshold: np.ndarray | None = None
     rig_held: list = field(default_factory=list)
+    held_judged_at: str = "nominal"
 
     @property
     def dx(self) -> np.ndarray:
@@ -459,6 +460,20 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
         still = np.zeros(len(data.constraints), bool)
         still[np.unique(data.constraint[~rejected])] = True
         held[layout.g] |= ~np.repeat(still, 3)
+    judged = "nominal"
+    if fixed is None and len(cand):
+        # a dependence that only the solution shows, among the parameters still free (as ``identify`` judges)
+        still = cand[~held[cand]]
+        rig_free = np.flatnonzero(~held[p:]) + p
+        prefer = _preference(model, _Layout(p, 0, False, False, None), still)
+        dep = dependent_columns(J * natural, still, rig_free, TOL_RANK, prefer) if len(still) else np.zeros(0, bool)
+        judged = "nominal and solution"
+        if dep.any():
+            held[still[dep]] = True
+            why.update({model.param_names[j]: "dependent at the solution: held at nominal" for j in still[dep]})
+            x = np.where(held, 0.0, x)
+            (x, J, r, conv), free = solve(weights, noise, x, held)
+            _, _, dist = _stack(base_model, data, x, ref, layout)
     rows_used = _row_count(data, weights)
     sf = scale[free]
     Jf = J[:, free] * sf
@@ -471,7 +486,7 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
     cov = np.zeros((layout.n, layout.n))
     cov[np.ix_(free, free)] = Hinv * np.outer(sf, sf) * noise ** 2
     out = ContactFit(layout, ref, x, [model.param_names[j] for j in np.flatnonzero(held[:p])], why, rejected, noise,
-                     cov, conv, dist, threshold=threshold, rig_held=rig_held)
+                     cov, conv, dist, threshold=threshold, rig_held=rig_held, held_judged_at=judged)
     if analysis:
         lam, V = np.linalg.eigh(Jf.T @ Jf) if len(free) else (np.zeros(0), np.zeros((0, 0)))
         top = lam.max() if lam.size else 0.0

@@ -10,7 +10,7 @@ from ..accuracy.checks import CheckError
 from ..accuracy.targets import Targets
 from ..models.base import Mechanism
 from .contact import (PLANE, PLAUSIBLE_ANGLE, PLAUSIBLE_LENGTH, ContactData, calibrate_contacts, initial_rig,
-                      target_points, validate_contacts)
+                      not_converged_words, target_points, validate_contacts)
 from .result import Calibration, nominal_fingerprint
 
 UNIT_SLIP_SHARE = 0.5      # beyond this share of rows outside the joint limits, the unit is wrong, not the rows
@@ -137,7 +137,9 @@ def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=Non
     cal.position_rms = f.rms()
     cal.position_max = float(f.distances[~f.rejected].max())
     cal.convergence = f.convergence.to_dict()
-    cal.convergence["words"] = f.convergence.words()
+    cal.convergence["words"] = (f.convergence.words() if f.convergence.converged else
+                                f"did not converge: {not_converged_words(f.convergence)}")
+    cal.convergence["held_judged_at"] = f.held_judged_at
     cal.training = {"joint_ranges": np.c_[data.q.min(axis=0), data.q.max(axis=0)].tolist()}
     problems = []
     reach = model.reach()
