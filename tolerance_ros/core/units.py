@@ -102,14 +102,15 @@ def parse_number(value, field: str) -> float:
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*((?:[a-zA-Zµ][a-zA-Zµ/^2]*)?)\s*$",
                        re.ASCII)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+DURATION_UNITS = {**TIME_UNITS, "min": 60.0, "h": 3600.0}  # a duration on the command line; stamps take TIME_UNITS
 MASS_UNITS = {"kg": 1.0, "g": 1e-3, "t": 1e3}
 SPEED_UNITS = {"m/s": 1.0, "mm/s": 1e-3}
 ACCEL_UNITS = {"m/s^2": 1.0, "mm/s^2": 1e-3}
 FREQUENCY_UNITS = {"Hz": 1.0, "kHz": 1e3}
-_EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad", "time": "1s or 250ms",
+_EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad", "time": "1s, 250ms or 1h",
              "mass": "165kg or 0.5t", "speed": "0.2m/s or 200mm/s", "acceleration": "1m/s^2",
              "frequency": "1000Hz or 1kHz"}
-_TABLES = {"time": TIME_UNITS, "mass": MASS_UNITS, "speed": SPEED_UNITS, "acceleration": ACCEL_UNITS,
+_TABLES = {"time": DURATION_UNITS, "mass": MASS_UNITS, "speed": SPEED_UNITS, "acceleration": ACCEL_UNITS,
            "frequency": FREQUENCY_UNITS}
 
 
