@@ -131,3 +131,27 @@ def test_a_campaign_of_a_trillion_cycles_or_a_dated_dwell_is_refused(gao, tmp_pa
         path.write_text(f"name: c\nrobot: gao2023_7dof\n{extra}\nposes:\n  - {{name: P1, joints: [0, 0, 0, 0, 0, 0, 0]}}\n")
         with pytest.raises(CampaignError, match=message):
             load_campaign(path, gao)
+
+
+APPROACHED = [{"name": "P1+x", "joints": [0, 10, 20, 30, 40, 50, 60], "of": "P1", "approach": "+x",
+               "via": [2, 11, 20, 30, 40, 50, 60]},
+              {"name": "P1+y", "joints": [0, 10, 20, 30, 40, 50, 60], "of": "P1", "approach": "+y",
+               "via": [0, 12, 18, 30, 40, 50, 60]}]
+
+
+def test_approaches_of_a_test_pose_with_their_pre_poses(gao):
+    c = campaign_from_dict({**GOOD, "poses": GOOD["poses"] + APPROACHED}, model=gao)
+    assert c.approaches() == {"P1": ["P1+x", "P1+y"]}
+    assert c.poses[2].via[0] == pytest.approx(np.deg2rad(2)) and c.poses[3].approach == "+y"
+
+
+@pytest.mark.parametrize("edit, message", [
+    ({"via": [0, 720, 0, 0, 0, 0, 0]}, r"poses\[2\].via\[0\]\[1\] \(joint2\) = 12.566.* outside"),
+    ({"via": [0, 1]}, r"poses\[2\].via: expected a list of 7 numbers"),
+    ({"of": ""}, r"poses\[2\].of: expected a name"),
+    ({"of": "P1+y"}, r"poses\[2\].of: 'P1\+y' approaches 'P1' itself"),
+])
+def test_bad_approaches(gao, edit, message):
+    poses = GOOD["poses"] + [dict(APPROACHED[0], **edit), APPROACHED[1]]
+    with pytest.raises(CampaignError, match=message):
+        campaign_from_dict({**GOOD, "poses": poses}, model=gao)

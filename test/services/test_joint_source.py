@@ -62,3 +62,12 @@ def test_trajectory_mode_moves_along_the_knots_for_its_cycles(gao):
     assert not looped.at(6.5)[3] and np.allclose(looped.at(6.5)[2], (q[0] + q[1]) / 2)
     with pytest.raises(ValueError, match="needs a trajectory"):
         JointStateSequence(gao, "trajectory")
+
+
+def test_a_pose_with_a_pre_pose_is_approached_through_it(gao):
+    qk = gao.sample_joints(3, 0)
+    camp = Campaign("c", [TestPose("P1", joints=qk[0]), TestPose("P1+x", joints=qk[0], of="P1", via=qk[2])],
+                    cycles=1, dwell_s=1.0)
+    seq = JointStateSequence(gao, "campaign", camp)
+    assert [seq.at(t + 0.5)[1] for t in range(3)] == ["P1", "P1+x via", "P1+x"]
+    assert np.allclose(seq.at(1.5)[2], qk[2]) and np.allclose(seq.at(2.5)[2], qk[0])

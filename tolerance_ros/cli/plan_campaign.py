@@ -30,6 +30,12 @@ def add_arguments(p):
     p.add_argument("--path", choices=["line", "circle", "rectangle"],
                    help="write an ISO 9283 test path in the ISO cube instead: the joint trajectory that drives it "
                         "(docs/path-accuracy.md)")
+    p.add_argument("--iso9283", action="store_true",
+                   help="write the ISO 9283 pose campaign instead: the cube's test poses P1-P5 (30 cycles unless "
+                        "--cycles), and with --approach each also approached along +x, +y and +z (docs/iso9283.md)")
+    p.add_argument("--approach", metavar="LENGTH",
+                   help="with --iso9283: the pre-poses this far before each test pose, one per direction (e.g. "
+                        "100mm), for the multi-directional pose accuracy variation vAP")
     p.add_argument("--speed", default="0.1m/s", help="with --path: the programmed speed (default 0.1m/s)")
     p.add_argument("--accel", default="1m/s^2", help="with --path: the acceleration at start and stop (default 1m/s^2)")
     p.add_argument("--side", help="with --path: the cube's edge (default: the largest of 400mm halved that the robot "
@@ -150,6 +156,36 @@ def run_contacts(args, model):
     return None
 
 
+def run_iso9283(args, model, ws):
+    """``--iso9283``: the ISO 9283 cube's test poses, with their approaches (``planning.iso9283_campaign``)."""
+    import numpy as np
+    import yaml
+    from ..core.calibration.planning import iso9283_campaign, iso_cube_joints
+    approach = quantity(args.approach, "length", "--approach") if args.approach else None
+    qc, _ = ws.sample(int(args.candidates), np.random.default_rng(args.seed), 10 * int(args.candidates))
+    q, note = iso_cube_joints(model, qc, args.seed, allowed=lambda x: ws.check(x).ok)
+    if q is None:
+        raise CLIError(f"{note}; widen the restrictions or give more --candidates")
+    desc = (f"ISO 9283 pose campaign by tolerance-ros plan-campaign: {note}"
+            + (f"; each pose also approached along +x, +y, +z from {approach * 1e3:g} mm before it" if approach else ""))
+    try:
+        doc = iso9283_campaign(model, q, approach, cycles=args.cycles, description=desc,
+                               allowed=lambda x: ws.check(x).ok)
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+    if args.out:
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(f"# {desc}\n" + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
+    if args.json:
+        return {"robot": model.name, "campaign_file": args.out, "description": desc,
+                "poses": [p["name"] for p in doc["poses"]], "cycles": doc["cycles"]}
+    print(desc)
+    print(f"{len(doc['poses'])} test poses ({', '.join(p['name'] for p in doc['poses'])}), {doc['cycles']} cycles")
+    print(f"wrote {args.out}" if args.out else "campaign not saved (give --out FILE.yaml to save it)")
+    return None
+
+
 def run(args):
     from ..core.calibration.planning import CRITERIA, REFERENCES, campaign_dict, plan
     from ..core.campaign import load_campaign
@@ -157,10 +193,12 @@ def run(args):
     model = load_model(args)
     if args.path:
         return run_path(args, model)
+    if args.approach and not args.iso9283:
+        raise CLIError("--approach: goes with --iso9283")
     if args.contact or args.target:
         return run_contacts(args, model)
     if args.cycles is None:
-        args.cycles = 3
+        args.cycles = 30 if args.iso9283 else 3
     for name in ("candidates", "cycles"):
         if getattr(args, name) < 1:
             raise CLIError(f"--{name}: must be >= 1")
@@ -176,6 +214,8 @@ def run(args):
     delta = load_budget(args.budget, model).vector_for(model) if args.budget else None
     ws = Workspace(model, restrictions(model, args.joint_range, args.above_plane, args.floor_plane, args.inside_box,
                                        args.clearance, not args.no_collision, args.srdf))
+    if args.iso9283:
+        return run_iso9283(args, model, ws)
     compare_bad = []
     iso = None
     if args.compare:

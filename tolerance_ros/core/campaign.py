@@ -16,6 +16,9 @@ File format (YAML; ``units`` applies to every value)::
     poses:
       - {name: P1, joints: [0, 30, -45, 0, 60, 0, 0]}          # joint configuration, or
       - {name: PE1, pose: {xyz: [0, 0, 1300], rpy: [0, 0, 0]}}  # an end-effector pose (needs IK)
+      # P1 approached along +x (ISO 9283 multi-directional pose accuracy variation): the robot goes to the
+      # pre-pose ``via`` (joints, the same units) first, then to the pose; ``of`` names the test pose
+      - {name: P1+x, joints: [0, 30, -45, 0, 60, 0, 0], of: P1, approach: +x, via: [2, 31, -44, 0, 59, 1, 0]}
 
 A pose given as ``pose`` is turned into joints by the model's ``inverse_kinematics`` (parallel
 mechanisms have it; serial chains take ``joints``).
@@ -50,6 +53,9 @@ class TestPose:
     name: str
     joints: np.ndarray | None = None
     pose: np.ndarray | None = None
+    of: str | None = None          # the test pose this visit approaches (ISO 9283 vAP); None: itself
+    approach: str | None = None    # how it is approached (a label, e.g. +x)
+    via: np.ndarray | None = None  # (dof,) joints of the pre-pose driven to first, SI
 
 
 @dataclass
@@ -65,6 +71,15 @@ class Campaign:
     @property
     def names(self) -> list:
         return [p.name for p in self.poses]
+
+    def approaches(self) -> dict:
+        """{test pose: [names of the campaign poses that approach it (``of``)]} for the test poses approached
+        in more than one way (ISO 9283 multi-directional pose accuracy variation)."""
+        groups = {}
+        for p in self.poses:
+            if p.of is not None:
+                groups.setdefault(p.of, []).append(p.name)
+        return {k: v for k, v in groups.items() if len(v) > 1}
 
     def joints_for(self, model) -> np.ndarray:
         """(k, dof) joints of the test poses for ``model`` (IK for poses given as end-effector poses)."""
@@ -135,7 +150,7 @@ def campaign_from_dict(data, dof=None, model=None) -> Campaign:
         f = f"poses[{i}]"
         if not isinstance(p, dict):
             raise CampaignError(f"{f}: expected a mapping")
-        bad = sorted(set(p) - {"name", "joints", "pose", "joint_units"})
+        bad = sorted(set(p) - {"name", "joints", "pose", "joint_units", "of", "approach", "via"})
         if bad:
             raise CampaignError(f"{f}: unknown key(s) {bad}")
         name = str(p.get("name", f"P{i + 1}"))
@@ -145,20 +160,18 @@ def campaign_from_dict(data, dof=None, model=None) -> Campaign:
         if ("joints" in p) == ("pose" in p):
             raise CampaignError(f"{f}: give exactly one of 'joints' or 'pose'")
         tp = TestPose(name)
+        for key in ("of", "approach"):
+            if key in p and not (isinstance(p[key], (str, int)) and 0 < len(str(p[key])) <= 200):
+                raise CampaignError(f"{f}.{key}: expected a name of 1 to 200 characters")
+        tp.of = str(p["of"]) if "of" in p else None
+        tp.approach = str(p["approach"]) if "approach" in p else None
         try:
+            if "via" in p:
+                if "joints" not in p:
+                    raise CampaignError(f"{f}.via: a pre-pose goes with a pose given as joints")
+                tp.via = _joint_list(p["via"], p.get("joint_units"), dof, ls, as_, f"{f}.via")
             if "joints" in p:
-                j = p["joints"]
-                if not isinstance(j, list) or (dof is not None and len(j) != dof):
-                    raise CampaignError(f"{f}.joints: expected a list of {dof or 'n'} numbers")
-                kinds = p.get("joint_units")
-                vals = _numbers(j, f"{f}.joints")
-                if kinds is None:
-                    tp.joints = vals * as_  # revolute joints by default
-                else:
-                    if not isinstance(kinds, list) or len(kinds) != len(vals) or \
-                            not all(k in ("angle", "length") for k in kinds):
-                        raise CampaignError(f"{f}.joint_units: expected one of 'angle'/'length' per joint")
-                    tp.joints = np.array([v * (ls if k == "length" else as_) for v, k in zip(vals, kinds)])
+                tp.joints = _joint_list(p["joints"], p.get("joint_units"), dof, ls, as_, f"{f}.joints")
             else:
                 q = p["pose"]
                 if not isinstance(q, dict) or set(q) - {"xyz", "rpy"}:
@@ -171,12 +184,34 @@ def campaign_from_dict(data, dof=None, model=None) -> Campaign:
         except UnitError as exc:
             raise CampaignError(str(exc)) from None
         poses.append(tp)
+    names = {tp.name: tp for tp in poses}
+    for i, tp in enumerate(poses):
+        if tp.of is not None and tp.of in names and names[tp.of].of not in (None, tp.of):
+            raise CampaignError(f"poses[{i}].of: {tp.of!r} approaches {names[tp.of].of!r} itself; name the test pose")
     if model is not None:
         _within_limits(model, raw, poses, units)
+        for i, tp in enumerate(poses):
+            if tp.via is not None:
+                try:
+                    model.check_joints(tp.via, f"poses[{i}].via", allow_out_of_limits=False)
+                except ModelError as exc:
+                    raise CampaignError(str(exc)) from None
         if data.get("restrictions") is not None:
             _within_restrictions(model, data["restrictions"], poses)
     return Campaign(str(data.get("name", "campaign")), poses, cycles, float(dwell), order, data.get("robot"),
                     {k: data[k] for k in ("description", "source", "notes", "restrictions") if k in data})
+
+
+def _joint_list(j, kinds, dof, ls, as_, field) -> np.ndarray:
+    """(dof,) SI joints of a list in the file's units (``joint_units``: 'angle' or 'length' per joint)."""
+    if not isinstance(j, list) or (dof is not None and len(j) != dof):
+        raise CampaignError(f"{field}: expected a list of {dof or 'n'} numbers")
+    vals = _numbers(j, field)
+    if kinds is None:
+        return vals * as_  # revolute joints by default
+    if not isinstance(kinds, list) or len(kinds) != len(vals) or not all(k in ("angle", "length") for k in kinds):
+        raise CampaignError(f"{field.rsplit('.', 1)[0]}.joint_units: expected one of 'angle'/'length' per joint")
+    return np.array([v * (ls if k == "length" else as_) for v, k in zip(vals, kinds)])
 
 
 def _numbers(values, field) -> np.ndarray:

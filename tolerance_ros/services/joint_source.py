@@ -1,7 +1,7 @@
 """Joint configurations over time for the joint-state publisher (ROS-free).
 
 Modes: 'campaign' (the test poses of a campaign, each held ``dwell`` seconds, for its cycles in its
-visiting order), 'random' (seeded uniform samples within the joint limits), 'selected' (the
+visiting order; a pose's pre-pose ``via``, where it has one, is held ``dwell`` seconds before it), 'random' (seeded uniform samples within the joint limits), 'selected' (the
 configurations of highest pose-selection index F, eq. 25) and 'trajectory' (a joint trajectory, e.g. an
 ISO 9283 test path of ``plan-campaign --path``, interpolated between its knots, for its cycles: the robot
 moves). With ``loop`` the sequence repeats; otherwise the last configuration is held once it has run out.
@@ -37,10 +37,15 @@ class JointStateSequence:
             if campaign is None:
                 raise ValueError("mode 'campaign' needs a campaign")
             joints = campaign.joints_for(model)
-            order = campaign.sequence()
-            self.q = np.array([joints[i] for i, _ in order])
-            self.labels = [campaign.poses[i].name for i, _ in order]
-            self.cycles = [c for _, c in order]
+            q, self.labels, self.cycles = [], [], []
+            for i, c in campaign.sequence():   # a pose with a pre-pose (``via``): the pre-pose first, a step of its own
+                tp = campaign.poses[i]
+                steps = ([(tp.via, f"{tp.name} via")] if tp.via is not None else []) + [(joints[i], tp.name)]
+                for qk, label in steps:
+                    q.append(qk)
+                    self.labels.append(label)
+                    self.cycles.append(c)
+            self.q = np.array(q)
             self.dwell = float(dwell if dwell is not None else campaign.dwell_s)
         else:
             if count < 1:

@@ -299,3 +299,49 @@ def campaign_dict(model: Mechanism, q, name, cycles=3, dwell=2.0, description=""
         out["restrictions"] = {k: v for k, v in restrictions.items() if v not in (None, [])}
     out["poses"] = poses
     return out
+
+
+AXES = {"+x": (0, 1.0), "+y": (1, 1.0), "+z": (2, 1.0), "-x": (0, -1.0), "-y": (1, -1.0), "-z": (2, -1.0)}
+
+
+def iso9283_campaign(model: Mechanism, q_poses, approach=None, directions=("+x", "+y", "+z"), cycles=30, dwell=2.0,
+                     names=None, description="", allowed=None) -> dict:
+    """An ISO 9283 campaign file (``core/campaign.py`` format) of the test poses q_poses (k, dof), named P1..Pk,
+    and with ``approach`` (m) each pose also approached along each of ``directions`` of the base frame (``+x``:
+    moving in +x, from a pre-pose ``approach`` metres before it), as poses ``Pk+x`` ... with ``of: Pk`` and the
+    pre-pose's joints in ``via`` (the nominal model's inverse kinematics from the pose's own joints; ISO 9283
+    multi-directional pose accuracy variation). ValueError naming the pose when a pre-pose is out of reach or of
+    limits (or, with ``allowed``, a function of joints (k, dof) -> (k,) bool, not allowed)."""
+    from .compensate import nominal_solution
+    q_poses = np.asarray(q_poses, float)
+    names = names or [f"P{i + 1}" for i in range(len(q_poses))]
+    doc = campaign_dict(model, q_poses, f"{model.name}_iso9283", cycles, dwell, description)
+    for entry, name in zip(doc["poses"], names):
+        entry["name"] = name
+    if approach is None:
+        return doc
+    bad = [d for d in directions if d not in AXES]
+    if bad or len(set(directions)) != len(directions):
+        raise ValueError(f"directions: expected distinct ones of {sorted(AXES)}, got {list(directions)}")
+    if not (np.isfinite(approach) and approach > 0):
+        raise ValueError(f"approach: expected a positive distance (m), got {approach!r}")
+    T = model.fk(q_poses)
+    prismatic = [t == "prismatic" for t in model.joint_types]
+    extra = []
+    for k, (name, Tk) in enumerate(zip(names, T)):
+        for d in directions:
+            axis, sign = AXES[d]
+            q = q_poses[k][None]
+            for f in np.linspace(0.1, 1.0, 10):   # walked back in steps: the pre-pose joints nearest the pose's
+                target = Tk.copy()
+                target[axis, 3] -= sign * approach * f
+                q = nominal_solution(model, target[None], seed=q[0], tol_position=1e-7, tol_orientation=1e-7)
+            if not np.allclose(model.fk(q)[0], target, atol=1e-6) or model.out_of_limits(q).any() or \
+                    (allowed is not None and not allowed(q).all()):
+                raise ValueError(f"{name}: its pre-pose {approach * 1e3:g} mm before it along {d} is out of reach "
+                                 f"(or of the joint limits, or of the restrictions); shorten --approach")
+            entry = dict(doc["poses"][k], joints=list(doc["poses"][k]["joints"]), name=f"{name}{d}", of=name, approach=d,
+                         via=[float(v) if pr else float(np.degrees(v)) for v, pr in zip(q[0], prismatic)])
+            extra.append(entry)
+    doc["poses"] += extra
+    return doc
