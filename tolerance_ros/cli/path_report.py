@@ -42,6 +42,9 @@ def add_arguments(p):
     p.add_argument("--stations", type=int, default=100, help="calculation points per segment (default 100)")
     p.add_argument("--speed-window", default="10ms",
                    help="speeds are central differences over +- this (default 10ms)")
+    p.add_argument("--band", default="0.1mm",
+                   help="the stabilisation band about the pose attained at each stop (default 0.1mm): the pose "
+                        "stabilisation time and overshoot (docs/path-accuracy.md)")
     p.add_argument("--out", metavar="DIR", help="write path_report.json, path_report.md and plots into DIR")
 
 
@@ -108,7 +111,8 @@ def run(args):
     ignored = []
     tj, qj, trajectory, command_source = _command(args, model, recorded, ignored)
     options = PathOptions(registration=args.registration, latency=latency, window=window, stations=args.stations,
-                          speed_window=speed_window, offset=offset, trajectory=trajectory, reverse=args.reverse)
+                          speed_window=speed_window, offset=offset, trajectory=trajectory, reverse=args.reverse,
+                          band=quantity(args.band, "length", "--band"))
     doc = path_report(model, stamps, points, tj, qj, budget, options, source=source)
     doc["command"] = {"source": command_source, "kind": "trajectory" if args.trajectory else "joint states",
                       "ignored_columns": ignored}

@@ -38,6 +38,9 @@ def add_arguments(p):
     p.add_argument("--repeatability", default="0rad",
                    help="with --trajectory: standard deviation of a joint offset drawn per joint and cycle (e.g. "
                         "0.1mrad; default 0rad)")
+    p.add_argument("--settling", metavar="FREQUENCY,DAMPING",
+                   help="with --trajectory: every joint follows the command as a second-order system of this natural "
+                        "frequency and damping ratio (e.g. 8Hz,0.2): it lags in motion and overshoots at each stop")
     p.add_argument("--tolerances", required=True,
                    help="budget (file or shipped name) the as-built errors are drawn within, or uniform:LENGTH,ANGLE "
                         "(e.g. uniform:0.1mm,0.5mrad) for every parameter")
@@ -59,6 +62,15 @@ def add_arguments(p):
     p.add_argument("--flush", action="store_true",
                    help="with --contact: the targets touch a plane all at once (fingertips flush on a table), one "
                         "posture for all of them, instead of one at a time")
+    p.add_argument("--backlash", default="0rad",
+                   help="with --campaign: the play of every revolute joint (e.g. 0.2mrad): each lags half of it behind "
+                        "the way it last moved, so that a pose attained from another direction (a pre-pose, ISO 9283 "
+                        "vAP) or after another pose differs (default 0rad)")
+    p.add_argument("--thermal", metavar="EXPANSION,TAU",
+                   help="with --campaign: the robot warms up, every length growing by EXPANSION (1 - exp(-t/TAU)), "
+                        "e.g. 100ppm,1h (ISO 9283 drift)")
+    p.add_argument("--cycles", type=int, help="with --campaign: its cycles, instead of the file's (e.g. an 8-hour "
+                                              "drift campaign)")
     p.add_argument("--errors", choices=["uniform", "extreme", "normal"], default="uniform",
                    help="how the as-built errors are drawn within the tolerances (default uniform)")
     p.add_argument("--seed", type=int, default=0, help="seed of the as-built robot and the noise (default 0)")
@@ -118,15 +130,16 @@ def _run_trajectory(args, model, delta, noise, out):
     dx = as_built_errors(delta, args.seed, args.errors)
     T_tracker = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
     st = path_streams(model, jp, dx, T_tracker, jrate, rate, latency, noise, args.seed + 1, repeatability=rep,
-                      offset=offset)
+                      offset=offset, settling=_settling(args.settling))
     comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
                f"seed {args.seed}) driving {args.trajectory}; tracker {args.tracker_rate}, {args.latency} late, "
-               f"noise {args.noise}")
+               f"noise {args.noise}" + (f"; joints settling as {args.settling}" if args.settling else ""))
     write_points(out, st.stamps, st.points, [comment])
     joints = write_joint_states(out.with_name(f"{out.stem}.joints.csv"), st.joint_stamps, st.joints, model.joint_names,
                                 model.joint_types, [comment])
     truth_path = _truth(args, model, dx, T_tracker, noise, out, len(st.stamps), 0, targets, "base", False,
-                        f" driving {args.trajectory}")
+                        f" driving {args.trajectory}" + (f", joints settling as {args.settling}" if args.settling
+                                                         else ""))
     doc = {"measurements": str(out), "joint_states": str(joints), "truth": str(truth_path), "rows": len(st.stamps),
            "joint_state_rows": len(st.joint_stamps), "latency_s": latency, "noise_m": noise,
            "duration_s": jp.duration}
@@ -196,6 +209,40 @@ def _run_contacts(args, model, delta, noise, out):
     return None
 
 
+def _settling(spec):
+    """(natural frequency rad/s, damping ratio) of ``--settling FREQUENCY,DAMPING``, or None."""
+    if not spec:
+        return None
+    parts = spec.split(",")
+    if len(parts) != 2:
+        raise CLIError(f"--settling: expected FREQUENCY,DAMPING (e.g. 8Hz,0.2), got {spec!r}")
+    f = quantity(parts[0], "frequency", "--settling")
+    try:
+        zeta = float(parts[1])
+    except ValueError:
+        raise CLIError(f"--settling: the damping ratio {parts[1]!r} is not a number") from None
+    if not (0 < zeta <= 10 and 0.1 <= f <= 1e3):
+        raise CLIError(f"--settling: expected 0.1Hz to 1kHz and a damping ratio in (0, 10], got {spec!r}")
+    return 2 * np.pi * f, zeta
+
+
+def _growth(spec, stamps):
+    """(n,) thermal growth of ``--thermal EXPANSION,TAU`` at the stamps, or None."""
+    from ..core.accuracy.simulate import thermal_expansion
+    if not spec:
+        return None
+    parts = spec.split(",")
+    if len(parts) != 2 or not parts[0].strip().endswith("ppm"):
+        raise CLIError(f"--thermal: expected EXPANSION,TAU with EXPANSION in ppm (e.g. 100ppm,1h), got {spec!r}")
+    try:
+        expansion = float(parts[0].strip()[:-3]) * 1e-6
+    except ValueError:
+        raise CLIError(f"--thermal: {parts[0]!r} is not a number of ppm") from None
+    if not 0 <= expansion <= 1e-2:
+        raise CLIError(f"--thermal: expected an expansion of 0 to 10000ppm, got {parts[0]!r}")
+    return thermal_expansion(stamps, expansion, quantity(parts[1], "time", "--thermal"))
+
+
 def _truth(args, model, dx, T_tracker, noise, out, rows, poses, targets, registration, orientation, what):
     """The truth beside the measurements (calibration format): its path."""
     from ..core.calibration.calibrate import Calibration
@@ -221,7 +268,7 @@ def _truth(args, model, dx, T_tracker, noise, out, rows, poses, targets, registr
 
 def run(args):
     from ..core.accuracy.io import write_csv
-    from ..core.accuracy.simulate import as_built_errors, measure_targets
+    from ..core.accuracy.simulate import as_built_errors, backlash, measure_targets
     from ..core.campaign import load_campaign
     from ..core.geometry import transform
     model = load_model(args)
@@ -230,6 +277,12 @@ def run(args):
     out = Path(args.out)
     if out.suffix.lower() != ".csv":
         raise CLIError(f"--out: the measurements are a CSV file (name ending in .csv), got {args.out!r}")
+    campaign_only = [o for o, v in (("--backlash", args.backlash != "0rad"), ("--thermal", args.thermal),
+                                    ("--cycles", args.cycles is not None)) if v]
+    if (args.trajectory or args.contact) and campaign_only:
+        raise CLIError(f"{', '.join(campaign_only)}: with --campaign only")
+    if args.settling and not args.trajectory:
+        raise CLIError("--settling: with --trajectory only (the robot's motion between stops)")
     if args.trajectory:
         return _run_trajectory(args, model, delta, noise, out)
     if args.contact:
@@ -237,25 +290,51 @@ def run(args):
     if not args.campaign:
         raise CLIError("--campaign: required (or --trajectory for a path driven while the tracker streams)")
     campaign = load_campaign(args.campaign, model)
+    if args.cycles is not None:
+        from ..core.campaign import MAX_CYCLES
+        if not 1 <= args.cycles <= MAX_CYCLES:
+            raise CLIError(f"--cycles: expected 1 to {MAX_CYCLES}, got {args.cycles}")
+        campaign.cycles = args.cycles
     targets = _targets(args.target_offset)
     onoise = quantity(args.orientation_noise, "angle", "--orientation-noise", positive=False)
+    play = quantity(args.backlash, "angle", "--backlash", positive=False)
+    if play < 0 or play > 0.05:
+        raise CLIError(f"--backlash: expected 0 to 50mrad, got {args.backlash!r}")
     dx = as_built_errors(delta, args.seed, args.errors)
     T_tracker = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
     qk = campaign.joints_for(model)
     seq = campaign.sequence()
-    q = np.array([qk[i] for i, _ in seq])
+    steps, visit = [], []          # every configuration driven (pre-poses too) and which of them are visits
+    for i, _ in seq:
+        if campaign.poses[i].via is not None:
+            steps.append(campaign.poses[i].via)
+            visit.append(False)
+        steps.append(qk[i])
+        visit.append(True)
+    steps, visit = np.array(steps), np.array(visit)
+    q = steps[visit]
+    stamps = np.flatnonzero(visit) * campaign.dwell_s
     labels = np.array([campaign.names[i] for i, _ in seq], dtype=object)
+    revolute = np.array([t != "prismatic" for t in model.joint_types])
+    deflection = backlash(steps, play, revolute)[visit] if play > 0 else None
+    growth = _growth(args.thermal, stamps)
     meas = measure_targets(model, q, dx, targets, noise, 0.0 if targets is not None else onoise, T_tracker,
-                           args.seed + 1, np.arange(len(q)) * campaign.dwell_s, labels, points=targets is not None)
+                           args.seed + 1, stamps, labels, points=targets is not None, deflection=deflection,
+                           growth=growth)
     rows = len(meas)
     meas.cycle = np.repeat([c for _, c in seq], rows // len(q))
     comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
                f"seed {args.seed}), tracker noise {args.noise}" + (f" / {args.orientation_noise}" if targets is None
-                                                                      else "") + f"; truth in {out.stem}.truth.yaml")
+                                                                      else "")
+               + (f", backlash {args.backlash}" if play > 0 else "") + (f", warming up {args.thermal}" if args.thermal
+                                                                         else "")
+               + f"; truth in {out.stem}.truth.yaml")
     write_csv(out, meas, comments=[comment])
     names, tg = (tuple(targets.names), targets) if targets is not None else (("",), None)
     truth_path = _truth(args, model, dx, T_tracker, noise, out, rows, len(campaign.names), tg,
-                        "base+tool" if targets is not None else "base", targets is None, "")
+                        "base+tool" if targets is not None else "base", targets is None,
+                        (f", backlash {args.backlash}" if play > 0 else "")
+                        + (f", warming up {args.thermal}" if args.thermal else ""))
     doc = {"measurements": str(out), "truth": str(truth_path), "rows": rows, "poses": len(campaign.names),
            "visits": len(q), "targets": [n for n in names if n], "noise_m": noise,
            "orientation_noise_rad": None if targets is not None else onoise}

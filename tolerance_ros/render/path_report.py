@@ -43,6 +43,18 @@ def _cycles_from(how) -> str:
     return f"; cycles found by the command's repetition (period {how['period_s']:.3f} s, no rest between them)"
 
 
+def stops_line(st) -> str:
+    """The stops' pose stabilisation time and overshoot, in words."""
+    unsettled = [s for s in st["stops"] if s["note"] and s["rest_s"] > 0]
+    head = (f"{st['judged']} of {len(st['stops'])} stop(s) settled within the {st['band_m'] * 1e3:.4g} mm band")
+    if st["stabilisation_time_s"] is None:
+        return head + (f"; {unsettled[0]['note']}" if unsettled else "")
+    ov = st["overshoot_m"]
+    return (head + f": pose stabilisation time max {st['stabilisation_time_s']['max'] * 1e3:.1f} ms, mean "
+            f"{st['stabilisation_time_s']['mean'] * 1e3:.1f} ms"
+            + (f"; pose overshoot max {ov['max'] * 1e3:.4f} mm, mean {ov['mean'] * 1e3:.4f} mm" if ov else ""))
+
+
 def summary_lines(doc) -> list:
     """The report's lines of text (the command's stdout and the top of path_report.md)."""
     lat = doc["latency"]
@@ -74,6 +86,9 @@ def summary_lines(doc) -> list:
                  + (f", {out['left_out']} left out as repeated or not finite" if out.get("left_out") else "") + ")")
     lines += [line for line in (describe_gaps(name, g) for name, g in (doc.get("stream_gaps") or {}).items()) if line]
     lines += doc.get("not_judged") or []
+    st = doc.get("stops")
+    if st and st["stops"]:
+        lines.append(stops_line(st))
     b = doc.get("budget")
     if b:
         lines.append(f"budget ({b['criterion']} bound): the bound along the path reaches {b['bound_max_m'] * 1e3:.4f} mm"

@@ -37,6 +37,7 @@ from . import path as P
 from ..ingest import StampGaps
 from .latency import FINE_WINDOW_S, coarse_offset, estimate_latency
 from .repeats import split_runs
+from .settling import stops
 from .streams import Timeline, tidy
 from .checks import PLAUSIBLE_RESIDUAL, units_problem
 from .registration import kabsch
@@ -76,7 +77,8 @@ class PathOptions:
     an offset is a translation the registration absorbs, elsewhere it must be given. ``trajectory``
     (``iso_paths.JointPath``): the program the joint states follow (their stamps its run time), whose period
     cuts the cycles and whose knots place the corners. ``reverse``: judge the motion that drives the test path
-    backwards (a line's return strokes) instead."""
+    backwards (a line's return strokes) instead. ``band`` (m) and ``smooth`` (s): the stabilisation band and the
+    points' smoothing of the stabilisation time and overshoot at each stop (``settling.stops``)."""
 
     registration: str = "base"
     latency: float | None = None
@@ -90,6 +92,8 @@ class PathOptions:
     offset: object = None
     trajectory: object = None
     reverse: bool = False
+    band: float = 1e-4
+    smooth: float = 0.04
 
 
 MAX_COMMAND_INTERVAL = 0.1   # s: joint states further apart than this (median) do not sample a path
@@ -234,7 +238,8 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, option
            "path_length_m": float(ref.s[-1]), "speed_m_s": v_max, "segments": segs, "overall": P.overall(segs),
            "outside": outside, "stations_per_segment": o.stations, "budget": None, "refused": None, "missed": [],
            "streams": {name: td.summary() for name, td in tidied.items()},
-           "stream_gaps": {name: g.summary() for name, g in gaps.items()}, "not_judged": list(holes.values())}
+           "stream_gaps": {name: g.summary() for name, g in gaps.items()}, "not_judged": list(holes.values()),
+           "stops": stops(ta, a, tj, p_c, runs, o.band, o.smooth)}
     if budget is not None:
         _judge(doc, model, budget, ref, tj, qj, v_max, offset)
     return doc

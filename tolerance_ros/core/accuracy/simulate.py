@@ -42,13 +42,35 @@ def measure(model: Mechanism, q, dx=None, noise_position=0.0, noise_orientation=
     return T
 
 
+def backlash(q_steps, play, revolute) -> np.ndarray:
+    """(n, dof) joint deflections (rad) of a robot whose revolute joints have ``play`` (rad, the whole backlash)
+    as it drives the configurations ``q_steps`` (n, dof) in turn: each joint lags ``play / 2`` behind the way it
+    last moved (none before it first moves). ``revolute`` (dof,) bool: the joints with play."""
+    q = np.asarray(q_steps, dtype=float)
+    s = np.sign(np.diff(q, axis=0, prepend=q[:1]))
+    rows = np.where(s != 0, np.arange(len(q))[:, None], 0)
+    last = np.maximum.accumulate(rows, axis=0)            # the step each joint last moved at
+    s = np.take_along_axis(s, last, axis=0)
+    return -0.5 * float(play) * s * np.asarray(revolute, bool)[None]
+
+
+def thermal_expansion(stamps, expansion, tau) -> np.ndarray:
+    """(n,) relative growth of every length of a robot warming up: ``expansion (1 - exp(-t / tau))`` at t s
+    after the first stamp (``expansion`` e.g. 1e-4, ``tau`` s). Uniform growth scales every position of the
+    tool about the base origin by ``1 + growth`` and leaves orientations as they are."""
+    t = np.asarray(stamps, dtype=float)
+    return float(expansion) * -np.expm1(-(t - t[0]) / float(tau)) if len(t) else t
+
+
 def measure_targets(model: Mechanism, q, dx=None, targets=None, noise_position=0.0, noise_orientation=0.0,
-                    T_tracker_base=None, seed=0, stamps=None, labels=None, points=True, deflection=None):
+                    T_tracker_base=None, seed=0, stamps=None, labels=None, points=True, deflection=None,
+                    growth=None):
     """Measurements of every target of ``targets`` (``targets.Targets``; default: the tool frame) at joints
     q (n, dof) by a tracker: one row per visit and target (a visit's rows share its stamp), as
     ``io.Measurements`` in the tracker frame. ``points``: the tracker reads points (no orientation);
     otherwise frames. ``deflection`` (n, dof) is added to the joints the as-built robot reaches (its
-    elastic deflection), not to the joints it reports."""
+    elastic deflection, its backlash), not to the joints it reports; ``growth`` (n,) scales the positions about
+    the base origin by ``1 + growth`` (``thermal_expansion``)."""
     from .io import Measurements
     from .targets import Targets
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
@@ -59,6 +81,8 @@ def measure_targets(model: Mechanism, q, dx=None, targets=None, noise_position=0
     idx = np.tile(np.arange(K), n)
     rows = np.repeat(np.arange(n), K)
     T = targets.poses(T_tool[rows], idx)
+    if growth is not None:
+        T[:, :3, 3] *= 1.0 + np.asarray(growth, float)[rows, None]
     if noise_orientation > 0 and not points:
         T[:, :3, :3] = _small_rotations(rng, len(T), noise_orientation) @ T[:, :3, :3]
     if noise_position > 0:
@@ -150,13 +174,16 @@ class PathStreams:
 
 def path_streams(model: Mechanism, jp, dx=None, T_tracker_base=None, joint_rate: float = 500.0,
                  tracker_rate: float = 1000.0, latency: float = 0.008, noise: float = 10e-6, seed=0,
-                 t0: float = 1000.0, lead: float = 0.5, repeatability: float = 0.0, offset=None) -> PathStreams:
+                 t0: float = 1000.0, lead: float = 0.5, repeatability: float = 0.0, offset=None,
+                 settling=None) -> PathStreams:
     """The joint states and the tracker's stream of the as-built robot (errors ``dx``) driving ``jp``
     (``iso_paths.JointPath``, run time 0 at clock time ``t0`` s), from ``lead`` s before to ``lead`` s after;
     the tracker's clock starts at a random phase of its period, its noise is Gaussian per axis (m).
     ``repeatability``: the standard deviation (rad or m) of a joint offset drawn per joint and cycle, added
     to the joints the as-built robot reaches (the cycles then differ; the joint states do not show it).
-    ``offset`` (3,) m: the tracked target's position on the tool frame (None: its origin)."""
+    ``offset`` (3,) m: the tracked target's position on the tool frame (None: its origin). ``settling``
+    (natural frequency rad/s, damping ratio): the joints the as-built robot reaches follow the command through
+    a second-order response (``settle``), so that it lags in motion and oscillates about each stop."""
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     span = jp.duration + 2 * lead
     tj = t0 - lead + np.arange(int(span * joint_rate) + 1) / joint_rate
@@ -164,14 +191,34 @@ def path_streams(model: Mechanism, jp, dx=None, T_tracker_base=None, joint_rate:
     jitter = rng.standard_normal((jp.cycles, model.dof)) * repeatability
     true = np.empty((len(tt), 3))
     target = at_point(model, offset)
+    reached = None
+    if settling is not None:
+        cyc = np.clip(np.floor((tt - t0) / jp.period), 0, jp.cycles - 1).astype(int)
+        reached = settle(jp.at(tt - t0) + jitter[cyc], 1.0 / tracker_rate, *settling)
     for i in range(0, len(tt), 100_000):
         tr = tt[i:i + 100_000] - t0
         cyc = np.clip(np.floor(tr / jp.period), 0, jp.cycles - 1).astype(int)
-        true[i:i + 100_000] = target.fk(jp.at(tr) + jitter[cyc], dx)[:, :3, 3]
+        q = jp.at(tr) + jitter[cyc] if reached is None else reached[i:i + 100_000]
+        true[i:i + 100_000] = target.fk(q, dx)[:, :3, 3]
     meas = true + rng.standard_normal(true.shape) * noise
     A = np.eye(4) if T_tracker_base is None else np.asarray(T_tracker_base, float)
     return PathStreams(joint_stamps=tj, joints=jp.at(tj - t0), stamps=tt + latency, points=meas @ A[:3, :3].T + A[:3, 3],
                        true_times=tt, true_points=true, T_tracker_base=A, latency=latency, dx=dx, noise=noise)
+
+
+def settle(q, dt: float, omega: float, zeta: float) -> np.ndarray:
+    """(n, dof) joints of a robot whose every joint follows the command q (n, dof), sampled every ``dt`` s, as a
+    second-order system ``x'' = omega^2 (q - x) - 2 zeta omega x'`` (natural frequency ``omega`` rad/s, damping
+    ratio ``zeta``), at rest at q[0] to start: discretised exactly for a command held over each step."""
+    from scipy.signal import cont2discrete, lfilter, lfilter_zi
+    if not (omega > 0 and zeta > 0 and dt > 0):
+        raise ValueError(f"settling: expected a positive natural frequency, damping ratio and step, got {omega!r}, "
+                         f"{zeta!r}, {dt!r}")
+    b, a, _ = cont2discrete(([omega ** 2], [1.0, 2.0 * zeta * omega, omega ** 2]), dt, method="zoh")
+    b = np.ravel(b)
+    q = np.asarray(q, float)
+    zi = lfilter_zi(b, a)[:, None] * q[:1]
+    return lfilter(b, a, q, axis=0, zi=zi)[0]
 
 
 def touch(model: Mechanism, dx, offset, kind, where, n, seed=0, noise=0.0):
