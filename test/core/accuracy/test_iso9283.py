@@ -53,3 +53,72 @@ def test_iso_cube():
         assert (p[0] - 0.1) == pytest.approx(p[1] - 0.2)
     with pytest.raises(ValueError):
         iso_cube_points([0, 0], 0.4)
+
+
+def _poses(pos, ang):
+    return np.array([transform(p, a) for p, a in zip(pos, ang)])
+
+
+def test_distance_accuracy_and_repeatability_from_the_definitions():
+    from tolerance_ros.core.accuracy.iso9283 import distance_characteristics
+    rng = np.random.default_rng(2)
+    c1, c2 = np.array([0.5, -0.2, 0.8, 0.1, -0.3, 3.1]), np.array([0.3, 0.1, 0.6, 0.2, 0.1, -3.1])
+    p1 = c1[:3] + [1e-4, 0, 0] + rng.normal(0, 2e-5, (30, 3))
+    p2 = c2[:3] + [0, -2e-4, 0] + rng.normal(0, 2e-5, (30, 3))
+    a1 = c1[3:] + [0, 1e-3, 2e-3] + rng.normal(0, 1e-4, (30, 3))
+    a2 = c2[3:] + [0, 0, -2e-3] + rng.normal(0, 1e-4, (30, 3))
+    r = distance_characteristics(transform(c1[:3], c1[3:]), transform(c2[:3], c2[3:]), _poses(p1, a1), _poses(p2, a2))
+    D = np.linalg.norm(p1 - p2, axis=1)
+    Dc = np.linalg.norm(c1[:3] - c2[:3])
+    assert r["AD_p"] == pytest.approx(D.mean() - Dc) and r["RD_p"] == pytest.approx(3 * np.std(D, ddof=1))
+    assert r["AD_y"] == pytest.approx((p1 - p2)[:, 1].mean() - (c1[1] - c2[1]))
+    assert r["RD_x"] == pytest.approx(3 * np.std((p1 - p2)[:, 0], ddof=1))
+    # yaw crosses +-pi between the two poses: the deviations' difference, not the raw angles', is averaged
+    dc = (a1[:, 2] - c1[5]) - (a2[:, 2] - c2[5])
+    assert r["AD_c"] == pytest.approx(dc.mean(), abs=1e-12) and r["RD_c"] == pytest.approx(3 * np.std(dc, ddof=1))
+    assert distance_characteristics(np.eye(4), np.eye(4), _poses(p1, a1), _poses(p2, a2), orientation=False)["AD_a"] \
+        is None
+    with pytest.raises(ValueError, match="paired"):
+        distance_characteristics(np.eye(4), np.eye(4), _poses(p1, a1), _poses(p2, a2)[:5])
+
+
+def test_multidirectional_variation_is_the_largest_distance_between_barycentres():
+    from tolerance_ros.core.accuracy.iso9283 import multidirectional
+    rng = np.random.default_rng(3)
+    C = transform([0.5, 0, 0.5], [0, 0, 0])
+    shift = {"+x": [1e-4, 0, 0], "+y": [0, 3e-4, 0], "+z": [0, 0, -2e-4]}
+    turn = {"+x": [0, 0, 1e-3], "+y": [0, 0, -2e-3], "+z": [5e-4, 0, 0]}
+    groups = {k: _poses(np.array([0.5, 0, 0.5]) + shift[k] + rng.normal(0, 1e-5, (20, 3)),
+                        np.array(turn[k]) + rng.normal(0, 1e-5, (20, 3))) for k in shift}
+    r = multidirectional(C, groups)
+    bary = {k: g[:, :3, 3].mean(axis=0) for k, g in groups.items()}
+    best = max(np.linalg.norm(bary[h] - bary[k]) for h in bary for k in bary)
+    assert r["vAP_p"] == pytest.approx(best) and set(r["pair"]) == {"+y", "+z"}
+    yaw = [rpy_from_matrix(g[:, :3, :3])[:, 2].mean() for g in groups.values()]
+    assert r["vAP_c"] == pytest.approx(max(yaw) - min(yaw), rel=1e-9)
+    with pytest.raises(ValueError, match="two or more"):
+        multidirectional(C, {"+x": groups["+x"]})
+
+
+def test_drift_compares_the_first_and_the_last_window():
+    from tolerance_ros.core.accuracy.iso9283 import drift
+    rng = np.random.default_rng(4)
+    t = np.arange(0, 8 * 3600, 60.0)                       # a visit a minute for 8 hours
+    creep = 2e-4 * (1 - np.exp(-t / 7200.0))               # the barycentre creeps along y
+    pos = np.array([0.5, 0, 0.5]) + np.outer(creep, [0, 1, 0]) + rng.normal(0, 1e-5, (len(t), 3))
+    r = drift(np.eye(4), t, _poses(pos, np.zeros((len(t), 3))), 3600.0)
+    first, last = pos[t < 3600].mean(axis=0), pos[t >= 7 * 3600].mean(axis=0)
+    assert len(r["windows"]) == 8 and r["dAP_p"] == pytest.approx(np.linalg.norm(first - last))
+    hours = (t[t >= 7 * 3600].mean() - t[t < 3600].mean()) / 3600
+    assert r["dAP_p_per_h"] == pytest.approx(r["dAP_p"] / hours)
+    assert r["dRP_l"] == pytest.approx(abs(r["windows"][0]["RP_l"] - r["windows"][-1]["RP_l"]))
+    with pytest.raises(ValueError, match="two windows"):
+        drift(np.eye(4), t[:50], _poses(pos[:50], np.zeros((50, 3))), 3600.0)
+
+
+def test_exchangeability_spans_the_barycentres_per_axis():
+    from tolerance_ros.core.accuracy.iso9283 import exchangeability
+    b = np.array([[0.5, 0.0, 0.5], [0.5001, -0.0002, 0.5], [0.4999, 0.0001, 0.5003]])
+    assert exchangeability(b)["E"] == pytest.approx(np.sqrt(2e-4 ** 2 + 3e-4 ** 2 + 3e-4 ** 2))
+    with pytest.raises(ValueError, match="two or more"):
+        exchangeability(b[:1])

@@ -115,7 +115,9 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     if keep_rows:
         cat = {k: np.concatenate([r[k] for r in rows]) for k in rows[0] if k not in ("dp", "dphi", "orientation_error")
                and rows[0][k] is not None}
-        out["rows"] = {"stamp": meas.stamps, "joints": q, "dp": np.concatenate([r["dp"] for r in rows]),
+        out["rows"] = {"stamp": meas.stamps, "joints": q, "attained": T_base, "visit_cycle": meas.cycle,
+                       "pose": None if labels is None else labels, "commanded": acc.commanded(),
+                       "dp": np.concatenate([r["dp"] for r in rows]),
                        "dphi": np.concatenate([r["dphi"] for r in rows]) if meas.has_orientation else None,
                        "orientation_error": (np.concatenate([r["orientation_error"] for r in rows])
                                              if meas.has_orientation else None), **cat}

@@ -97,3 +97,133 @@ def iso_cube_points(center, side, fraction: float = 0.1) -> np.ndarray:
     opposite = corners[[2, 3, 0, 1]]
     pts = corners + fraction * (opposite - corners)
     return np.vstack([c, pts[[2, 0, 1, 3]]])
+
+
+def _attained(T, what) -> np.ndarray:
+    T = np.asarray(T, dtype=float)
+    if T.ndim != 3 or T.shape[1:] != (4, 4):
+        raise ValueError(f"{what}: expected (n, 4, 4) poses, got shape {T.shape}")
+    if not np.all(np.isfinite(T)):
+        raise ValueError(f"{what}: poses must be finite")
+    return T
+
+
+def _angles(T, C) -> np.ndarray:
+    """(n, 3) roll, pitch, yaw of T less those of the commanded C, wrapped (rad)."""
+    return wrap(rpy_from_matrix(T[:, :3, :3]) - rpy_from_matrix(np.asarray(C, float)[None, :3, :3]))
+
+
+def _std(x) -> np.ndarray:
+    return np.sqrt(np.sum((x - x.mean(axis=0)) ** 2, axis=0) / (len(x) - 1))
+
+
+def distance_characteristics(commanded1, commanded2, attained1, attained2, orientation: bool = True) -> dict:
+    """ISO 9283 distance accuracy and repeatability between two commanded poses, from ``n >= 2`` paired visits
+    (attained1[j] and attained2[j] of cycle j; (n, 4, 4) each, m and rad).
+
+    ``D_j = |p1_j - p2_j|``, ``D_c = |c1 - c2|``: ``AD_p = mean(D) - D_c``; per axis ``D_xj = x1_j - x2_j`` and
+    ``AD_x = mean(D_x) - D_cx`` (y, z); ``RD_p = 3 S_D`` and ``RD_x = 3 S_Dx`` with ``S`` the sample standard
+    deviation. Orientation (rad): ``AD_a = mean(D_a) - D_ca`` with ``D_aj = a1_j - a2_j``, taken as the mean of
+    ``(a1_j - a_c1) - (a2_j - a_c2)`` so that no angle wraps, and ``RD_a = 3 S_Da`` (b, c). Keys: n, D_c, D_bar, AD_p, AD_x, AD_y, AD_z, RD_p, RD_x, RD_y, RD_z and, with
+    ``orientation``, AD_a, AD_b, AD_c, RD_a, RD_b, RD_c (None without).
+    """
+    T1, T2 = _attained(attained1, "attained1"), _attained(attained2, "attained2")
+    if len(T1) != len(T2) or len(T1) < 2:
+        raise ValueError(f"distance: expected n >= 2 paired visits, got {len(T1)} and {len(T2)}")
+    C1, C2 = np.asarray(commanded1, float), np.asarray(commanded2, float)
+    dc = C1[:3, 3] - C2[:3, 3]
+    d = T1[:, :3, 3] - T2[:, :3, 3]
+    D = np.linalg.norm(d, axis=1)
+    out = {"n": len(D), "D_c": float(np.linalg.norm(dc)), "D_bar": float(D.mean()),
+           "AD_p": float(D.mean() - np.linalg.norm(dc)), "RD_p": float(3 * _std(D))}
+    for k, ax in enumerate("xyz"):
+        out[f"AD_{ax}"] = float(d[:, k].mean() - dc[k])
+        out[f"RD_{ax}"] = float(3 * _std(d[:, k]))
+    for k, ax in enumerate("abc"):
+        out[f"AD_{ax}"] = out[f"RD_{ax}"] = None
+    if orientation:
+        da = wrap(_angles(T1, C1) - _angles(T2, C2))
+        for k, ax in enumerate("abc"):
+            out[f"AD_{ax}"] = float(da[:, k].mean())
+            out[f"RD_{ax}"] = float(3 * _std(da[:, k]))
+    return out
+
+
+def multidirectional(commanded, approaches: dict, orientation: bool = True) -> dict:
+    """ISO 9283 multi-directional pose accuracy variation of one test pose: ``approaches`` maps each approach
+    (a name) to its attained poses ((n_h, 4, 4), n_h >= 1). ``vAP_p = max_{h,k} |x_bar_h - x_bar_k|`` over the
+    approaches' barycentres (m); ``vAP_a = max_{h,k} |a_bar_h - a_bar_k|`` of the roll deviations' means (b, c;
+    rad; None without ``orientation``). Keys also: approaches {name: n}, pair (the two approaches farthest
+    apart)."""
+    if len(approaches) < 2:
+        raise ValueError(f"multi-directional: expected two or more approaches, got {len(approaches)}")
+    names = list(approaches)
+    Ts = [_attained(approaches[k], f"approach {k}") for k in names]
+    if any(len(T) == 0 for T in Ts):
+        raise ValueError("multi-directional: an approach without attained poses")
+    bary = np.array([T[:, :3, 3].mean(axis=0) for T in Ts])
+    dist = np.linalg.norm(bary[:, None] - bary[None], axis=2)
+    h, k = np.unravel_index(np.argmax(dist), dist.shape)
+    out = {"approaches": {n: len(T) for n, T in zip(names, Ts)}, "vAP_p": float(dist[h, k]),
+           "pair": [names[h], names[k]], "vAP_a": None, "vAP_b": None, "vAP_c": None}
+    if orientation:
+        mean = np.array([_angles(T, commanded).mean(axis=0) for T in Ts])
+        spread = np.abs(mean[:, None] - mean[None]).max(axis=(0, 1))
+        out.update({f"vAP_{ax}": float(spread[i]) for i, ax in enumerate("abc")})
+    return out
+
+
+def drift(commanded, stamps, attained, window: float, orientation: bool = True) -> dict:
+    """ISO 9283 drift of the pose characteristics of one test pose over a long campaign: AP and RP of each
+    window of ``window`` s (from the first stamp; windows with fewer than 2 visits are skipped), and
+
+    - ``dAP_p = |AP(first) - AP(last)|``, the shift of the barycentre between the first and the last window (m);
+      ``dAP_a = |AP_a(first) - AP_a(last)|`` (b, c; rad);
+    - ``dRP_l = |RP_l(first) - RP_l(last)|`` (m), ``dRP_a`` (b, c; rad);
+    - each per hour: divided by the time between the two windows' mean stamps.
+
+    Keys: window_s, span_s, windows [{t_s (mean stamp), n, AP_p, AP_x, AP_y, AP_z, RP_l, ...}], dAP_p, dRP_l,
+    dAP_p_per_h, dRP_l_per_h, and the orientation ones (None without ``orientation``). Needs two windows.
+    """
+    T = _attained(attained, "attained")
+    t = np.asarray(stamps, dtype=float)
+    if t.shape != (len(T),) or not np.all(np.isfinite(t)):
+        raise ValueError("stamps: expected one finite stamp (s) per attained pose")
+    if not (np.isfinite(window) and window > 0):
+        raise ValueError(f"window: expected a positive duration (s), got {window!r}")
+    order = np.argsort(t, kind="stable")
+    t, T = t[order], T[order]
+    w = np.floor((t - t[0]) / window).astype(np.int64)
+    starts = np.flatnonzero(np.r_[True, w[1:] != w[:-1]])
+    ends = np.r_[starts[1:], len(w)]
+    windows = []
+    for a, b in zip(starts, ends):
+        if b - a >= 2:
+            pc = pose_characteristics(commanded, T[a:b], orientation).to_dict()
+            windows.append({"t_s": float(t[a:b].mean()), **pc})
+    if len(windows) < 2:
+        raise ValueError(f"drift: the visits span {t[-1] - t[0]:.6g} s, fewer than two windows of {window:g} s with "
+                         f"two visits each")
+    first, last = windows[0], windows[-1]
+    hours = (last["t_s"] - first["t_s"]) / 3600.0
+    dap = np.linalg.norm([first[f"AP_{a}"] - last[f"AP_{a}"] for a in "xyz"])
+    out = {"window_s": float(window), "span_s": float(t[-1] - t[0]), "windows": windows,
+           "dAP_p": float(dap), "dRP_l": float(abs(first["RP_l"] - last["RP_l"]))}
+    for a in "abc":
+        out[f"dAP_{a}"] = abs(first[f"AP_{a}"] - last[f"AP_{a}"]) if orientation else None
+        out[f"dRP_{a}"] = abs(first[f"RP_{a}"] - last[f"RP_{a}"]) if orientation else None
+    for k in [k for k in out if k.startswith("d") and out[k] is not None]:
+        out[f"{k}_per_h"] = out[k] / hours
+    return out
+
+
+def exchangeability(barycentres) -> dict:
+    """ISO 9283 exchangeability of one test pose between robots of one type: ``E = sqrt((x_max - x_min)^2 +
+    (y_max - y_min)^2 + (z_max - z_min)^2)`` over the robots' barycentres (r, 3), r >= 2 (m). Keys: E, spread
+    (x, y, z)."""
+    b = np.asarray(barycentres, dtype=float)
+    if b.ndim != 2 or b.shape[1] != 3 or len(b) < 2 or not np.all(np.isfinite(b)):
+        raise ValueError(f"exchangeability: expected the barycentres of two or more robots, shape (r, 3), got "
+                         f"{b.shape}")
+    spread = b.max(axis=0) - b.min(axis=0)
+    return {"E": float(np.linalg.norm(spread)), "spread": spread.tolist(), "robots": len(b)}

@@ -1,0 +1,113 @@
+"""The ISO 9283 report's figures against the truth of simulated robots (backlash, warm-up, several robots of a
+type), each within 5 % or within the noise floor of its mean."""
+import numpy as np
+import pytest
+
+from tolerance_ros.core.accuracy.iso9283_report import ISOOptions, ISOReportError, iso9283_report
+from tolerance_ros.core.accuracy.simulate import as_built_errors, backlash, measure_targets, thermal_expansion
+from tolerance_ros.core.calibration.planning import iso9283_campaign, iso_cube_joints
+from tolerance_ros.core.campaign import campaign_from_dict
+from tolerance_ros.core.geometry import transform
+
+NOISE = 3e-6
+T_TRACKER = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
+
+
+@pytest.fixture(scope="module")
+def cube(gao):
+    q, _ = iso_cube_joints(gao, gao.sample_joints(400, 0))
+    return q
+
+
+def _run(model, campaign, seed=0, play=0.0, growth=None, tracker=T_TRACKER, noise=NOISE):
+    """(measurements, noise-free attained positions in the base frame, pose names) of one simulated robot."""
+    dx = as_built_errors(np.where(np.array(model.param_kinds) == "length", 5e-5, 2e-4), seed)
+    qk = dict(zip(campaign.names, campaign.joints_for(model)))
+    steps, visit, names = [], [], []
+    for i, _ in campaign.sequence():
+        tp = campaign.poses[i]
+        if tp.via is not None:
+            steps.append(tp.via)
+            visit.append(False)
+        steps.append(qk[tp.name])
+        visit.append(True)
+        names.append(tp.name)
+    steps, visit = np.array(steps), np.array(visit)
+    q = steps[visit]
+    stamps = np.flatnonzero(visit) * campaign.dwell_s
+    d = backlash(steps, play, np.ones(model.dof, bool))[visit]
+    g = None if growth is None else thermal_expansion(stamps, *growth)
+    meas = measure_targets(model, q, dx, None, noise, 1e-6, tracker, seed + 1, stamps, np.array(names, object),
+                           points=False, deflection=d, growth=g)
+    meas.cycle = np.array([c for _, c in campaign.sequence()])
+    true = model.fk(q + d, dx)[:, :3, 3] * (1.0 if g is None else 1.0 + g[:, None])
+    return meas, true, np.array(names, object)
+
+
+def test_vap_and_ad_against_a_robot_with_backlash(gao, cube):
+    camp = campaign_from_dict(iso9283_campaign(gao, cube, 0.1, cycles=30, dwell=1.0), model=gao)
+    meas, true, names = _run(gao, camp, play=1e-3)
+    r = iso9283_report(gao, meas, camp)
+    assert set(r["multidirectional"]) == {"P1", "P2", "P3", "P4", "P5"}
+    for pose, v in r["multidirectional"].items():
+        bary = [true[names == f"{pose}{d}"].mean(axis=0) for d in ("+x", "+y", "+z")]
+        truth = max(np.linalg.norm(a - b) for a in bary for b in bary)
+        assert truth > 20 * NOISE                             # the backlash shows, well above the noise
+        assert v["vAP_p"] == pytest.approx(truth, rel=0.05)
+    D = np.linalg.norm(true[names == "P2"] - true[names == "P4"], axis=1)
+    C = gao.fk(np.array([camp.joints_for(gao)[camp.names.index(p)] for p in ("P2", "P4")]))
+    truth = D.mean() - np.linalg.norm(C[0, :3, 3] - C[1, :3, 3])
+    floor = 3 * NOISE * np.sqrt(2 / 30)                      # three standard deviations of the mean distance
+    assert r["distance"]["between"] == ["P2", "P4"]
+    assert abs(r["distance"]["AD_p"] - truth) <= max(0.05 * abs(truth), floor)
+    assert r["distance"]["RD_p"] == pytest.approx(3 * np.sqrt(np.var(D) + 2 * NOISE ** 2), rel=0.35)   # n = 30
+    assert "vAP (multi-directional pose accuracy variation)" not in {m["characteristic"] for m in r["missing"]}
+
+
+def test_drift_of_a_robot_warming_up_for_eight_hours(gao, cube):
+    camp = campaign_from_dict(iso9283_campaign(gao, cube[[0, 1, 3]], cycles=960, dwell=10.0), model=gao)   # 8 h
+    meas, true, names = _run(gao, camp, growth=(3e-4, 7200.0))
+    r = iso9283_report(gao, meas, camp, ISOOptions(drift_window=3600.0))
+    for pose in ("P1", "P2"):
+        t = meas.stamps[names == pose]
+        p = true[names == pose]
+        truth = np.linalg.norm(p[t < 3600].mean(axis=0) - p[t >= 7 * 3600].mean(axis=0))
+        assert truth > 10 * NOISE
+        assert r["drift"][pose]["dAP_p"] == pytest.approx(truth, rel=0.05)
+        assert len(r["drift"][pose]["windows"]) == 8
+
+
+def test_exchangeability_of_three_robots_of_a_type(gao, cube):
+    camp = campaign_from_dict(iso9283_campaign(gao, cube, cycles=10), model=gao)
+    runs = [_run(gao, camp, seed=s, tracker=None) for s in (0, 10, 20)]
+    r = iso9283_report(gao, runs[0][0], camp, ISOOptions(registration="none"), others=[m for m, _, _ in runs[1:]])
+    for pose in camp.names:
+        bary = np.array([t[n == pose].mean(axis=0) for _, t, n in runs])
+        truth = np.linalg.norm(bary.max(axis=0) - bary.min(axis=0))
+        assert r["exchangeability"][pose]["E"] == pytest.approx(truth, rel=0.05)
+
+
+def test_what_the_data_do_not_allow_is_named(gao, cube):
+    camp = campaign_from_dict(iso9283_campaign(gao, cube, cycles=3), model=gao)
+    r = iso9283_report(gao, _run(gao, camp)[0], camp)
+    missing = {m["characteristic"]: m["needs"] for m in r["missing"]}
+    assert "--approach" in missing["vAP (multi-directional pose accuracy variation)"]
+    assert "--other" in missing["E (exchangeability)"]
+    assert "two windows" in missing["dAP, dRP (drift of pose characteristics)"]
+    assert r["multidirectional"] == {} and r["exchangeability"] == {} and r["drift"] == {}
+    assert set(r["pose"]) == set(camp.names) and r["distance"]["n"] == 3
+
+
+def test_approaches_commanding_different_poses_are_refused(gao, cube):
+    doc = iso9283_campaign(gao, cube, 0.05, cycles=3)
+    doc["poses"][5]["joints"] = doc["poses"][6]["joints"] = list(doc["poses"][1]["joints"])   # P1+x, P1+y at P2
+    doc["poses"][5]["joints"][0] += 1.0
+    camp = campaign_from_dict(doc, model=gao)
+    with pytest.raises(ISOReportError, match="approaches of P1 .* must command one pose"):
+        iso9283_report(gao, _run(gao, camp)[0], camp)
+
+
+def test_a_distance_between_unknown_poses_is_refused(gao, cube):
+    camp = campaign_from_dict(iso9283_campaign(gao, cube, cycles=3), model=gao)
+    with pytest.raises(ISOReportError, match=r"\['P9'\] are not in campaign"):
+        iso9283_report(gao, _run(gao, camp)[0], camp, ISOOptions(distance=("P1", "P9")))

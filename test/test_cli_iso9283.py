@@ -1,0 +1,145 @@
+"""The ISO 9283 test report from the command line: plan-campaign --iso9283 --approach, simulate --backlash /
+--thermal, iso9283 --out; its figures equal report's and path-report's for the same data."""
+import json
+import re
+
+import numpy as np
+import pytest
+import yaml
+
+from helpers import run_cli as run
+
+ROBOT = "gao2023_7dof"
+TOL = "uniform:0.05mm,0.2mrad"
+
+
+def cli(capsys, *argv):
+    code, out, err = run(capsys, *argv, "--quiet")
+    assert code == 0, err
+    return out
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    d = tmp_path_factory.mktemp("iso")
+    from tolerance_ros.cli import main
+    assert main(["plan-campaign", "--robot", ROBOT, "--iso9283", "--approach", "80mm", "--cycles", "10", "--out",
+                 str(d / "iso.yaml"), "--quiet"]) == 0
+    return d / "iso.yaml"
+
+
+def test_the_planner_writes_each_test_pose_approached_along_three_axes(campaign):
+    from tolerance_ros.core.campaign import load_campaign
+    from tolerance_ros.core.models import load_robot
+    model = load_robot(ROBOT)
+    camp = load_campaign(campaign, model)
+    assert camp.approaches() == {f"P{k}": [f"P{k}+x", f"P{k}+y", f"P{k}+z"] for k in range(1, 6)}
+    by = {p.name: p for p in camp.poses}
+    for k in range(1, 6):
+        T = model.fk(np.array([by[f"P{k}"].joints] + [by[f"P{k}{d}"].via for d in ("+x", "+y", "+z")]))
+        step = T[1:, :3, 3] - T[0, :3, 3]                      # each pre-pose 80 mm before the pose along its axis
+        assert np.allclose(step, -0.08 * np.eye(3), atol=1e-6)
+        assert np.allclose(T[1:, :3, :3], T[0, :3, :3], atol=1e-6)
+
+
+def test_the_report_from_a_robot_with_backlash(capsys, tmp_path, campaign):
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", campaign, "--tolerances", TOL, "--backlash", "0.5mrad",
+        "--out", tmp_path / "m.csv")
+    doc = json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", campaign, "--measurements",
+                         tmp_path / "m.csv", "--temperature", "20.5 C", "--out", tmp_path / "rep", "--json"))
+    assert all(doc["multidirectional"][f"P{k}"]["vAP_p"] > 0.02e-3 for k in range(1, 6))
+    assert doc["distance"]["between"] == ["P2", "P4"] and doc["distance"]["n"] == 10
+    assert doc["conditions"]["temperature"] == "20.5 C" and doc["conditions"]["cycles"] == 10
+    for f in ("report.md", "report.html", "iso9283.json", "vap.png"):
+        assert (tmp_path / "rep" / f).is_file()
+    md = (tmp_path / "rep" / "report.md").read_text()
+    html = (tmp_path / "rep" / "report.html").read_text()
+    v = doc["multidirectional"]["P3"]["vAP_p"]
+    assert f"{v * 1e3:.4f}" in md and f"{v * 1e3:.4f}" in html
+    # the same figures as report --campaign for the same data
+    rep = json.loads(cli(capsys, "report", "--robot", ROBOT, "--campaign", campaign, "--measurements",
+                         tmp_path / "m.csv", "--json"))
+    for pose, v in doc["pose"].items():
+        assert v["AP_p"] == rep["per_pose"][pose]["AP_p"] and v["RP_l"] == rep["per_pose"][pose]["RP_l"]
+    printed = cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", campaign, "--measurements", tmp_path / "m.csv")
+    assert f"{doc['distance']['AD_p'] * 1e3:.4f}" in printed and "Not in this report" in printed
+    # without backlash, the approaches agree to the noise
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", campaign, "--tolerances", TOL, "--out", tmp_path / "n.csv")
+    flat = json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", campaign, "--measurements",
+                          tmp_path / "n.csv", "--json"))
+    assert max(flat["multidirectional"][f"P{k}"]["vAP_p"] for k in range(1, 6)) < 0.02e-3
+
+
+def test_drift_and_exchangeability_and_the_path_in_one_report(capsys, tmp_path):
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--iso9283", "--out", tmp_path / "cube.yaml")
+    for seed, thermal in ((0, ["--thermal", "200ppm,2h"]), (1, [])):
+        cli(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--cycles", "600",
+            "--tolerances", TOL, "--seed", seed, "--out", tmp_path / f"r{seed}.csv", *thermal)
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--path", "line", "--cycles", "3", "--out", tmp_path / "line.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--trajectory", tmp_path / "line.yaml", "--tolerances", TOL,
+        "--settling", "8Hz,0.2", "--out", tmp_path / "s.csv")
+    truth = yaml.safe_load((tmp_path / "r0.truth.yaml").read_text())
+    assert "warming up 200ppm,2h" in json.dumps(truth)
+    argv = ["iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--drift-window", "10min"]
+    doc = json.loads(cli(capsys, *argv, "--measurements", tmp_path / "r0.csv", "--other", tmp_path / "r1.csv",
+                         "--stream", tmp_path / "s.csv", "--joint-states", tmp_path / "s.joints.csv", "--latency",
+                         "8ms", "--json"))
+    cold = json.loads(cli(capsys, *argv, "--measurements", tmp_path / "r1.csv", "--json"))
+    assert len(doc["drift"]["P1"]["windows"]) == 10                  # 600 cycles of 5 poses, 2 s each: 100 min
+    assert all(doc["drift"][p]["dAP_p"] > 5 * cold["drift"][p]["dAP_p"] for p in doc["drift"])
+    assert set(doc["exchangeability"]) == {"P1", "P2", "P3", "P4", "P5", "sources"}
+    path = json.loads(cli(capsys, "path-report", "--robot", ROBOT, "--measurements", tmp_path / "s.csv",
+                          "--joint-states", tmp_path / "s.joints.csv", "--latency", "8ms", "--json"))
+    assert doc["path"]["overall"]["AT_p_m"] == path["overall"]["AT_p_m"]
+    assert doc["path"]["stops"] == path["stops"] and path["stops"]["judged"] == 6      # 3 cycles out and back
+    assert 0.05 < path["stops"]["stabilisation_time_s"]["mean"] < 0.15                # an 8 Hz robot ringing
+    missing = {m["characteristic"] for m in doc["missing"]}
+    assert not missing & {"E (exchangeability)", "AT, RT, CR, CO, AV, RV, FV (path)",
+                          "pose stabilisation time, pose overshoot"}
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--distance", "P2"], "--distance: expected two different test poses"),
+    (["--distance", "P2,P9"], r"\['P9'\] are not in campaign"),
+    (["--drift-window", "3600"], "--drift-window"),
+    (["--joint-states", "x.csv"], "go with --stream"),
+    (["--latency", "8ms"], "go with --stream"),
+])
+def test_bad_options_are_refused(capsys, tmp_path, campaign, argv, message):
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", campaign, "--tolerances", TOL, "--out", tmp_path / "m.csv")
+    code, out, err = run(capsys, "iso9283", "--robot", ROBOT, "--campaign", campaign, "--measurements",
+                         tmp_path / "m.csv", *argv)
+    assert code == 2 and re.search(message, err), err
+
+
+def test_a_campaign_without_pose_names_is_refused(capsys, tmp_path, campaign):
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", campaign, "--tolerances", TOL, "--out", tmp_path / "m.csv")
+    lines = (tmp_path / "m.csv").read_text().splitlines()
+    head = [i for i, l in enumerate(lines) if not l.startswith("#")][0]
+    cols = lines[head].split(",")
+    k = cols.index("pose")
+    rows = [",".join(c for j, c in enumerate(l.split(",")) if j != k) for l in lines[head:]]
+    (tmp_path / "u.csv").write_text("\n".join(rows) + "\n")
+    code, out, err = run(capsys, "iso9283", "--robot", ROBOT, "--campaign", campaign, "--measurements",
+                         tmp_path / "u.csv")
+    assert code == 2 and "no pose column" in err, err
+
+
+def test_simulate_refuses_bad_backlash_thermal_and_settling(capsys, tmp_path, campaign):
+    for argv, message in ((["--backlash", "1rad"], "--backlash"), (["--thermal", "100,1h"], "ppm"),
+                          (["--cycles", "0"], "--cycles"), (["--settling", "8Hz,0.2"], "with --trajectory only")):
+        code, out, err = run(capsys, "simulate", "--robot", ROBOT, "--campaign", campaign, "--tolerances", TOL,
+                             "--out", tmp_path / "m.csv", *argv)
+        assert code == 2 and message in err, err
+
+
+def test_simulate_refuses_options_of_another_mode(capsys, tmp_path):
+    code, _, err = run(capsys, "plan-campaign", "--robot", ROBOT, "--path", "line", "--cycles", "1", "--out",
+                       tmp_path / "line.yaml")
+    assert code == 0, err
+    for argv, message in ((["--backlash", "1mrad"], "--backlash: with --campaign only"),
+                          (["--thermal", "100ppm,1h"], "--thermal: with --campaign only"),
+                          (["--settling", "8Hz"], "FREQUENCY,DAMPING")):
+        code, out, err = run(capsys, "simulate", "--robot", ROBOT, "--trajectory", tmp_path / "line.yaml",
+                             "--tolerances", TOL, "--out", tmp_path / "s.csv", *argv)
+        assert code == 2 and message in err, err

@@ -1,0 +1,110 @@
+"""`tolerance-ros iso9283`: the ISO 9283 test report of a robot, every characteristic the given data allow (pose
+accuracy and repeatability, multi-directional variation, distance, drift, exchangeability, and the path ones from
+a stream), the test conditions, and what the others need; as Markdown, HTML and JSON with plots."""
+from __future__ import annotations
+
+from ..render.text import table
+from .common import CLIError, load_model, quantity
+
+NAME = "iso9283"
+HELP = "ISO 9283 test report: every characteristic the data allow, in one report (Markdown, HTML, JSON)"
+ROBOT = True
+MAX_OTHERS = 100
+
+
+def add_arguments(p):
+    p.add_argument("--campaign", required=True, help="the campaign measured (test poses, approaches, cycles)")
+    p.add_argument("--measurements", required=True,
+                   help="the tracker's measurements of the campaign (CSV, campaign log or rosbag2), rows named by "
+                        "test pose")
+    p.add_argument("--other", action="append", default=[], metavar="MEASUREMENTS",
+                   help="the same campaign measured on another robot of the type (exchangeability E); repeatable")
+    p.add_argument("--distance", metavar="POSE1,POSE2",
+                   help="the two test poses of the distance accuracy AD and repeatability RD (default P2,P4)")
+    p.add_argument("--drift-window", default="1h",
+                   help="AP and RP are taken over windows this long for the drift dAP, dRP (default 1h)")
+    p.add_argument("--registration", choices=["base", "none"], default="base",
+                   help="fit the tracker's placement (base, default) or take the measurements as base-frame (none: "
+                        "the measuring frame is the robots' common mounting, as exchangeability asks)")
+    p.add_argument("--stream", metavar="POINTS",
+                   help="the tracker's stream along a test path (as path-report's --measurements): the path "
+                        "characteristics AT, RT, CR, CO, AV, RV, FV")
+    p.add_argument("--joint-states", metavar="JOINTS", help="with --stream: the joint states logged along the path")
+    p.add_argument("--trajectory", metavar="FILE", help="with --stream: the joint trajectory driven")
+    p.add_argument("--latency", help="with --stream: the tracker's latency, given (e.g. 8ms): the stops are then timed "
+                                     "on the command's clock exactly (an estimate also holds the robot's own lag)")
+    p.add_argument("--band", default="0.1mm",
+                   help="with --stream: the stabilisation band about the pose attained at each stop (default 0.1mm)")
+    p.add_argument("--load", help="test condition: the load at the tool (e.g. '10 kg at 100 mm along z')")
+    p.add_argument("--speed", help="test condition: the programmed speed (e.g. '100 % of rated, 1 m/s')")
+    p.add_argument("--temperature", help="test condition: the ambient temperature (e.g. '20.5 C')")
+    p.add_argument("--measuring-system", help="test condition: the instrument (e.g. 'laser tracker, MPE 15 um')")
+    p.add_argument("--out", metavar="DIR", help="write report.md, report.html, iso9283.json and plots into DIR")
+
+
+def _path(args, model):
+    """path_report's result for ``--stream``, or None."""
+    if not args.stream:
+        if args.joint_states or args.trajectory or args.latency:
+            raise CLIError("--joint-states, --trajectory, --latency: go with --stream (the path's tracker points)")
+        return None
+    from ..core.accuracy.io.joint_states import read_points
+    from ..core.accuracy.path_report import PathOptions, path_report
+    from .path_report import _command
+    from types import SimpleNamespace
+    stamps, points, source = read_points(args.stream)
+    command = SimpleNamespace(joint_states=args.joint_states, trajectory=args.trajectory, measurements=args.stream)
+    tj, qj, trajectory, _ = _command(command, model)
+    latency = quantity(args.latency, "time", "--latency", positive=False)
+    return path_report(model, stamps, points, tj, qj, None,
+                       PathOptions(registration=args.registration, trajectory=trajectory, latency=latency,
+                                   band=quantity(args.band, "length", "--band")), source=source)
+
+
+def _numeric(cell) -> bool:
+    try:
+        float(cell)
+    except (TypeError, ValueError):
+        return cell == "-"
+    return True
+
+
+def run(args):
+    from ..core.accuracy.io import read_measurements
+    from ..core.accuracy.iso9283_report import ISOOptions, ISOReportError, iso9283_report
+    from ..core.campaign import load_campaign
+    from ..render.iso9283_report import sections, write_iso9283_report
+    model = load_model(args)
+    campaign = load_campaign(args.campaign, model)
+    if len(args.other) > MAX_OTHERS:
+        raise CLIError(f"--other: {len(args.other)} robots; at most {MAX_OTHERS}")
+    pair = None
+    if args.distance:
+        pair = tuple(p.strip() for p in args.distance.split(","))
+        if len(pair) != 2 or not all(pair) or pair[0] == pair[1]:
+            raise CLIError(f"--distance: expected two different test poses POSE1,POSE2, got {args.distance!r}")
+    window = quantity(args.drift_window, "time", "--drift-window")
+    conditions = {"load": args.load, "speed": args.speed, "temperature": args.temperature,
+                  "measuring_system": args.measuring_system}
+    meas = read_measurements(args.measurements, joint_names=model.joint_names)
+    others = [read_measurements(f, joint_names=model.joint_names) for f in args.other]
+    path = _path(args, model)
+    try:
+        doc = iso9283_report(model, meas, campaign, ISOOptions(pair, window, args.registration, conditions), others,
+                             path)
+    except ISOReportError as exc:
+        raise CLIError(str(exc)) from None
+    files = write_iso9283_report(doc, args.out) if args.out else {}
+    if args.json:
+        return dict(doc, files=files)
+    print(f"robot {model.name}: ISO 9283 from {doc['measurements']} measurements of campaign {campaign.name} "
+          f"({doc['source']})" + (f" and {len(others)} other robot(s)" if others else ""))
+    for w in doc["warnings"]:
+        print(f"WARNING: {w}")
+    for title, note, heads, rows in sections(doc):
+        print(f"\n{title}: {note}")
+        print(table(heads, rows, [">" if all(_numeric(r[k]) for r in rows) else "<" for k in range(len(heads))]))
+    for k, v in files.items():
+        for f in (v if isinstance(v, list) else [v]):
+            print(f"wrote {f}")
+    return None

@@ -1,0 +1,210 @@
+"""The figures of an ISO 9283 test report from a campaign's measurements (``iso9283_report``), as a plain dict
+(SI: m, rad, s): every pose characteristic the data allow, the path characteristics where a stream is given
+(``path_report``), the test conditions, and for every other characteristic the data it needs.
+
+- AP, RP per test pose (``evaluation.evaluate_file``, the figures of ``report --campaign``);
+- vAP (multi-directional pose accuracy variation) for each test pose the campaign approaches in more than one
+  way (``of`` and ``via`` in the campaign: ``plan-campaign --iso9283 --approach``);
+- AD, RD (distance accuracy and repeatability) between two test poses (the standard's P2 and P4 by default),
+  their visits paired by cycle;
+- dAP, dRP (drift) for each test pose whose visits span two windows (1 h by default);
+- E (exchangeability) for each test pose measured on every robot given (``others``: other robots of the type);
+- the path characteristics and the pose stabilisation time and overshoot at each stop of a stream (``path``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .evaluation import evaluate_file
+from .iso9283 import distance_characteristics, drift, exchangeability, multidirectional
+
+COMMANDED_TOLERANCE = 1e-6  # m: the approaches of one test pose must command the same position within this
+CONDITIONS = ("load", "speed", "temperature", "measuring_system", "notes")
+
+
+class ISOReportError(ValueError):
+    """Data that cannot give an ISO 9283 report; the message names what and why."""
+
+
+@dataclass
+class ISOOptions:
+    """What the report computes: ``distance`` the two test poses of AD/RD (None: P2 and P4 where the campaign
+    has them), ``drift_window`` (s), ``registration`` ('base' or 'none'), ``conditions`` the test conditions the
+    standard asks to state (free text by key of ``CONDITIONS``)."""
+
+    distance: tuple | None = None
+    drift_window: float = 3600.0
+    registration: str = "base"
+    conditions: dict = field(default_factory=dict)
+
+
+def _pose_data(model, meas, campaign, registration) -> tuple:
+    """(evaluate_file's result, attained (n, 4, 4) base frame, pose names (n,), stamps (n,), cycles (n,),
+    commanded {name: 4x4}) of one robot's measurements."""
+    if len(meas.target_names) > 1:
+        raise ISOReportError(f"{meas.source}: {len(meas.target_names)} targets ({', '.join(meas.target_names)}); an "
+                             f"ISO 9283 report takes one target (the tool frame or one reflector)")
+    if meas.pose is None or not any(str(p) for p in meas.pose):
+        raise ISOReportError(f"{meas.source}: no pose column; the ISO 9283 characteristics need each row named by its "
+                             f"test pose")
+    res = evaluate_file(model, meas, None, campaign, registration=registration)
+    rows = res["rows"]
+    names = np.array([str(p) for p in rows["pose"]], dtype=object)
+    cyc = rows["visit_cycle"] if rows["visit_cycle"] is not None else np.full(len(names), -1)
+    return res, rows["attained"], names, np.asarray(rows["stamp"], float), np.asarray(cyc), rows["commanded"]
+
+
+def _pairs(names, cycles, a, b) -> tuple:
+    """(rows of a, rows of b) of the visits of test poses a and b paired by cycle (when every visit has one),
+    else in their order."""
+    ia, ib = np.flatnonzero(names == a), np.flatnonzero(names == b)
+    if (cycles[ia] >= 0).all() and (cycles[ib] >= 0).all():
+        common = np.intersect1d(cycles[ia], cycles[ib])
+        first = {}
+        for i in ia:
+            first.setdefault(int(cycles[i]), i)
+        second = {}
+        for i in ib:
+            second.setdefault(int(cycles[i]), i)
+        return np.array([first[c] for c in common], int), np.array([second[c] for c in common], int)
+    n = min(len(ia), len(ib))
+    return ia[:n], ib[:n]
+
+
+def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, others=(), path=None) -> dict:
+    """The ISO 9283 figures of ``meas`` (see the module docstring); ``others``: measurements of the same campaign
+    on other robots of the type (exchangeability); ``path``: a ``path_report`` result to include. Keys: robot,
+    source, campaign, orientation_measured, conditions, pose (AP/RP per test pose), multidirectional, distance,
+    drift, exchangeability, path, missing [{characteristic, needs}], warnings."""
+    options = options or ISOOptions()
+    if campaign is None:
+        raise ISOReportError("an ISO 9283 report needs the campaign (its test poses and approaches)")
+    res, T, names, stamps, cycles, commanded = _pose_data(model, meas, campaign, options.registration)
+    ori = bool(res["orientation_measured"])
+    missing, warnings = [], list(res.get("warnings", []))
+    out = {"robot": model.name, "source": meas.source, "campaign": campaign.name, "measurements": len(T),
+           "orientation_measured": ori, "registration": {k: res["registration"][k] for k in ("method", "residual_rms_m")
+                                                         if k in res["registration"]},
+           "conditions": _conditions(options, campaign, names, stamps),
+           "pose": {k: v for k, v in res.get("per_pose", {}).items() if v.get("n", 0) >= 2},
+           "left_out": res.get("left_out", [])}
+    out["multidirectional"] = _multidirectional(campaign, commanded, T, names, ori, missing)
+    out["distance"] = _distance(options, campaign, commanded, T, names, cycles, ori, missing)
+    out["drift"] = _drift(options, campaign, commanded, T, names, stamps, ori, missing)
+    out["exchangeability"] = _exchangeability(model, campaign, options, T, names, others, missing, warnings)
+    out["path"] = path
+    if path is None:
+        missing.append({"characteristic": "AT, RT, CR, CO, AV, RV, FV (path)",
+                        "needs": "the tracker's stream along a test path and the command (--stream with --joint-states "
+                                 "or --trajectory)"})
+    if path is None or not (path.get("stops") or {}).get("judged"):
+        missing.append({"characteristic": "pose stabilisation time, pose overshoot",
+                        "needs": "the tracker's stream with the robot coming to rest after its motions (--stream; "
+                                 "rests of 0.1 s or more)"})
+    for what in NOT_YET:
+        missing.append({"characteristic": what[0], "needs": what[1]})
+    out["missing"] = missing
+    out["warnings"] = warnings
+    return out
+
+
+NOT_YET = (("minimum positioning time", "the stream of moves over the standard's distances: not evaluated by this "
+                                        "version"),
+           ("path accuracy on reorientation", "a 6-DOF tracker's stream along a reorientation path: not evaluated by "
+                                              "this version"),
+           ("static compliance", "poses measured under known loads: not evaluated by this version"),
+           ("weaving deviations WS, WF", "the stream of a weaving program: not evaluated by this version"))
+
+
+def _conditions(options, campaign, names, stamps) -> dict:
+    bad = sorted(set(options.conditions) - set(CONDITIONS))
+    if bad:
+        raise ISOReportError(f"conditions: unknown {bad}; expected {list(CONDITIONS)}")
+    out = {k: str(v) for k, v in options.conditions.items() if v}
+    visits = max((int((names == p).sum()) for p in campaign.names), default=0)
+    out.update(cycles=visits, dwell_s=campaign.dwell_s, test_poses=len(campaign.names),
+               duration_s=float(stamps.max() - stamps.min()) if len(stamps) else 0.0)
+    return out
+
+
+def _multidirectional(campaign, commanded, T, names, ori, missing) -> dict:
+    groups = campaign.approaches()
+    if not groups:
+        missing.append({"characteristic": "vAP (multi-directional pose accuracy variation)",
+                        "needs": "a campaign approaching each test pose from several directions (plan-campaign "
+                                 "--iso9283 --approach 100mm)"})
+        return {}
+    out = {}
+    for pose, members in groups.items():
+        C = [commanded[m] for m in members]
+        far = max(np.linalg.norm(c[:3, 3] - C[0][:3, 3]) for c in C)
+        if far > COMMANDED_TOLERANCE:
+            raise ISOReportError(f"campaign {campaign.name!r}: the approaches of {pose} ({', '.join(members)}) command "
+                                 f"positions {far * 1e3:.4g} mm apart; they must command one pose")
+        have = {m: T[names == m] for m in members if (names == m).sum() >= 1}
+        if len(have) < 2:
+            out[pose] = {"note": f"measured from {len(have)} of its {len(members)} approaches"}
+            continue
+        out[pose] = multidirectional(C[0], have, ori)
+    return out
+
+
+def _distance(options, campaign, commanded, T, names, cycles, ori, missing) -> dict:
+    pair = options.distance
+    if pair is None:
+        pair = ("P2", "P4") if {"P2", "P4"} <= set(campaign.names) else None
+    if pair is None:
+        missing.append({"characteristic": "AD, RD (distance accuracy and repeatability)",
+                        "needs": "two test poses to measure the distance between (--distance P2,P4; the campaign has "
+                                 "no P2 and P4)"})
+        return {}
+    a, b = pair
+    unknown = [p for p in pair if p not in campaign.names]
+    if unknown:
+        raise ISOReportError(f"distance: test pose(s) {unknown} are not in campaign {campaign.name!r} "
+                             f"({', '.join(campaign.names[:20])})")
+    ia, ib = _pairs(names, cycles, a, b)
+    if len(ia) < 2:
+        missing.append({"characteristic": "AD, RD (distance accuracy and repeatability)",
+                        "needs": f"two or more cycles visiting both {a} and {b} (found {len(ia)})"})
+        return {}
+    return {"between": [a, b], **distance_characteristics(commanded[a], commanded[b], T[ia], T[ib], ori)}
+
+
+def _drift(options, campaign, commanded, T, names, stamps, ori, missing) -> dict:
+    out = {}
+    for pose in campaign.names:
+        sel = names == pose
+        if sel.sum() < 4:
+            continue
+        try:
+            out[pose] = drift(commanded[pose], stamps[sel], T[sel], options.drift_window, ori)
+        except ValueError:
+            continue
+    if not out:
+        span = float(stamps.max() - stamps.min()) if len(stamps) else 0.0
+        missing.append({"characteristic": "dAP, dRP (drift of pose characteristics)",
+                        "needs": f"visits of a test pose spanning two windows of {options.drift_window:g} s (these span "
+                                 f"{span:.6g} s; the standard runs 8 h of cycles; --drift-window sets the window)"})
+    return out
+
+
+def _exchangeability(model, campaign, options, T, names, others, missing, warnings) -> dict:
+    if not others:
+        missing.append({"characteristic": "E (exchangeability)",
+                        "needs": "the same campaign measured on other robots of the type (--other)"})
+        return {}
+    robots = [(T, names)]
+    for m in others:
+        res, To, no, *_ = _pose_data(model, m, campaign, options.registration)
+        warnings += [f"{m.source}: {w}" for w in res.get("warnings", [])]
+        robots.append((To, no))
+    out = {}
+    for pose in campaign.names:
+        if all((n == pose).any() for _, n in robots):
+            bary = [Tr[n == pose][:, :3, 3].mean(axis=0) for Tr, n in robots]
+            out[pose] = exchangeability(bary)
+    out["sources"] = [m.source for m in others]
+    return out
