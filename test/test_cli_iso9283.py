@@ -93,9 +93,11 @@ def test_drift_and_exchangeability_and_the_path_in_one_report(capsys, tmp_path):
     assert doc["path"]["overall"]["AT_p_m"] == path["overall"]["AT_p_m"]
     assert doc["path"]["stops"] == path["stops"] and path["stops"]["judged"] == 6      # 3 cycles out and back
     assert 0.05 < path["stops"]["stabilisation_time_s"]["mean"] < 0.15                # an 8 Hz robot ringing
+    (move,) = path["stops"]["positioning"]                                             # one distance: the stroke
+    assert move["moves"] == 6 and move["min_s"] > move["distance_m"] / 0.1
     missing = {m["characteristic"] for m in doc["missing"]}
     assert not missing & {"E (exchangeability)", "AT, RT, CR, CO, AV, RV, FV (path)",
-                          "pose stabilisation time, pose overshoot"}
+                          "pose stabilisation time, pose overshoot, minimum positioning time"}
 
 
 @pytest.mark.parametrize("argv, message", [

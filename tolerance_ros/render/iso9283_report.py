@@ -81,6 +81,12 @@ def sections(doc) -> list:
                     [[f"{s['t_stop_s']:.3f}", f"{s['rest_s']:.3f}",
                       "-" if s["stabilisation_time_s"] is None else f"{s['stabilisation_time_s'] * 1e3:.1f}",
                       _mm(s["overshoot_m"]), s["note"] or ""] for s in st["stops"]]))
+    if st and st["positioning"]:
+        out.append(("Minimum positioning time", "per distance moved: from the instant the command leaves its rest to "
+                    "the stabilisation at the next stop, the least over the moves of that distance",
+                    ["distance mm", "moves", "minimum s", "mean s"],
+                    [[f"{g['distance_m'] * 1e3:.1f}", g["moves"], f"{g['min_s']:.4f}", f"{g['mean_s']:.4f}"]
+                     for g in st["positioning"]]))
     if doc["missing"]:
         out.append(("Not in this report", "what each characteristic needs", ["characteristic", "needs"],
                     [[m["characteristic"], m["needs"]] for m in doc["missing"]]))

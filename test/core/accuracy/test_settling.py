@@ -83,9 +83,17 @@ def test_the_stops_of_a_robot_that_rings_against_the_truth(gao, settling_run):
     assert 0.05e-3 < ov < 0.2e-3
 
 
-def test_a_robot_without_dynamics_settles_at_once(gao, settling_run):
+def test_a_robot_without_dynamics_settles_at_once_and_its_positioning_time_is_the_stroke(gao):
     from tolerance_ros.core.accuracy.iso_paths import plan_path
     jp, _ = plan_path(gao, "line", 0.1, 1.0, 0.5, 3, None, None, seed=0)
     st = path_streams(gao, jp, None, None, 500, 1000, 0.008, 10e-6, 3)
     rep = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints, None, PathOptions(latency=0.008))["stops"]
     assert rep["stabilisation_time_s"]["max"] == 0.0 and rep["overshoot_m"]["max"] < 3 * 10e-6
+    # a stroke of length L at 0.1 m/s, accelerating and braking at 1 m/s^2, lasts L / v + v / a
+    (move,) = rep["positioning"]
+    stroke = move["distance_m"] / 0.1 + 0.1 / 1.0
+    assert move["moves"] == 6 and abs(move["min_s"] - stroke) <= 2.5e-3     # a joint-state period (500 Hz)
+    assert all(abs(s["positioning_time_s"] - stroke) <= 2.5e-3 for s in rep["stops"])
+    # the stops at the trajectory's knots where it comes to rest
+    ends = 1000.0 + np.array([0.5 + stroke, 1.0 + 2 * stroke]) + jp.period * np.arange(3)[:, None]
+    assert np.abs(np.array([s["t_stop_s"] for s in rep["stops"]]) - np.sort(ends.ravel())).max() <= 2e-3

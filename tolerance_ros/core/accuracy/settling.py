@@ -1,6 +1,7 @@
 """ISO 9283 pose stabilisation time and pose overshoot at each stop of a tracker's stream (m, s).
 
-At a stop (the command comes to rest at ``t_stop`` after a motion and stays until the next motion), the attained
+At a stop (the command comes to rest at ``t_stop`` after a motion and stays until the next motion; ``rest_instants``
+finds that instant between the joint states' samples), the attained
 pose is the mean of the points in the last ``FINAL_FRACTION`` of the rest. With the points smoothed by a
 cubic Savitzky-Golay filter over ``smooth`` s (the tracker's noise, not the robot's motion) and ``d(t)`` their
 distance from the attained pose:
@@ -8,6 +9,9 @@ distance from the attained pose:
 - **stabilisation time**: from ``t_stop`` to the first point after the last one outside the band
   ``d > band`` (0 when none is outside); a stop whose last point outside the band falls within the last
   fraction of its rest did not settle, and is reported so (no time);
+- **positioning time**: from the instant the command leaves its rest to the stop's stabilisation (the motion's
+  duration and the stabilisation time); the minimum positioning time is the least over the moves of one
+  distance;
 - **overshoot**: the largest distance past the attained pose along the approach direction (the command's
   direction over its last ``APPROACH`` m before the stop), after the point first entered the band; 0 when it
   never went past.
@@ -20,6 +24,7 @@ FINAL_FRACTION = 0.2     # of the rest: the points whose mean is the attained po
 MIN_REST = 0.1           # s: a shorter rest is not judged
 MIN_POINTS = 20          # tracker points in a rest judged
 APPROACH = 1e-3          # m: the command's last stretch before a stop that gives the approach direction
+SAME_MOVE = 1e-4         # m: moves this close in length are one distance of the minimum positioning time
 NOISE_MARGIN = 1.0       # a swing nearer the band than this many noise standard deviations: uncertain
 
 
@@ -104,6 +109,25 @@ def stop_figures(t, p, t_stop: float, t_end: float, approach, band: float, smoot
     return out
 
 
+def rest_instants(t, p) -> tuple:
+    """(s, s) the instants a motion sampled at t (k,) leaves its first rest and reaches its last, its samples p
+    (k, 3) m running from the last sample at rest to the first at rest again: the square root of the distance from
+    a rest grows linearly in time under a constant acceleration, so it is extrapolated to zero from the two
+    samples next to the rest (the rest sample itself where they do not rise)."""
+    def edge(tt, d):
+        r = np.sqrt(d)
+        moved = np.flatnonzero(r > 1e-6 * max(r.max(), 1e-300))
+        j = int(moved[0]) if moved.size else 0
+        if j < 1 or j + 1 >= len(r) or not r[j + 1] > r[j]:
+            return float(tt[max(j - 1, 0)])
+        at = tt[j] - (tt[j + 1] - tt[j]) * r[j] / (r[j + 1] - r[j])
+        lo, hi = sorted((tt[j - 1], tt[j]))                 # between the last sample at rest and the first moved
+        return float(min(max(at, lo), hi))
+    start = edge(t, np.linalg.norm(p - p[0], axis=1))
+    stop = edge(t[::-1], np.linalg.norm(p[::-1] - p[-1], axis=1))
+    return max(start, float(t[0])), min(stop, float(t[-1]))
+
+
 def approach_direction(p_c, i0: int, i1: int):
     """(3,) unit direction of the command path ``p_c`` over its last ``APPROACH`` m before index i1 (its motion
     from i0), or None when it moved less than that."""
@@ -117,19 +141,43 @@ def approach_direction(p_c, i0: int, i1: int):
 
 def stops(t, p, tj, p_c, runs, band: float, smooth: float = 0.04) -> dict:
     """Figures of every stop after a motion ``runs`` [(i0, i1)] of the command (indices into ``tj``, ``p_c``), each
-    rest lasting to the next motion or the end of both streams. Keys: band_m, smooth_s, stops [stop_figures ...],
-    judged, stabilisation_time_s {max, mean}, overshoot_m {max, mean} (None when no stop was judged)."""
+    rest lasting to the next motion or the end of both streams. Keys: band_m, smooth_s, stops [stop_figures ...
+    with move_m (the command's distance from its start), motion_s and positioning_time_s (motion_s and the
+    stabilisation time)], judged, uncertain, stabilisation_time_s {max, mean}, overshoot_m {max, mean} (None
+    when no stop was judged), positioning (``positioning``)."""
     if not (np.isfinite(band) and band > 0):
         raise ValueError(f"band: expected a positive length (m), got {band!r}")
     t_last = min(float(tj[-1]), float(t[-1])) if len(t) else float(tj[-1])
     per = []
     for k, (i0, i1) in enumerate(runs):
         t_end = float(tj[runs[k + 1][0]]) if k + 1 < len(runs) else t_last
-        per.append(stop_figures(t, p, float(tj[i1]), t_end, approach_direction(p_c, i0, i1), band, smooth))
+        t0, t1 = rest_instants(tj[i0:i1 + 1], p_c[i0:i1 + 1])
+        s = stop_figures(t, p, t1, t_end, approach_direction(p_c, i0, i1), band, smooth)
+        s["move_m"] = float(np.linalg.norm(p_c[i1] - p_c[i0]))
+        s["motion_s"] = float(t1 - t0)
+        s["positioning_time_s"] = None if s["stabilisation_time_s"] is None else \
+            s["motion_s"] + s["stabilisation_time_s"]
+        per.append(s)
     judged = [s for s in per if s["settled"]]
     st = [s["stabilisation_time_s"] for s in judged]
     ov = [s["overshoot_m"] for s in judged if s["overshoot_m"] is not None]
     return {"band_m": float(band), "smooth_s": float(smooth), "stops": per, "judged": len(judged),
             "uncertain": sum(s["uncertain"] for s in judged),
             "stabilisation_time_s": {"max": max(st), "mean": float(np.mean(st))} if st else None,
-            "overshoot_m": {"max": max(ov), "mean": float(np.mean(ov))} if ov else None}
+            "overshoot_m": {"max": max(ov), "mean": float(np.mean(ov))} if ov else None,
+            "positioning": positioning(judged)}
+
+
+def positioning(judged) -> list:
+    """Minimum positioning time per distance moved: the stops judged grouped by their move (within 1 % or
+    ``SAME_MOVE`` m of each other), shortest first: [{distance_m, moves, min_s, mean_s}]."""
+    moves = sorted(judged, key=lambda s: s["move_m"])
+    groups = []
+    for s in moves:
+        if groups and s["move_m"] - groups[-1][0]["move_m"] <= max(SAME_MOVE, 0.01 * groups[-1][0]["move_m"]):
+            groups[-1].append(s)
+        else:
+            groups.append([s])
+    return [{"distance_m": float(np.mean([s["move_m"] for s in g])), "moves": len(g),
+             "min_s": min(s["positioning_time_s"] for s in g),
+             "mean_s": float(np.mean([s["positioning_time_s"] for s in g]))} for g in groups]
