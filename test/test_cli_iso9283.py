@@ -145,3 +145,21 @@ def test_simulate_refuses_options_of_another_mode(capsys, tmp_path):
         code, out, err = run(capsys, "simulate", "--robot", ROBOT, "--trajectory", tmp_path / "line.yaml",
                              "--tolerances", TOL, "--out", tmp_path / "s.csv", *argv)
         assert code == 2 and message in err, err
+
+
+def test_static_compliance_from_visits_under_load(capsys, tmp_path):
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--iso9283", "--cycles", "2", "--out", tmp_path / "cube.yaml")
+    for name, stiffness in (("soft", "20kNm/rad"), ("stiff", "80kNm/rad")):
+        cli(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances", TOL, "--load",
+            "200N", "--joint-stiffness", stiffness, "--out", tmp_path / f"{name}.csv")
+    soft, stiff = (json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml",
+                                  "--measurements", tmp_path / f"{n}.csv", "--json")) for n in ("soft", "stiff"))
+    assert "loads of 200N on joints of 20kNm/rad" in (tmp_path / "soft.truth.yaml").read_text()
+    for pose in ("P1", "P2", "P3", "P4", "P5"):
+        c, k = soft["compliance"][pose]["compliance_m_per_N"], stiff["compliance"][pose]
+        for a in "xyz":          # four times as stiff, a quarter of the compliance (within the noise)
+            assert k["compliance_m_per_N"][a] == pytest.approx(c[a] / 4, rel=0.1, abs=2e-8)
+        assert soft["pose"][pose]["n"] == 2
+    code, out, err = run(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances",
+                         TOL, "--load", "200", "--out", tmp_path / "x.csv")
+    assert code == 2 and "--load" in err and "has no unit" in err, err

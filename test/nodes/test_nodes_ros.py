@@ -446,6 +446,62 @@ def test_the_monitor_judges_reflectors_on_their_own_topics_from_a_calibration(gr
                        atol=1e-9)
 
 
+def test_the_monitor_warns_on_diagnostics_of_a_test_pose_that_drifts(graph, ns, tmp_path):
+    """A campaign of three poses, measured over 18 s of stamps while P2 creeps 10 um a cycle: the report carries
+    each pose's drift (ISO 9283 dAP per window of drift_window), /diagnostics warns of P2 past drift_limit."""
+    import yaml
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import PoseStamped
+    from sensor_msgs.msg import JointState
+    from tolerance_ros.core.accuracy.simulate import measure_targets
+    from tolerance_ros.core.geometry import matrices_to_quat, transform
+    from tolerance_ros.nodes.accuracy_monitor import AccuracyMonitor
+    gao = load_robot("gao2023_7dof")
+    qk = gao.sample_joints(3, 4)
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump({"name": "drift", "robot": gao.name, "cycles": 12, "poses": [
+        {"name": f"P{k + 1}", "joints": [float(v) for v in qk[k]]} for k in range(3)]}))
+    base = [1.5, 0.2, 0.0, 0.0, 0.0, 0.5]
+    A = transform(base[:3], base[3:])
+    graph.start(AccuracyMonitor, ns, campaign=str(tmp_path / "c.yaml"), tracker_to_base=base, log_dir=str(tmp_path),
+                report_period=0.3, drift_window=3.0, drift_limit=2e-5)
+    talker = graph.node("tracker", ns)
+    poses = talker.create_publisher(PoseStamped, "measured_pose", MEASUREMENT_QOS)
+    joints = talker.create_publisher(JointState, "joint_states", MEASUREMENT_QOS)
+    listener = graph.node("listener", ns)
+    reports = collect(graph, listener, String, "tolerance/accuracy_report")
+    diags = collect(graph, listener, DiagnosticArray, "/diagnostics")
+    assert wait_for(lambda: talker.count_subscribers("measured_pose") and talker.count_subscribers("joint_states"))
+    T = measure_targets(gao, qk, None, None, 0.0, 0.0, A, points=False).T
+    t = 1.0
+
+    def stamped(msg, at):
+        msg.header.stamp.sec, msg.header.stamp.nanosec = int(at), int(round((at % 1) * 1e9))
+        return msg
+
+    for cycle in range(12):
+        for k in range(3):
+            js = JointState(name=list(gao.joint_names), position=[float(v) for v in qk[k]])
+            joints.publish(stamped(js, t))
+            p = T[k, :3, 3] + (A[:3, :3] @ [1e-5 * cycle, 0, 0] if k == 1 else 0)
+            q = matrices_to_quat(T[k:k + 1, :3, :3])[0]
+            msg = PoseStamped()
+            msg.header.frame_id = "tracker"
+            msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in p)
+            msg.pose.orientation.x, msg.pose.orientation.y, msg.pose.orientation.z, msg.pose.orientation.w = \
+                (float(v) for v in q)
+            poses.publish(stamped(msg, t))
+            joints.publish(stamped(JointState(name=list(gao.joint_names), position=[float(v) for v in qk[k]]),
+                                   t + 0.005))
+            t += 0.5
+            time.sleep(0.01)
+    name = f"{ns}/tolerance_ros: accuracy monitor"
+    assert wait_for(lambda: reports and json.loads(reports[-1].data)["counts"]["paired"] == 36
+                    and any("drift: P2" in s.message for d in diags for s in d.status if s.name == name), 20)
+    drift = json.loads(reports[-1].data)["drift"]
+    assert drift["window_s"] == 3.0 and drift["poses"]["P1"]["dAP_p_m"] < 1e-9
+    assert drift["poses"]["P2"]["dAP_p_m"] > 2e-5
+
+
 def test_the_trajectory_compensator_corrects_motion_and_swaps_its_calibration_live(graph, ns, tmp_path):
     """A 7-joint trajectory (joint names shuffled, a gripper joint extra) through the node: compensated as
     ``compensate`` does, gripper and stamps untouched; a calibration published on tolerance_calibration

@@ -259,3 +259,30 @@ def test_a_short_hole_is_warned_of_when_the_monitor_was_behind_and_its_queue_ove
     assert "while this reader was behind" in d["message"]
     assert mon.report()["stream_gaps"]["joint_states"]["behind"] == 1
     assert "gap" not in offline.diagnostic()["message"]
+
+
+def test_a_test_pose_that_drifts_is_a_warning_with_its_figure(gao, tmp_path):
+    budget = load_budget("gao2023_delta2", gao)
+    qk = gao.sample_joints(3, 1)
+    camp = Campaign("c", [TestPose(f"P{i + 1}", joints=qk[i]) for i in range(3)], cycles=5)
+    sim = SimulatedTracker(gao, budget.vector_for(gao), seed=2, T_tracker_base=T_TB, noise_position=0.0)
+    mon = MonitorLogic(gao, budget, camp, slop=0.01, max_wait=0.5, T_tracker_base=T_TB, drift_window=60.0,
+                       drift_limit=0.05e-3)
+    t = 100.0
+    for cycle in range(40):                               # 40 cycles of 10 s: P2 creeps 4 um a cycle along y
+        for k in range(3):
+            T = sim.measure_at(qk[k])
+            if k == 1:
+                T[:3, 3] += T_TB[:3, :3] @ [0, 4e-6 * cycle, 0]
+            mon.on_joint_state_msg(joint_state(t - 0.004, gao.joint_names, qk[k]))
+            mon.on_pose_msg(pose_stamped(t, T))
+            mon.on_joint_state_msg(joint_state(t + 0.006, gao.joint_names, qk[k]))
+            t += 10.0 / 3
+    d = mon.report()["drift"]["poses"]
+    assert d["P1"]["dAP_p_m"] < 1e-9 and d["P2"]["windows"] == 6
+    # windows of 6 cycles: the last closed one (cycles 30-35) against the first (0-5): 30 cycles x 4 um
+    assert d["P2"]["dAP_p_m"] == pytest.approx(30 * 4e-6, rel=1e-6)
+    diag = mon.diagnostic()
+    assert diag["level"] == WARN and "drift: P2 moved 0.1200 mm since its first 60 s (limit 0.0500 mm)" in \
+        diag["message"]
+    assert float(diag["values"]["drift_max_m"]) == pytest.approx(1.2e-4, rel=1e-6)

@@ -71,6 +71,12 @@ def add_arguments(p):
                         "e.g. 100ppm,1h (ISO 9283 drift)")
     p.add_argument("--cycles", type=int, help="with --campaign: its cycles, instead of the file's (e.g. an 8-hour "
                                               "drift campaign)")
+    p.add_argument("--load", metavar="FORCE",
+                   help="with --campaign: each visit is also measured under this force at the tool along +x, -x, +y, "
+                        "-y, +z and -z of the base frame (e.g. 200N), written in load columns (ISO 9283 static "
+                        "compliance); the robot yields at its joints (--joint-stiffness)")
+    p.add_argument("--joint-stiffness", default="50kNm/rad",
+                   help="with --load: every revolute joint's stiffness (default 50kNm/rad; prismatic joints rigid)")
     p.add_argument("--errors", choices=["uniform", "extreme", "normal"], default="uniform",
                    help="how the as-built errors are drawn within the tolerances (default uniform)")
     p.add_argument("--seed", type=int, default=0, help="seed of the as-built robot and the noise (default 0)")
@@ -268,7 +274,7 @@ def _truth(args, model, dx, T_tracker, noise, out, rows, poses, targets, registr
 
 def run(args):
     from ..core.accuracy.io import write_csv
-    from ..core.accuracy.simulate import as_built_errors, backlash, measure_targets
+    from ..core.accuracy.simulate import as_built_errors, backlash, joint_compliance, measure_targets
     from ..core.campaign import load_campaign
     from ..core.geometry import transform
     model = load_model(args)
@@ -278,7 +284,7 @@ def run(args):
     if out.suffix.lower() != ".csv":
         raise CLIError(f"--out: the measurements are a CSV file (name ending in .csv), got {args.out!r}")
     campaign_only = [o for o, v in (("--backlash", args.backlash != "0rad"), ("--thermal", args.thermal),
-                                    ("--cycles", args.cycles is not None)) if v]
+                                    ("--cycles", args.cycles is not None), ("--load", args.load)) if v]
     if (args.trajectory or args.contact) and campaign_only:
         raise CLIError(f"{', '.join(campaign_only)}: with --campaign only")
     if args.settling and not args.trajectory:
@@ -318,23 +324,42 @@ def run(args):
     revolute = np.array([t != "prismatic" for t in model.joint_types])
     deflection = backlash(steps, play, revolute)[visit] if play > 0 else None
     growth = _growth(args.thermal, stamps)
+    cycles = np.array([c for _, c in seq])
+    force = None
+    if args.load:                      # each visit: unloaded, then under the load along +-x, +-y, +-z
+        F = quantity(args.load, "force", "--load")
+        steps6 = np.vstack([np.zeros(3), *[s * F * np.eye(3)[k] for k in range(3) for s in (1, -1)]])
+        k = len(steps6)
+        force = np.tile(steps6, (len(q), 1))
+        stiffness = quantity(args.joint_stiffness, "stiffness", "--joint-stiffness")
+        q, labels, cycles = np.repeat(q, k, axis=0), np.repeat(labels, k), np.repeat(cycles, k)
+        stamps = np.repeat(stamps, k) + np.tile(np.arange(k), len(stamps)) * campaign.dwell_s / k
+        deflection = None if deflection is None else np.repeat(deflection, k, axis=0)
+        growth = None if growth is None else np.repeat(growth, k)
+        stiff = np.where(revolute, stiffness, np.inf)
+        bend = joint_compliance(model, q, dx, force, stiff)
+        deflection = bend if deflection is None else deflection + bend
     meas = measure_targets(model, q, dx, targets, noise, 0.0 if targets is not None else onoise, T_tracker,
                            args.seed + 1, stamps, labels, points=targets is not None, deflection=deflection,
                            growth=growth)
     rows = len(meas)
-    meas.cycle = np.repeat([c for _, c in seq], rows // len(q))
+    meas.cycle = np.repeat(cycles, rows // len(q))
+    if force is not None:
+        meas.load = np.repeat(force, rows // len(q), axis=0)
     comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
                f"seed {args.seed}), tracker noise {args.noise}" + (f" / {args.orientation_noise}" if targets is None
                                                                       else "")
                + (f", backlash {args.backlash}" if play > 0 else "") + (f", warming up {args.thermal}" if args.thermal
                                                                          else "")
+               + (f", loads of {args.load} on joints of {args.joint_stiffness}" if args.load else "")
                + f"; truth in {out.stem}.truth.yaml")
     write_csv(out, meas, comments=[comment])
     names, tg = (tuple(targets.names), targets) if targets is not None else (("",), None)
     truth_path = _truth(args, model, dx, T_tracker, noise, out, rows, len(campaign.names), tg,
                         "base+tool" if targets is not None else "base", targets is None,
                         (f", backlash {args.backlash}" if play > 0 else "")
-                        + (f", warming up {args.thermal}" if args.thermal else ""))
+                        + (f", warming up {args.thermal}" if args.thermal else "")
+                        + (f", loads of {args.load} on joints of {args.joint_stiffness}" if args.load else ""))
     doc = {"measurements": str(out), "truth": str(truth_path), "rows": rows, "poses": len(campaign.names),
            "visits": len(q), "targets": [n for n in names if n], "noise_m": noise,
            "orientation_noise_rad": None if targets is not None else onoise}

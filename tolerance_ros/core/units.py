@@ -107,11 +107,13 @@ MASS_UNITS = {"kg": 1.0, "g": 1e-3, "t": 1e3}
 SPEED_UNITS = {"m/s": 1.0, "mm/s": 1e-3}
 ACCEL_UNITS = {"m/s^2": 1.0, "mm/s^2": 1e-3}
 FREQUENCY_UNITS = {"Hz": 1.0, "kHz": 1e3}
+FORCE_UNITS = {"N": 1.0, "kN": 1e3}
+STIFFNESS_UNITS = {"Nm/rad": 1.0, "kNm/rad": 1e3}  # of a revolute joint
 _EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad", "time": "1s, 250ms or 1h",
              "mass": "165kg or 0.5t", "speed": "0.2m/s or 200mm/s", "acceleration": "1m/s^2",
-             "frequency": "1000Hz or 1kHz"}
+             "frequency": "1000Hz or 1kHz", "force": "200N or 0.2kN", "stiffness": "50kNm/rad"}
 _TABLES = {"time": DURATION_UNITS, "mass": MASS_UNITS, "speed": SPEED_UNITS, "acceleration": ACCEL_UNITS,
-           "frequency": FREQUENCY_UNITS}
+           "frequency": FREQUENCY_UNITS, "force": FORCE_UNITS, "stiffness": STIFFNESS_UNITS}
 
 
 def parse_quantity(text, kind: str = "length", field: str = "value") -> float:

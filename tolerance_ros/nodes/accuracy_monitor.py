@@ -94,6 +94,10 @@ class AccuracyMonitor(Node):
                                                           "link, or base_link as REP 105 names it)")
         self.tf_tracker = declare(self, "tf_tracker_frame", "tracker", "/tf_static: the tracker's frame, registered "
                                                                        "to the base")
+        self.drift_window = declare(self, "drift_window", 600.0, "seconds over which each test pose's mean error is "
+                                    "compared with its first window's (ISO 9283 drift)", (1.0, 86400.0))
+        self.drift_limit = declare(self, "drift_limit", 0.0, "drift of a test pose's barycentre (m) beyond which "
+                                   "/diagnostics warns; 0: no limit", (0.0, 1.0))
         self.path_on = declare(self, "path_monitor", True, "judge the paths too: ISO 9283 path figures on "
                                                            "tolerance/path_report when a motion ends")
         self.path_latency = declare(self, "path_latency", "", "the tracker's latency against the joint states (e.g. "
@@ -173,7 +177,8 @@ class AccuracyMonitor(Node):
                                  f"{list(targets.names)})")
         self.logic = MonitorLogic(model, budget, camp, self.slop, self.max_wait, T_tracker_base, targets, log_path,
                                   self.pose_tolerance, name=status_name(self, "accuracy monitor"),
-                                  orientation=self.measurement == "pose")
+                                  orientation=self.measurement == "pose", drift_window=self.drift_window,
+                                  drift_limit=self.drift_limit or None)
         self.path = self.path_monitor(model, budget, T_tracker_base, targets) if self.path_on else None
         if self.budget_text is not None:
             self.on_budget(String(data=self.budget_text))

@@ -66,6 +66,17 @@ def sections(doc) -> list:
                     + ", ".join(doc["exchangeability"]["sources"]),
                     ["pose", "E mm", "x span mm", "y span mm", "z span mm"],
                     [[p, _mm(v["E"])] + [_mm(s) for s in v["spread"]] for p, v in ex.items()]))
+    comp = {p: v for p, v in (doc.get("compliance") or {}).items() if "compliance_m_per_N" in v}
+    if comp:
+        def um(v):
+            return "-" if v is None else f"{v * 1e6:.4f}"
+        out.append(("Static compliance", "the displacement along the load per newton at the tool, the least-squares "
+                    "slope over the visits under loads along each axis of the base frame", ["pose", "visits",
+                    "x mm/kN", "y mm/kN", "z mm/kN", "max load x N", "max load y N", "max load z N",
+                    "residual RMS mm"],
+                    [[p, v["n"]] + [um(v["compliance_m_per_N"][a]) for a in "xyz"]
+                     + [f"{v['max_load_N'][a]:g}" for a in "xyz"] + [_mm(v["residual_rms_m"])]
+                     for p, v in comp.items()]))
     path = doc.get("path")
     if path:
         from .path_report import HEADS, segment_rows

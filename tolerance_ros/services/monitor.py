@@ -8,6 +8,8 @@ verdict) when it is decided, so that a crash loses nothing and ``accuracy.io.rea
 Nothing is dropped silently: rejected messages and unpaired measurements are counted, logged and
 reported, and what never arrived is seen in the stamps: each stream's gaps (``ingest.StampGaps``: the messages a
 late reader's queue or a network lost, or a publisher never sent) are a warning on /diagnostics and in the report.
+Each test pose's drift (ISO 9283 dAP: its mean error over each window of ``drift_window`` s against its first
+window's, ``iso9283.DriftTracker``) is in the report, and a warning on /diagnostics beyond ``drift_limit`` m.
 """
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ from ..core.jsonio import dumps_fast
 from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
 from ..core.accuracy.checks import StreamCheck
+from ..core.accuracy.iso9283 import DriftTracker
 from ..core.accuracy.targets import Targets
 from .contracts import check_budget
 from .guards import summary
@@ -42,7 +45,8 @@ class MonitorLogic:
 
     def __init__(self, model, budget=None, campaign=None, slop=0.02, max_wait=1.0, T_tracker_base=None,
                  targets=None, log_path=None, pose_tolerance=1e-3, state_buffer=2000, clock=time.monotonic,
-                 name="tolerance_ros: accuracy monitor", recent=20, orientation=True):
+                 name="tolerance_ros: accuracy monitor", recent=20, orientation=True, drift_window=600.0,
+                 drift_limit=None):
         self.model = model
         self.reference = model        # what measurements are compared with: the nominal or the calibrated robot
         self.calibration = None
@@ -56,6 +60,7 @@ class MonitorLogic:
         self.T_tracker_base = T_tracker_base
         self.orientation = bool(orientation)
         self.targets = targets if targets is not None else Targets.at_tool(frames=self.orientation)
+        self.drift = DriftTracker(drift_window, drift_limit)   # ISO 9283 drift of each test pose, on line
         self._target_index = {n: k for k, n in enumerate(self.targets.names)}
         self.pose_tolerance = pose_tolerance
         # a chain from a link moved by joints (a camera on the wrist or a head): its measurements name that link
@@ -111,6 +116,7 @@ class MonitorLogic:
             raise ValueError(f"calibration: no target(s) {names} (it has {list(calibration.targets.names)})")
         self.before = {"calibration": self.calibration, "summary": self.acc.summary()}
         self.reference = calibration.calibrated_chain(self.model)
+        self.drift = DriftTracker(self.drift.window, self.drift.limit)   # errors against another robot from now
         self.T_tracker_base, self.targets = calibration.T_tracker_base, calibration.targets
         self._target_index = {n: k for k, n in enumerate(self.targets.names)}
         self.calibration = {**summary(calibration, source), "model": calibration.model.get("label"),
@@ -283,6 +289,8 @@ class MonitorLogic:
                "nominal": r["nominal"][0]}
         self.last = res
         self.recent.append(res)
+        if res["label"]:
+            self.drift.add(res["label"], t, res["dp"])
         self._write({"event": "paired", "seq": seq, "joint_stamp": joint_stamp, "joint_names": list(self.model.joint_names),
                      "joints": [float(v) for v in q], "pose": res["label"] or None, "verdict": res["verdict"],
                      "position_error": res["position_error"],
@@ -307,6 +315,12 @@ class MonitorLogic:
             level, msg = ERROR, f"{v['over limit']} measurement(s) above the design limit"
         if c["received"] == 0:
             msg = "waiting for measured poses" if level == OK else msg
+        over = self.drift.over
+        if over:
+            words = ("drift: " + ", ".join(f"{p} moved {d * 1e3:.4f} mm since its first {self.drift.window:g} s"
+                                           for p, d in over) + f" (limit {self.drift.limit * 1e3:.4f} mm)")
+            msg = words if level == OK else f"{msg}; {words}"
+            level = max(level, WARN)
         lost = [line for line in (g.describe(name) for name, g in self.gaps.items()) if line]
         if lost:
             msg = "; ".join(lost) if level == OK else "; ".join([msg] + lost)
@@ -318,7 +332,9 @@ class MonitorLogic:
                   "position_error_mean_m": pe.get("mean"), "position_error_max_m": pe.get("max"),
                   "last_position_error_m": self.last["position_error"] if self.last else None,
                   "last_bound_m": self.last["bound"] if self.last else None,
-                  "budget": (self.budget.source or self.budget.robot) if self.budget else "none"}
+                  "budget": (self.budget.source or self.budget.robot) if self.budget else "none",
+                  "drift_max_m": max((d["dAP_p_m"] for d in self.drift.summary()["poses"].values()
+                                      if d["dAP_p_m"] is not None), default=None)}
         for name, g in self.gaps.items():
             values[f"{name}_gaps"], values[f"{name}_missing"] = g.gaps, g.missing
         return {"level": level, "name": self.name, "message": msg,
@@ -344,6 +360,7 @@ class MonitorLogic:
                 "counts": dict(self.counts), "pending": len(self.pending), "problems": [problem] if problem else [],
                 "stream_gaps": {name: g.summary() for name, g in self.gaps.items()},
                 "recent_issues": list(self.last_reasons), "summary": None if problem else self.acc.summary(),
+                "drift": self.drift.summary(),
                 "last": None if problem else last,
                 "budget": None if self.budget is None else {"source": self.budget.source,
                                                              "criterion": self.budget.criterion,

@@ -175,6 +175,10 @@ BAD_HEADERS = [
      "stamp[s],x[mm],y[mm],z[mm],roll[deg],pitch[deg],yaw[deg],qx,qy,qz,qw\n0,1,2,3,0,0,0,0,0,0,1\n",
      "header: give the orientation as roll, pitch, yaw or as qx, qy, qz, qw, not both"),
     ("non-UTF-8 header", b"stamp[s],x[\xb5m],y[mm],z[mm]\n0,1,2,3\n", "byte 0xb5 at character 12 is not UTF-8"),
+    ("a load without fz", "stamp[s],x[mm],y[mm],z[mm],load:fx[N],load:fy[N]\n0,1,2,3,0,0\n",
+     "header: the load needs all of load:fx, load:fy, load:fz; missing column(s) ['load:fz']"),
+    ("a load in kilograms", "stamp[s],x[mm],y[mm],z[mm],load:fx[kg],load:fy[N],load:fz[N]\n0,1,2,3,0,0,0\n",
+     "header: column 'load:fx' needs a force unit in brackets (N, kN), got 'kg'"),
 ]
 
 
@@ -481,3 +485,15 @@ def test_position_only_measurements_are_written_without_orientation(tmp_path):
     m.has_orientation = False
     text = write_csv(tmp_path / "p.csv", m).read_text()
     assert "roll" not in text and read_csv(tmp_path / "p.csv").has_orientation is False
+
+
+def test_loads_are_read_in_newtons_and_written_back(tmp_path):
+    text = ("stamp[s],pose,x[mm],y[mm],z[mm],load:fx[kN],load:fy[N],load:fz[N]\n"
+            "0,P1,1,2,3,0,0,0\n1,P1,1,2,3.2,0.2,0,-50\n")
+    m = read_csv(_write(tmp_path / "l.csv", text))
+    assert m.load.tolist() == [[0, 0, 0], [200, 0, -50]] and m.select([1]).load.tolist() == [[200, 0, -50]]
+    again = read_csv(write_csv(tmp_path / "again.csv", m))
+    assert np.allclose(again.load, m.load) and np.allclose(again.T, m.T)
+    slow = read_csv(_write(tmp_path / "s.csv", text + "2,P1,1,2,x,0,0,0\n"), skip_bad=True)   # row by row
+    assert slow.load.tolist() == m.load.tolist() and slow.skipped[0]["line"] == 4
+    assert read_csv(_write(tmp_path / "n.csv", "stamp[s],x[mm],y[mm],z[mm]\n0,1,2,3\n")).load is None

@@ -122,3 +122,26 @@ def test_exchangeability_spans_the_barycentres_per_axis():
     assert exchangeability(b)["E"] == pytest.approx(np.sqrt(2e-4 ** 2 + 3e-4 ** 2 + 3e-4 ** 2))
     with pytest.raises(ValueError, match="two or more"):
         exchangeability(b[:1])
+
+
+def test_the_drift_followed_on_line_equals_the_offline_figure():
+    from tolerance_ros.core.accuracy.iso9283 import DriftTracker, drift
+    rng = np.random.default_rng(5)
+    t = 50.0 + np.arange(0, 4 * 3600, 30.0)
+    creep = 1e-4 * (1 - np.exp(-(t - t[0]) / 3600.0))
+    err = np.outer(creep, [0.6, 0.8, 0]) + rng.normal(0, 5e-6, (len(t), 3)) + [2e-5, 0, -1e-5]
+    track = DriftTracker(window=3600.0, limit=5e-5)
+    for ti, e in zip(t, err):
+        track.add("P1", ti, e)
+    track.add("P1", t[-1] + 3600.0, err[-1])            # a visit past the last window closes it
+    offline = drift(np.eye(4), t, _poses(np.array([0.5, 0, 0.5]) + err, np.zeros((len(t), 3))), 3600.0)
+    s = track.summary()["poses"]["P1"]
+    assert s["windows"] == 4 and s["dAP_p_m"] == pytest.approx(offline["dAP_p"], rel=1e-9)
+    assert s["dAP_p_per_h_m"] == pytest.approx(offline["dAP_p_per_h"], rel=1e-9)
+    assert track.over == [("P1", s["dAP_p_m"])] and s["dAP_p_m"] > 5e-5
+    track.add("P1", t[0], err[0])                       # out of order: not counted
+    track.add("", t[-1], err[0])
+    track.add("P2", float("nan"), err[0])
+    assert track.summary()["poses"].keys() == {"P1"}
+    with pytest.raises(ValueError, match="drift window"):
+        DriftTracker(window=0.0)

@@ -111,3 +111,27 @@ def test_a_distance_between_unknown_poses_is_refused(gao, cube):
     camp = campaign_from_dict(iso9283_campaign(gao, cube, cycles=3), model=gao)
     with pytest.raises(ISOReportError, match=r"\['P9'\] are not in campaign"):
         iso9283_report(gao, _run(gao, camp)[0], camp, ISOOptions(distance=("P1", "P9")))
+
+
+def test_static_compliance_against_the_joints_stiffness(gao, cube):
+    from tolerance_ros.core.accuracy.simulate import joint_compliance
+    camp = campaign_from_dict(iso9283_campaign(gao, cube, cycles=3), model=gao)
+    dx = as_built_errors(np.where(np.array(gao.param_kinds) == "length", 5e-5, 2e-4), 0)
+    q = np.repeat(camp.joints_for(gao), 3 * 7, axis=0)
+    steps = np.vstack([np.zeros(3), *[s * 300.0 * np.eye(3)[k] for k in range(3) for s in (1, -1)]])
+    F = np.tile(steps, (len(q) // 7, 1))
+    K = np.full(gao.dof, 4e4)
+    meas = measure_targets(gao, q, dx, None, NOISE, 1e-6, T_TRACKER, 1, np.arange(len(q), dtype=float),
+                           np.repeat(np.array(camp.names, object), 21), points=False,
+                           deflection=joint_compliance(gao, q, dx, F, K))
+    meas.load = F
+    r = iso9283_report(gao, meas, camp)
+    for i, pose in enumerate(camp.names):
+        _, EJ = gao.fk_and_jacobian(camp.joints_for(gao)[i:i + 1], dx)
+        J = EJ.J[0][:3][:, gao.joint_columns()]
+        truth = J @ np.diag(1 / K) @ J.T                        # m/N at the tool: J K^-1 J^T
+        C = np.array(r["compliance"][pose]["C_m_per_N"])
+        assert np.allclose(np.diag(C), np.diag(truth), rtol=0.05)
+        assert np.abs(C - truth).max() < 0.05 * np.abs(truth).max()
+    assert r["pose"]["P1"]["n"] == 3                            # the pose figures take the unloaded visits
+    assert "static compliance" not in {m["characteristic"] for m in r["missing"]}

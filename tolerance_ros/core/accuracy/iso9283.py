@@ -227,3 +227,91 @@ def exchangeability(barycentres) -> dict:
                          f"{b.shape}")
     spread = b.max(axis=0) - b.min(axis=0)
     return {"E": float(np.linalg.norm(spread)), "spread": spread.tolist(), "robots": len(b)}
+
+
+def static_compliance(attained, load) -> dict:
+    """ISO 9283 static compliance of one test pose from its visits (n, 4, 4) (m) under the loads (n, 3) N applied at
+    the tool (base frame; unloaded visits included): the least-squares ``p = p0 + C F``. Keys: C_m_per_N (3x3; a
+    column None where the loads never varied along that axis), compliance_m_per_N {x, y, z: C_kk, the displacement
+    along the load per newton}, max_load_N {x, y, z}, n, residual_rms_m. Needs loads along at least one axis."""
+    T = _attained(attained, "attained")
+    F = np.asarray(load, dtype=float)
+    if F.shape != (len(T), 3) or not np.all(np.isfinite(F)):
+        raise ValueError(f"load: expected (n, 3) finite forces (N), one per attained pose, got shape {F.shape}")
+    p = T[:, :3, 3]
+    Fc = F - F.mean(axis=0)
+    axes = [k for k in range(3) if np.ptp(F[:, k]) > 0]
+    if not axes:
+        raise ValueError("static compliance: the loads never vary")
+    A = np.c_[np.ones(len(F)), F[:, axes]]
+    if len(F) <= len(axes) + 1 or np.linalg.matrix_rank(Fc[:, axes]) < len(axes):
+        raise ValueError(f"static compliance: {len(F)} visits do not determine the compliance along {len(axes)} "
+                         f"axis(es)")
+    coef, *_ = np.linalg.lstsq(A, p, rcond=None)
+    resid = p - A @ coef
+    C = [[None] * 3 for _ in range(3)]
+    for j, k in enumerate(axes):
+        for i in range(3):
+            C[i][k] = float(coef[1 + j, i])
+    return {"C_m_per_N": C, "compliance_m_per_N": {ax: C[k][k] for k, ax in enumerate("xyz")},
+            "max_load_N": {ax: float(np.abs(F[:, k]).max()) for k, ax in enumerate("xyz")}, "n": len(F),
+            "residual_rms_m": float(np.sqrt(np.mean(np.sum(resid ** 2, axis=1))))}
+
+
+class DriftTracker:
+    """ISO 9283 drift followed on line, in constant memory: for each test pose, the mean position error (m, base
+    frame; its barycentre less the commanded position) over its first window of ``window`` s and over each later
+    window; when a window closes (a visit stamped past its end) with two visits or more, ``dAP_p`` is the distance
+    between its mean and the first window's, as ``drift`` computes it offline. ``limit`` (m, None: no limit):
+    ``over`` names the test poses whose latest dAP_p exceeds it."""
+
+    def __init__(self, window: float = 600.0, limit: float | None = None):
+        if not (np.isfinite(window) and window > 0):
+            raise ValueError(f"drift window: expected a positive duration (s), got {window!r}")
+        if limit is not None and not (np.isfinite(limit) and limit > 0):
+            raise ValueError(f"drift limit: expected a positive length (m) or none, got {limit!r}")
+        self.window, self.limit = float(window), limit
+        self.poses = {}
+
+    def add(self, pose: str, stamp: float, error) -> None:
+        """One visit of test pose ``pose`` stamped ``stamp`` s with position error ``error`` (3,) m."""
+        e = np.asarray(error, float)
+        if not pose or not np.isfinite(stamp) or e.shape != (3,) or not np.all(np.isfinite(e)):
+            return
+        s = self.poses.get(pose)
+        if s is None:
+            s = self.poses[pose] = {"t0": stamp, "first": None, "start": stamp, "sum": np.zeros(3), "n": 0,
+                                    "t_sum": 0.0, "dAP_p": None, "dAP_p_max": 0.0, "per_h": None, "windows": 0}
+        if stamp < s["start"]:          # out of order or a clock reset: that visit does not count
+            return
+        if stamp >= s["start"] + self.window:
+            self._close(s)
+            s["start"] += self.window * np.floor((stamp - s["start"]) / self.window)
+        s["sum"] += e
+        s["t_sum"] += stamp
+        s["n"] += 1
+
+    def _close(self, s):
+        if s["n"] >= 2:
+            mean, t = s["sum"] / s["n"], s["t_sum"] / s["n"]
+            if s["first"] is None:
+                s["first"] = (mean, t)
+            else:
+                d = float(np.linalg.norm(mean - s["first"][0]))
+                s["dAP_p"], s["dAP_p_max"] = d, max(s["dAP_p_max"], d)
+                s["per_h"] = d / ((t - s["first"][1]) / 3600.0)
+            s["windows"] += 1
+        s["sum"], s["t_sum"], s["n"] = np.zeros(3), 0.0, 0
+
+    @property
+    def over(self) -> list:
+        """(pose, dAP_p) of the test poses whose latest drift exceeds the limit."""
+        if self.limit is None:
+            return []
+        return [(p, s["dAP_p"]) for p, s in self.poses.items() if s["dAP_p"] is not None and s["dAP_p"] > self.limit]
+
+    def summary(self) -> dict:
+        """JSON-ready: window_s, limit_m, poses {pose: {windows, dAP_p_m, dAP_p_max_m, dAP_p_per_h_m}}."""
+        return {"window_s": self.window, "limit_m": self.limit,
+                "poses": {p: {"windows": s["windows"], "dAP_p_m": s["dAP_p"], "dAP_p_max_m": s["dAP_p_max"],
+                              "dAP_p_per_h_m": s["per_h"]} for p, s in self.poses.items()}}

@@ -9,6 +9,8 @@
   their visits paired by cycle;
 - dAP, dRP (drift) for each test pose whose visits span two windows (1 h by default);
 - E (exchangeability) for each test pose measured on every robot given (``others``: other robots of the type);
+- static compliance C (m/N) for each test pose visited under loads (the measurements' load columns; the other
+  characteristics take the unloaded visits only);
 - the path characteristics and the pose stabilisation time and overshoot at each stop of a stream (``path``).
 """
 from __future__ import annotations
@@ -18,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .evaluation import evaluate_file
-from .iso9283 import distance_characteristics, drift, exchangeability, multidirectional
+from .iso9283 import distance_characteristics, drift, exchangeability, multidirectional, static_compliance
 
 COMMANDED_TOLERANCE = 1e-6  # m: the approaches of one test pose must command the same position within this
 CONDITIONS = ("load", "speed", "temperature", "measuring_system", "notes")
@@ -77,11 +79,16 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     """The ISO 9283 figures of ``meas`` (see the module docstring); ``others``: measurements of the same campaign
     on other robots of the type (exchangeability); ``path``: a ``path_report`` result to include. Keys: robot,
     source, campaign, orientation_measured, conditions, pose (AP/RP per test pose), multidirectional, distance,
-    drift, exchangeability, path, missing [{characteristic, needs}], warnings."""
+    drift, exchangeability, compliance, path, missing [{characteristic, needs}], warnings."""
     options = options or ISOOptions()
     if campaign is None:
         raise ISOReportError("an ISO 9283 report needs the campaign (its test poses and approaches)")
-    res, T, names, stamps, cycles, commanded = _pose_data(model, meas, campaign, options.registration)
+    loaded = meas.load is not None and np.any(meas.load != 0, axis=1)
+    if loaded is not False and loaded.all():
+        raise ISOReportError(f"{meas.source}: every row is under load; the pose characteristics and the compliance "
+                             f"need the unloaded visits too")
+    res, T, names, stamps, cycles, commanded = _pose_data(
+        model, meas.select(~loaded) if loaded is not False else meas, campaign, options.registration)
     ori = bool(res["orientation_measured"])
     missing, warnings = [], list(res.get("warnings", []))
     out = {"robot": model.name, "source": meas.source, "campaign": campaign.name, "measurements": len(T),
@@ -94,6 +101,7 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     out["distance"] = _distance(options, campaign, commanded, T, names, cycles, ori, missing)
     out["drift"] = _drift(options, campaign, commanded, T, names, stamps, ori, missing)
     out["exchangeability"] = _exchangeability(model, campaign, options, T, names, others, missing, warnings)
+    out["compliance"] = _compliance(meas, loaded, res, campaign, missing)
     out["path"] = path
     if path is None:
         missing.append({"characteristic": "AT, RT, CR, CO, AV, RV, FV (path)",
@@ -112,7 +120,6 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
 
 NOT_YET = (("path accuracy on reorientation", "a 6-DOF tracker's stream along a reorientation path: not evaluated by "
                                               "this version"),
-           ("static compliance", "poses measured under known loads: not evaluated by this version"),
            ("weaving deviations WS, WF", "the stream of a weaving program: not evaluated by this version"))
 
 
@@ -186,6 +193,28 @@ def _drift(options, campaign, commanded, T, names, stamps, ori, missing) -> dict
         missing.append({"characteristic": "dAP, dRP (drift of pose characteristics)",
                         "needs": f"visits of a test pose spanning two windows of {options.drift_window:g} s (these span "
                                  f"{span:.6g} s; the standard runs 8 h of cycles; --drift-window sets the window)"})
+    return out
+
+
+def _compliance(meas, loaded, res, campaign, missing) -> dict:
+    """Static compliance per test pose: every visit (loaded or not) in the base frame of the unloaded ones'
+    registration."""
+    if loaded is False or not loaded.any():
+        missing.append({"characteristic": "static compliance",
+                        "needs": "visits measured under known loads at the tool (load:fx, load:fy, load:fz columns; "
+                                 "simulate --load 200N)"})
+        return {}
+    T_tb = np.asarray(res["registration"]["T_tracker_base"], float)
+    T = np.linalg.inv(T_tb) @ meas.T
+    names = np.array([str(p) for p in meas.pose], dtype=object)
+    out = {}
+    for pose in campaign.names:
+        sel = names == pose
+        if loaded[sel].any():
+            try:
+                out[pose] = static_compliance(T[sel], meas.load[sel])
+            except ValueError as exc:
+                out[pose] = {"note": str(exc)}
     return out
 
 

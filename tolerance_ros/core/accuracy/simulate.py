@@ -54,6 +54,17 @@ def backlash(q_steps, play, revolute) -> np.ndarray:
     return -0.5 * float(play) * s * np.asarray(revolute, bool)[None]
 
 
+def joint_compliance(model: Mechanism, q, dx, force, stiffness) -> np.ndarray:
+    """(n, dof) joint deflections (rad) of the as-built robot (``dx``) at joints q (n, dof) under the forces (n, 3)
+    N applied at its tool point (base frame): ``K^-1 J^T F`` with J the tool point's position Jacobian in the
+    joints and K the diagonal of ``stiffness`` (dof,) N m/rad (inf: a rigid joint, as every prismatic one)."""
+    q = np.asarray(q, float)
+    _, EJ = model.fk_and_jacobian(q, dx)
+    Jq = EJ.J[:, :3, model.joint_columns()] * model.joint_direction
+    tau = np.einsum("nij,ni->nj", Jq, np.asarray(force, float))
+    return tau / np.asarray(stiffness, float)[None]
+
+
 def thermal_expansion(stamps, expansion, tau) -> np.ndarray:
     """(n,) relative growth of every length of a robot warming up: ``expansion (1 - exp(-t / tau))`` at t s
     after the first stamp (``expansion`` e.g. 1e-4, ``tau`` s). Uniform growth scales every position of the

@@ -9,7 +9,8 @@ Rx(roll)``; optional, or ``qx qy qz qw`` quaternion columns instead), ``pose`` t
 ``cycle`` its 0-based cycle (both optional), ``target`` the reflector or marker the row measured (a name;
 optional: without it every row measures one target; several targets of one visit are rows of the same
 stamp), ``joint:<name>`` the joint reading at the measurement (rad or deg for revolute, m or mm for
-prismatic). Lengths: m, mm, um; angles: rad, deg, mrad; the stamp's unit (s, ms, us, ns) is required.
+prismatic), ``load:fx load:fy load:fz`` the force applied at the tool (N or kN, base frame; optional, all
+three: ISO 9283 static compliance). Lengths: m, mm, um; angles: rad, deg, mrad; the stamp's unit (s, ms, us, ns) is required.
 Any other column is an error naming it (``tolerance-ros import`` maps a file's own columns).
 The orientation columns come all three or all four, never some of them. A number is what ``float()``
 reads from ASCII digits, sign, point and exponent (no ``1_000``, no other digits, no nan or inf), and
@@ -33,7 +34,7 @@ import numpy as np
 
 from ...geometry import quat_to_matrices, rpy_from_matrix, rpy_to_matrices
 from ...resources import not_a_file
-from ...units import ANGLE_UNITS, LENGTH_UNITS
+from ...units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS
 from .measurements import MeasurementError, Measurements, concat
 from .text import _check_text, _lines, _not_utf8, _show
 
@@ -118,7 +119,8 @@ def read_csv(path, skip_bad: bool = False, chunk_rows: int | None = None):
 
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _RPY, _QUAT = ("roll", "pitch", "yaw"), ("qx", "qy", "qz", "qw")
-_KNOWN = ("stamp", "pose", "cycle", "target", "x", "y", "z") + _RPY + _QUAT
+_LOAD = ("load:fx", "load:fy", "load:fz")
+_KNOWN = ("stamp", "pose", "cycle", "target", "x", "y", "z") + _RPY + _QUAT + _LOAD
 MAX_TARGET = 100  # characters of a target name
 MAX_POSE = 100    # characters of a test pose's name
 
@@ -134,15 +136,21 @@ class _Spec:
     num_names: list
     scale: np.ndarray
     joint_names: tuple
+    loads: bool = False       # the last three numeric columns are the load's
 
     def rotations_and_joints(self, A):
         """(n, 3, 3) rotations (None without orientation; ValueError for a zero quaternion) and (n, dof)
         joint values of numeric rows ``A`` in SI."""
+        end = A.shape[1] - (3 if self.loads else 0)
         if self.orientation == "rpy":
-            return rpy_to_matrices(A[:, 4:7]), A[:, 7:]
+            return rpy_to_matrices(A[:, 4:7]), A[:, 7:end]
         if self.orientation == "quat":
-            return quat_to_matrices(A[:, 4:8]), A[:, 8:]
-        return None, A[:, 4:]
+            return quat_to_matrices(A[:, 4:8]), A[:, 8:end]
+        return None, A[:, 4:end]
+
+    def load(self, A):
+        """(n, 3) forces (N) of numeric rows ``A`` in SI, or None without load columns."""
+        return A[:, -3:] if self.loads else None
 
 
 def _spec_from_header(header, source):
@@ -185,8 +193,18 @@ def _spec_from_header(header, source):
             raise MeasurementError(f"{source}: column {c!r} needs a unit (rad, deg, m, mm), got {unit!r}")
         scale.append(_scale(c, unit, kind, source))
     names += joints
+    loads = [c for c in _LOAD if c in cols]
+    if loads and len(loads) < 3:
+        raise MeasurementError(f"{source}: the load needs all of {', '.join(_LOAD)}; missing column(s) "
+                               f"{[c for c in _LOAD if c not in cols]}")
+    for c in loads:
+        if cols[c][1] not in FORCE_UNITS:
+            raise MeasurementError(f"{source}: column {c!r} needs a force unit in brackets ({', '.join(FORCE_UNITS)}), "
+                                   f"got {cols[c][1]!r}")
+        scale.append(FORCE_UNITS[cols[c][1]])
+    names += loads
     return _Spec(len(header), cols, "rpy" if rpy else "quat" if quat else None, [cols[c][0] for c in names],
-                 names, np.array(scale), tuple(c[len("joint:"):] for c in joints))
+                 names, np.array(scale), tuple(c[len("joint:"):] for c in joints), bool(loads))
 
 
 def _read_csv_chunks(path, skip_bad, chunk_rows):
@@ -309,7 +327,7 @@ def _convert_fast(rows, spec, last):
         targets = [t.strip() for t in by_col[spec.cols["target"][0]]]
         if not all(0 < len(t) <= MAX_TARGET for t in targets):
             return None
-    return _Block(stamps, A[:, 1:4], R, poses, np.array(cycles, int), joints, targets)
+    return _Block(stamps, A[:, 1:4], R, poses, np.array(cycles, int), joints, targets, spec.load(A))
 
 
 def _convert_slow(raw, spec, last, skip_bad, source):
@@ -333,7 +351,7 @@ def _convert_slow(raw, spec, last, skip_bad, source):
     A = np.array([r[0] for r in buf], float).reshape(len(buf), len(spec.num_cols))
     R, joints = spec.rotations_and_joints(A)
     block = _Block(A[:, 0], A[:, 1:4], R, [r[1] for r in buf], np.array([r[2] for r in buf], int), joints,
-                   [r[3] for r in buf] if "target" in spec.cols else None)
+                   [r[3] for r in buf] if "target" in spec.cols else None, spec.load(A))
     block.lines = np.array(lines, int)
     return block, skipped, last
 
@@ -342,9 +360,9 @@ class _Block:
     """Parsed rows of one chunk, column-wise (SI); ``R`` is None without orientation columns, ``targets``
     None without a target column."""
 
-    def __init__(self, stamps, pos, R, poses, cycles, joints, targets=None):
+    def __init__(self, stamps, pos, R, poses, cycles, joints, targets=None, load=None):
         self.stamps, self.pos, self.R, self.poses, self.cycles, self.joints = stamps, pos, R, poses, cycles, joints
-        self.targets = targets
+        self.targets, self.load = targets, load
         self.lines = None
 
 
@@ -407,7 +425,7 @@ def _pack(block, spec, source, skipped):
     targets = np.array(block.targets, dtype=object) if block.targets is not None else None
     return Measurements(block.stamps, T, joints, spec.joint_names, np.array(block.poses, dtype=object),
                         np.asarray(block.cycles, dtype=int), spec.orientation is not None, source, list(skipped),
-                        targets, block.lines)
+                        targets, block.lines, block.load)
 
 
 def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="deg", joint_units=None) -> Path:
@@ -422,7 +440,8 @@ def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="
     path.parent.mkdir(parents=True, exist_ok=True)
     header = ["stamp[s]", "pose", "cycle"] + (["target"] if named else []) + [f"{c}[{length_unit}]" for c in "xyz"] + \
         ([f"{c}[{angle_unit}]" for c in ("roll", "pitch", "yaw")] if m.has_orientation else []) + \
-        [f"joint:{n}[{u}]" for n, u in zip(m.joint_names, joint_units or ["rad"] * len(m.joint_names))]
+        [f"joint:{n}[{u}]" for n, u in zip(m.joint_names, joint_units or ["rad"] * len(m.joint_names))] + \
+        ([f"{c}[N]" for c in _LOAD] if m.load is not None else [])
     with path.open("w", newline="") as fh:
         for c in comments:
             fh.write(f"# {c}\n")
@@ -434,6 +453,8 @@ def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="
             row += [f"{v:.6f}" for v in pos[i]] + [f"{v:.7f}" for v in rpy[i]]
             if m.joints is not None:
                 row += [f"{v:.9f}" for v in m.joints[i]]
+            if m.load is not None:
+                row += [f"{v:.6g}" for v in m.load[i]]
             w.writerow(row)
     return path
 

@@ -18,7 +18,9 @@ class Measurements:
     False) only its position is measured and its rotation is the identity, never read. ``target`` (n,)
     names the reflector or marker each row measured (None: one target, unnamed); rows of one pose visit
     share its stamp, joints and labels. ``line`` (n,): where each row came from in its file (the line of a
-    CSV row or of a campaign log's measurement; None where the reader has no lines).
+    CSV row or of a campaign log's measurement; None where the reader has no lines). ``load`` (n, 3): the force
+    (N, base frame) applied at the tool when the row was measured (None: no load recorded; ISO 9283 static
+    compliance).
     """
 
     stamps: np.ndarray
@@ -32,6 +34,7 @@ class Measurements:
     skipped: list = field(default_factory=list)
     target: np.ndarray | None = None
     line: np.ndarray | None = None
+    load: np.ndarray | None = None
 
     def __len__(self):
         return len(self.stamps)
@@ -64,7 +67,7 @@ class Measurements:
         pick = (lambda a: None if a is None else a[rows])
         return Measurements(self.stamps[rows], self.T[rows], pick(self.joints), self.joint_names, pick(self.pose),
                             pick(self.cycle), self.has_orientation, self.source, list(self.skipped),
-                            pick(self.target), pick(self.line))
+                            pick(self.target), pick(self.line), pick(self.load))
 
 
 def concat(parts) -> Measurements:
@@ -78,5 +81,6 @@ def concat(parts) -> Measurements:
                         np.concatenate([p.cycle for p in parts]) if first.cycle is not None else None,
                         first.has_orientation, first.source, [s for p in parts for s in p.skipped],
                         np.concatenate([p.target for p in parts]) if first.target is not None else None,
-                        np.concatenate([p.line for p in parts]) if first.line is not None else None)
+                        np.concatenate([p.line for p in parts]) if first.line is not None else None,
+                        np.concatenate([p.load for p in parts]) if first.load is not None else None)
 
