@@ -163,3 +163,27 @@ def test_static_compliance_from_visits_under_load(capsys, tmp_path):
     code, out, err = run(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances",
                          TOL, "--load", "200", "--out", tmp_path / "x.csv")
     assert code == 2 and "--load" in err and "has no unit" in err, err
+
+
+def test_weaving_deviations_from_a_woven_path(capsys, tmp_path):
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--path", "weave", "--stroke", "8mm", "--pitch", "15mm", "--cycles",
+        "2", "--out", tmp_path / "weave.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--trajectory", tmp_path / "weave.yaml", "--tolerances", TOL,
+        "--settling", "8Hz,0.2", "--out", tmp_path / "w.csv")
+    path = json.loads(cli(capsys, "path-report", "--robot", ROBOT, "--measurements", tmp_path / "w.csv",
+                          "--joint-states", tmp_path / "w.joints.csv", "--latency", "8ms", "--json"))
+    w = path["weaving"]
+    assert w["S_c_m"] == pytest.approx(0.008, rel=0.02) and w["WS"] > 0.02 and abs(w["WF"]) < 0.01
+    printed = cli(capsys, "path-report", "--robot", ROBOT, "--measurements", tmp_path / "w.csv", "--joint-states",
+                  tmp_path / "w.joints.csv", "--latency", "8ms")
+    assert f"(WS {w['WS'] * 100:+.2f} %)" in printed
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--iso9283", "--cycles", "3", "--out", tmp_path / "cube.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances", TOL, "--out",
+        tmp_path / "m.csv")
+    doc = json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--measurements",
+                         tmp_path / "m.csv", "--stream", tmp_path / "w.csv", "--joint-states", tmp_path / "w.joints.csv",
+                         "--latency", "8ms", "--json"))
+    assert doc["path"]["weaving"] == w
+    assert "WS, WF (weaving deviations)" not in {m["characteristic"] for m in doc["missing"]}
+    code, _, err = run(capsys, "plan-campaign", "--robot", ROBOT, "--path", "line", "--stroke", "8mm")
+    assert code == 2 and "--stroke, --pitch: go with --path weave" in err

@@ -27,7 +27,7 @@ def add_arguments(p):
     p.add_argument("--seed", type=int, default=0, help="seed of the candidate configurations (default 0)")
     p.add_argument("--cycles", type=int, help="visits per test pose in the campaign file (default 3), or cycles of "
                                                "the --path (default 10)")
-    p.add_argument("--path", choices=["line", "circle", "rectangle"],
+    p.add_argument("--path", choices=["line", "circle", "rectangle", "weave"],
                    help="write an ISO 9283 test path in the ISO cube instead: the joint trajectory that drives it "
                         "(docs/path-accuracy.md)")
     p.add_argument("--iso9283", action="store_true",
@@ -36,6 +36,10 @@ def add_arguments(p):
     p.add_argument("--approach", metavar="LENGTH",
                    help="with --iso9283: the pre-poses this far before each test pose, one per direction (e.g. "
                         "100mm), for the multi-directional pose accuracy variation vAP")
+    p.add_argument("--stroke", help="with --path weave: the weaving's peak-to-peak width across the line (default "
+                                    "10 %% of the cube's edge)")
+    p.add_argument("--pitch", help="with --path weave: the weaving's period along the line (default 20 %% of the "
+                                   "edge; rounded to a whole number of periods, at least 3)")
     p.add_argument("--speed", default="0.1m/s", help="with --path: the programmed speed (default 0.1m/s)")
     p.add_argument("--accel", default="1m/s^2", help="with --path: the acceleration at start and stop (default 1m/s^2)")
     p.add_argument("--side", help="with --path: the cube's edge (default: the largest of 400mm halved that the robot "
@@ -91,7 +95,9 @@ def run_path(args, model):
     side = quantity(args.side, "length", "--side")
     center = joints_option(model, args.center_joints, "--center-joints") if args.center_joints else None
     try:
-        jp, tp = plan_path(model, args.path, speed, accel, dwell, cycles, side, center, seed=args.seed)
+        jp, tp = plan_path(model, args.path, speed, accel, dwell, cycles, side, center, seed=args.seed,
+                           stroke=quantity(args.stroke, "length", "--stroke"),
+                           pitch=quantity(args.pitch, "length", "--pitch"))
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     test = tp.moves[tp.test]
@@ -191,6 +197,8 @@ def run(args):
     from ..core.campaign import load_campaign
     from ..core.workspace import Workspace, listed, rejection_summary, restrictions
     model = load_model(args)
+    if (args.stroke or args.pitch) and args.path != "weave":
+        raise CLIError("--stroke, --pitch: go with --path weave")
     if args.path:
         return run_path(args, model)
     if args.approach and not args.iso9283:

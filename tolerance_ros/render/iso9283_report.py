@@ -83,6 +83,15 @@ def sections(doc) -> list:
         out.append(("Path characteristics (AT, RT, CR, CO, AV, RV, FV)",
                     f"{path['cycles']} cycles from {path['source']}, latency {path['latency_s'] * 1e3:.3f} ms; "
                     "the figures of path-report", HEADS, segment_rows(path)))
+    w = (path or {}).get("weaving")
+    if w:
+        from .path_report import weaving_line
+        out.append(("Weaving deviations (WS, WF)", weaving_line(w) + "; the stroke peak to peak across the weave's "
+                    "line, the frequency over its whole periods but the first and the last",
+                    ["cycle", "periods", "stroke mm", "commanded mm", "WS %", "frequency Hz", "commanded Hz", "WF %"],
+                    [[k + 1, c["periods"], _mm(c["S_a_m"]), _mm(c["S_c_m"]), f"{c['WS'] * 100:+.2f}",
+                      f"{c['F_a_hz']:.4f}", f"{c['F_c_hz']:.4f}", f"{c['WF'] * 100:+.3f}"]
+                     for k, c in enumerate(w["cycles"])]))
     st = (path or {}).get("stops")
     if st and st["judged"]:
         from .path_report import stops_line

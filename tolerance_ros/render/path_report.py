@@ -43,6 +43,13 @@ def _cycles_from(how) -> str:
     return f"; cycles found by the command's repetition (period {how['period_s']:.3f} s, no rest between them)"
 
 
+def weaving_line(w) -> str:
+    """The weaving deviations, in words."""
+    return (f"weaving over {len(w['cycles'])} cycle(s): stroke {w['S_a_m'] * 1e3:.4f} mm against "
+            f"{w['S_c_m'] * 1e3:.4f} mm commanded (WS {w['WS'] * 100:+.2f} %), frequency {w['F_a_hz']:.4f} Hz against "
+            f"{w['F_c_hz']:.4f} Hz (WF {w['WF'] * 100:+.3f} %)")
+
+
 def stops_line(st) -> str:
     """The stops' pose stabilisation time and overshoot, in words."""
     unsettled = [s for s in st["stops"] if s["note"] and s["rest_s"] > 0]
@@ -89,6 +96,9 @@ def summary_lines(doc) -> list:
     st = doc.get("stops")
     if st and st["stops"]:
         lines.append(stops_line(st))
+    w = doc.get("weaving")
+    if w:
+        lines.append(weaving_line(w))
     b = doc.get("budget")
     if b:
         lines.append(f"budget ({b['criterion']} bound): the bound along the path reaches {b['bound_max_m'] * 1e3:.4f} mm"

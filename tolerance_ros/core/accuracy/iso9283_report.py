@@ -107,6 +107,9 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
         missing.append({"characteristic": "AT, RT, CR, CO, AV, RV, FV (path)",
                         "needs": "the tracker's stream along a test path and the command (--stream with --joint-states "
                                  "or --trajectory)"})
+    if path is None or not path.get("weaving"):
+        missing.append({"characteristic": "WS, WF (weaving deviations)",
+                        "needs": "the tracker's stream along a weaving program (plan-campaign --path weave; --stream)"})
     if path is None or not (path.get("stops") or {}).get("judged"):
         missing.append({"characteristic": "pose stabilisation time, pose overshoot, minimum positioning time",
                         "needs": "the tracker's stream with the robot coming to rest after its motions (--stream; "
@@ -120,7 +123,8 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
 
 NOT_YET = (("path accuracy on reorientation", "a 6-DOF tracker's stream along a reorientation path: not evaluated by "
                                               "this version"),
-           ("weaving deviations WS, WF", "the stream of a weaving program: not evaluated by this version"))
+           ("static compliance under torques", "poses measured under known torques at the tool: not evaluated by "
+                                               "this version (forces are)"))
 
 
 def _conditions(options, campaign, names, stamps) -> dict:

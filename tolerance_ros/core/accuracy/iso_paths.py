@@ -9,7 +9,10 @@ plane is the diagonal plane through the corners (-,-,-), (+,+,-), (+,+,+), (-,-,
   then back (the return is another motion, not the test path);
 - ``circle``: centre ``c``, diameter ``0.8 side``, starting at ``c + 0.4 side u``, once round;
 - ``rectangle``: P3 -> P4 -> P2 -> P5 -> P3 (``P4 = c + 0.8 h (1, 1, -1)``, ``P5 = c + 0.8 h (-1, -1, 1)``),
-  its four corners passed at the programmed speed.
+  its four corners passed at the programmed speed;
+- ``weave``: the line from P3 to P2 woven across in the test plane (a sine of peak-to-peak ``stroke`` across
+  the line, a whole number of periods of about ``pitch`` along it; ISO 9283 weaving deviations), then straight
+  back (another motion).
 
 The tool keeps the orientation of the centre pose. Each move starts and ends at rest with a trapezoidal
 speed profile (``speed`` m/s, ``accel`` m/s^2); a cycle is a dwell at the start, then the move(s). Joints
@@ -25,7 +28,7 @@ import numpy as np
 
 from .path import interp_columns
 
-PATHS = ("line", "circle", "rectangle")
+PATHS = ("line", "circle", "rectangle", "weave")
 MAX_KNOT_STEP = 0.05  # rad or m: the largest joint change between knots before a path is called discontinuous
 
 
@@ -51,8 +54,10 @@ def _polyline(corners, spacing) -> np.ndarray:
     return np.vstack(out)
 
 
-def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3) -> ToolPath:
-    """The test path ``kind`` (``PATHS``) of the cube of edge ``side`` (m) at ``center`` (m)."""
+def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, stroke: float | None = None,
+              pitch: float | None = None) -> ToolPath:
+    """The test path ``kind`` (``PATHS``) of the cube of edge ``side`` (m) at ``center`` (m); a weave's ``stroke``
+    and ``pitch`` (m; default 10 % and 20 % of the edge)."""
     if kind not in PATHS:
         raise ValueError(f"path: expected one of {', '.join(PATHS)}, got {kind!r}")
     c = np.asarray(center, float)
@@ -68,6 +73,21 @@ def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3) -
     if kind == "line":
         fwd = _polyline(np.array([P3, P2]), spacing)
         return ToolPath(kind, [fwd, fwd[::-1].copy()], 0, R, c, side)
+    if kind == "weave":
+        stroke = 0.1 * side if stroke is None else float(stroke)
+        pitch = 0.2 * side if pitch is None else float(pitch)
+        if not (0 < stroke <= side and 0 < pitch <= side):
+            raise ValueError(f"weave: expected a stroke and a pitch up to the cube's edge {side * 1e3:g} mm, got "
+                             f"{stroke * 1e3:g} mm and {pitch * 1e3:g} mm")
+        d = (P2 - P3) / np.linalg.norm(P2 - P3)
+        across = w - (w @ d) * d
+        across /= np.linalg.norm(across)
+        L = float(np.linalg.norm(P2 - P3))
+        periods = max(3, int(round(L / pitch)))
+        n = int(np.ceil(L * np.hypot(1.0, np.pi * stroke * periods / L) / spacing)) + 1
+        sb = np.linspace(0.0, L, n)
+        fwd = P3 + sb[:, None] * d + (0.5 * stroke * np.sin(2 * np.pi * periods * sb / L))[:, None] * across
+        return ToolPath(kind, [fwd, _polyline(np.array([P2, P3]), spacing)], 0, R, c, side)
     if kind == "rectangle":
         return ToolPath(kind, [_polyline(np.array([P3, P4, P2, P5, P3]), spacing)], 0, R, c, side)
     r = 0.4 * side
@@ -168,7 +188,8 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
 
 
 def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: float = 0.5, cycles: int = 10,
-              side: float | None = None, q_center=None, spacing: float = 0.5e-3, seed: int = 0):
+              side: float | None = None, q_center=None, spacing: float = 0.5e-3, seed: int = 0,
+              stroke: float | None = None, pitch: float | None = None):
     """(JointPath, ToolPath) of the test path ``kind`` in an ISO cube the model reaches: centred at the tool
     pose of ``q_center`` (dof,) rad or m, or else at the cube of ``calibration.planning.iso_cube_joints``;
     of edge ``side`` m, or else the largest of 0.4 m halved until the whole path is reached within the joint
@@ -185,7 +206,7 @@ def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: f
     sides = [side] if side else [0.4 / 2 ** k for k in range(6)]
     why = ""
     for sd in sides:
-        tp = tool_path(kind, T[:3, 3], sd, T[:3, :3], spacing)
+        tp = tool_path(kind, T[:3, 3], sd, T[:3, :3], spacing, stroke, pitch)
         T0 = T.copy()
         T0[:3, 3] = tp.moves[0][0]
         q0 = solve(model, T0[None], q_center[None])[0][0]

@@ -150,8 +150,12 @@ def corners(p, angle: float = CORNER_ANGLE, arm: float | None = None) -> np.ndar
     for i, j in zip(edges[::2], edges[1::2]):
         lo, hi = grid[i] - arm, grid[j - 1] + arm          # the legs meet between lo and hi
         a0, a1, b0, b1 = at(np.array([lo - arm, lo, hi, hi + arm]))
-        C = _line_meet(a1, (a1 - a0) / np.linalg.norm(a1 - a0), b0, (b1 - b0) / np.linalg.norm(b1 - b0))
+        la, lb = np.linalg.norm(a1 - a0), np.linalg.norm(b1 - b0)
         sel = np.flatnonzero((s >= lo) & (s <= hi))
+        if len(sel) < 2 or la < 0.5 * arm or lb < 0.5 * arm:   # a leg cut short by an end of the path
+            out.append(0.5 * (lo + hi))
+            continue
+        C = _line_meet(a1, (a1 - a0) / la, b0, (b1 - b0) / lb)
         if len(sel) < 2:
             out.append(0.5 * (lo + hi))
             continue

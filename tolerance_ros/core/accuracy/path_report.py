@@ -38,6 +38,7 @@ from ..ingest import StampGaps
 from .latency import FINE_WINDOW_S, coarse_offset, estimate_latency
 from .repeats import split_runs
 from .settling import stops
+from .weaving import weaving
 from .streams import Timeline, tidy
 from .checks import PLAUSIBLE_RESIDUAL, units_problem
 from .registration import kabsch
@@ -239,7 +240,7 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, option
            "outside": outside, "stations_per_segment": o.stations, "budget": None, "refused": None, "missed": [],
            "streams": {name: td.summary() for name, td in tidied.items()},
            "stream_gaps": {name: g.summary() for name, g in gaps.items()}, "not_judged": list(holes.values()),
-           "stops": stops(ta, a, tj, p_c, runs, o.band, o.smooth)}
+           "stops": stops(ta, a, tj, p_c, runs, o.band, o.smooth), "weaving": weaving(cycles)}
     if budget is not None:
         _judge(doc, model, budget, ref, tj, qj, v_max, offset)
     return doc
