@@ -105,7 +105,9 @@ def test_drift_and_exchangeability_and_the_path_in_one_report(capsys, tmp_path):
     (["--distance", "P2,P9"], r"\['P9'\] are not in campaign"),
     (["--drift-window", "3600"], "--drift-window"),
     (["--joint-states", "x.csv"], "go with --stream"),
-    (["--latency", "8ms"], "go with --stream"),
+    (["--latency", "8ms"], "--latency: goes with --stream or --reorientation"),
+    (["--reorientation", "x.csv"], "give --reorientation-joints"),
+    (["--reorientation-joints", "x.csv"], "goes with --reorientation"),
 ])
 def test_bad_options_are_refused(capsys, tmp_path, campaign, argv, message):
     cli(capsys, "simulate", "--robot", ROBOT, "--campaign", campaign, "--tolerances", TOL, "--out", tmp_path / "m.csv")
@@ -187,3 +189,29 @@ def test_weaving_deviations_from_a_woven_path(capsys, tmp_path):
     assert "WS, WF (weaving deviations)" not in {m["characteristic"] for m in doc["missing"]}
     code, _, err = run(capsys, "plan-campaign", "--robot", ROBOT, "--path", "line", "--stroke", "8mm")
     assert code == 2 and "--stroke, --pitch: go with --path weave" in err
+
+
+def test_path_accuracy_on_reorientation_in_the_campaigns_registration(capsys, tmp_path):
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--iso9283", "--cycles", "3", "--out", tmp_path / "cube.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances", TOL, "--out",
+        tmp_path / "m.csv")
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--path", "reorient", "--angle", "20deg", "--cycles", "2", "--out",
+        tmp_path / "reo.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--trajectory", tmp_path / "reo.yaml", "--tolerances", TOL, "--out",
+        tmp_path / "r.csv")
+    from tolerance_ros.core.accuracy.io import read_measurements
+    assert read_measurements(tmp_path / "r.csv").has_orientation          # a 6-DOF tracker's frames
+    doc = json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--measurements",
+                         tmp_path / "m.csv", "--reorientation", tmp_path / "r.csv", "--reorientation-joints",
+                         tmp_path / "r.joints.csv", "--latency", "8ms", "--json"))
+    r = doc["reorientation"]
+    assert r["cycles"] == 2 and r["turn_rad"] == pytest.approx(np.radians(40), rel=1e-6)
+    assert 1e-6 < r["AT_p_m"] < 0.5e-3 and r["excursion_m"] >= r["AT_p_m"]   # the point moves as the robot is built
+    assert "path accuracy on reorientation" not in {m["characteristic"] for m in doc["missing"]}
+    points = cli(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances", TOL,
+                 "--target-offset", "A=0mm,0mm,50mm", "--out", tmp_path / "p.csv")
+    assert "wrote" in points
+    code, _, err = run(capsys, "iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--measurements",
+                       tmp_path / "m.csv", "--reorientation", tmp_path / "p.csv", "--reorientation-joints",
+                       tmp_path / "r.joints.csv", "--latency", "8ms")
+    assert code == 2 and "no orientation columns" in err, err

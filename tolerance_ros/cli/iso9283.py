@@ -31,10 +31,17 @@ def add_arguments(p):
                         "characteristics AT, RT, CR, CO, AV, RV, FV")
     p.add_argument("--joint-states", metavar="JOINTS", help="with --stream: the joint states logged along the path")
     p.add_argument("--trajectory", metavar="FILE", help="with --stream: the joint trajectory driven")
-    p.add_argument("--latency", help="with --stream: the tracker's latency, given (e.g. 8ms): the stops are then timed "
-                                     "on the command's clock exactly (an estimate also holds the robot's own lag)")
+    p.add_argument("--latency", help="with --stream or --reorientation: the tracker's latency, given (e.g. 8ms): the "
+                                     "stops are then timed on the command's clock exactly (an estimate also holds the "
+                                     "robot's own lag)")
     p.add_argument("--band", default="0.1mm",
                    help="with --stream: the stabilisation band about the pose attained at each stop (default 0.1mm)")
+    p.add_argument("--reorientation", metavar="FRAMES",
+                   help="a 6-DOF tracker's frames (measurement CSV with orientation) along a reorientation "
+                        "(plan-campaign --path reorient): the path accuracy on reorientation, in the campaign's "
+                        "registration; needs --reorientation-joints and --latency")
+    p.add_argument("--reorientation-joints", metavar="JOINTS",
+                   help="with --reorientation: the joint states logged along it")
     p.add_argument("--load", help="test condition: the load at the tool (e.g. '10 kg at 100 mm along z')")
     p.add_argument("--speed", help="test condition: the programmed speed (e.g. '100 % of rated, 1 m/s')")
     p.add_argument("--temperature", help="test condition: the ambient temperature (e.g. '20.5 C')")
@@ -45,8 +52,8 @@ def add_arguments(p):
 def _path(args, model):
     """path_report's result for ``--stream``, or None."""
     if not args.stream:
-        if args.joint_states or args.trajectory or args.latency:
-            raise CLIError("--joint-states, --trajectory, --latency: go with --stream (the path's tracker points)")
+        if args.joint_states or args.trajectory:
+            raise CLIError("--joint-states, --trajectory: go with --stream (the path's tracker points)")
         return None
     from ..core.accuracy.io.joint_states import read_points
     from ..core.accuracy.path_report import PathOptions, path_report
@@ -59,6 +66,26 @@ def _path(args, model):
     return path_report(model, stamps, points, tj, qj, None,
                        PathOptions(registration=args.registration, trajectory=trajectory, latency=latency,
                                    band=quantity(args.band, "length", "--band")), source=source)
+
+
+def _reorientation(args, model):
+    """(stamps, frames, joint stamps, joints, latency, source) of ``--reorientation``, or None."""
+    if not args.reorientation:
+        if args.reorientation_joints:
+            raise CLIError("--reorientation-joints: goes with --reorientation")
+        return None
+    if not (args.reorientation_joints and args.latency):
+        raise CLIError("--reorientation: give --reorientation-joints (the joint states along it) and --latency (the "
+                       "tracker's; a fixed tool point shows no speed to estimate it from)")
+    from ..core.accuracy.io import read_measurements
+    from ..core.accuracy.io.joint_states import read_joint_states
+    m = read_measurements(args.reorientation)
+    if not m.has_orientation:
+        raise CLIError(f"--reorientation: {args.reorientation} has no orientation columns; the path accuracy on "
+                       f"reorientation needs a 6-DOF tracker's frames")
+    tj, qj = read_joint_states(args.reorientation_joints, model.joint_names, model.joint_types)
+    return (m.stamps, m.T, tj, model.check_joints(qj, args.reorientation_joints),
+            quantity(args.latency, "time", "--latency", positive=False), str(args.reorientation))
 
 
 def _numeric(cell) -> bool:
@@ -88,10 +115,13 @@ def run(args):
                   "measuring_system": args.measuring_system}
     meas = read_measurements(args.measurements, joint_names=model.joint_names)
     others = [read_measurements(f, joint_names=model.joint_names) for f in args.other]
+    if args.latency and not (args.stream or args.reorientation):
+        raise CLIError("--latency: goes with --stream or --reorientation")
     path = _path(args, model)
+    reorientation = _reorientation(args, model)
     try:
         doc = iso9283_report(model, meas, campaign, ISOOptions(pair, window, args.registration, conditions), others,
-                             path)
+                             path, reorientation)
     except ISOReportError as exc:
         raise CLIError(str(exc)) from None
     files = write_iso9283_report(doc, args.out) if args.out else {}

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ..core.budget import load_budget
 from ..render.text import Progress, table
 from .common import CAPS, CLIError, contact_specs, joints_option, load_model, quantity, target_options
@@ -27,7 +29,7 @@ def add_arguments(p):
     p.add_argument("--seed", type=int, default=0, help="seed of the candidate configurations (default 0)")
     p.add_argument("--cycles", type=int, help="visits per test pose in the campaign file (default 3), or cycles of "
                                                "the --path (default 10)")
-    p.add_argument("--path", choices=["line", "circle", "rectangle", "weave"],
+    p.add_argument("--path", choices=["line", "circle", "rectangle", "weave", "reorient"],
                    help="write an ISO 9283 test path in the ISO cube instead: the joint trajectory that drives it "
                         "(docs/path-accuracy.md)")
     p.add_argument("--iso9283", action="store_true",
@@ -40,6 +42,12 @@ def add_arguments(p):
                                     "10 %% of the cube's edge)")
     p.add_argument("--pitch", help="with --path weave: the weaving's period along the line (default 20 %% of the "
                                    "edge; rounded to a whole number of periods, at least 3)")
+    p.add_argument("--angle", help="with --path reorient: the tool turns from -ANGLE to +ANGLE about the base's x "
+                                   "axis, its point held (default 30deg)")
+    p.add_argument("--angular-speed", default="0.5rad/s",
+                   help="with --path reorient: the programmed turning speed (default 0.5rad/s)")
+    p.add_argument("--angular-accel", default="2.5rad/s^2",
+                   help="with --path reorient: the turning acceleration at start and stop (default 2.5rad/s^2)")
     p.add_argument("--speed", default="0.1m/s", help="with --path: the programmed speed (default 0.1m/s)")
     p.add_argument("--accel", default="1m/s^2", help="with --path: the acceleration at start and stop (default 1m/s^2)")
     p.add_argument("--side", help="with --path: the cube's edge (default: the largest of 400mm halved that the robot "
@@ -89,23 +97,30 @@ def run_path(args, model):
     cycles = 10 if args.cycles is None else args.cycles
     if cycles < 1:
         raise CLIError("--cycles: must be >= 1")
-    speed = quantity(args.speed, "speed", "--speed")
-    accel = quantity(args.accel, "acceleration", "--accel")
+    if args.path == "reorient":
+        speed = quantity(args.angular_speed, "angular speed", "--angular-speed")
+        accel = quantity(args.angular_accel, "angular acceleration", "--angular-accel")
+    else:
+        speed = quantity(args.speed, "speed", "--speed")
+        accel = quantity(args.accel, "acceleration", "--accel")
     dwell = quantity(args.dwell, "time", "--dwell", positive=False)
     side = quantity(args.side, "length", "--side")
     center = joints_option(model, args.center_joints, "--center-joints") if args.center_joints else None
     try:
         jp, tp = plan_path(model, args.path, speed, accel, dwell, cycles, side, center, seed=args.seed,
                            stroke=quantity(args.stroke, "length", "--stroke"),
-                           pitch=quantity(args.pitch, "length", "--pitch"))
+                           pitch=quantity(args.pitch, "length", "--pitch"),
+                           angle=quantity(args.angle, "angle", "--angle"))
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     test = tp.moves[tp.test]
     doc = jp.to_dict()
     doc.update(robot=model.name, side_m=tp.side, center_m=tp.center.tolist(), length_m=float(arc_length(test)[-1]),
                corners=len(corners(test)), period_s=jp.period, duration_s=jp.duration)
+    turning = tp.turns is not None
     desc = (f"ISO 9283 {args.path} path by tolerance-ros plan-campaign: cube edge {tp.side * 1e3:.1f} mm centred at "
-            f"[{', '.join(f'{v * 1e3:.1f}' for v in tp.center)}] mm, {speed:g} m/s, {cycles} cycles; SI (s, rad, m)")
+            f"[{', '.join(f'{v * 1e3:.1f}' for v in tp.center)}] mm, {speed:g} {'rad/s' if turning else 'm/s'}, "
+            f"{cycles} cycles; SI (s, rad, m)")
     if args.out:
         from pathlib import Path
         out = Path(args.out)
@@ -114,10 +129,17 @@ def run_path(args, model):
     if args.json:
         return {k: v for k, v in doc.items() if k != "points"} | {"points": len(jp.t), "file": args.out}
     print(desc)
-    print(f"test path {doc['length_m'] * 1e3:.1f} mm with {doc['corners']} corner(s); a cycle lasts {jp.period:.2f} s "
-          f"({len(jp.t)} knots), {cycles} cycles {jp.duration:.1f} s")
+    what = (f"the tool turning {np.degrees(2 * tp_angle(tp)):.1f} deg about its point" if turning else
+            f"test path {doc['length_m'] * 1e3:.1f} mm with {doc['corners']} corner(s)")
+    print(f"{what}; a cycle lasts {jp.period:.2f} s ({len(jp.t)} knots), {cycles} cycles {jp.duration:.1f} s")
     print(f"wrote {args.out}" if args.out else "trajectory not saved (give --out FILE.yaml to save it)")
     return None
+
+
+def tp_angle(tp) -> float:
+    """Half the angle (rad) a reorientation turns through."""
+    R = tp.turns[tp.test]
+    return 0.5 * float(np.arccos(np.clip((np.trace(R[0].T @ R[-1]) - 1.0) / 2.0, -1.0, 1.0)))
 
 
 def run_contacts(args, model):
@@ -199,6 +221,8 @@ def run(args):
     model = load_model(args)
     if (args.stroke or args.pitch) and args.path != "weave":
         raise CLIError("--stroke, --pitch: go with --path weave")
+    if args.angle and args.path != "reorient":
+        raise CLIError("--angle: goes with --path reorient")
     if args.path:
         return run_path(args, model)
     if args.approach and not args.iso9283:

@@ -135,12 +135,21 @@ def _run_trajectory(args, model, delta, noise, out):
         raise CLIError(f"--tracker-rate: {jp.duration:.0f} s at {max(rate, jrate):g} Hz exceeds 50,000,000 samples")
     dx = as_built_errors(delta, args.seed, args.errors)
     T_tracker = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
+    frames = jp.kind == "reorient"        # the tool turns about its point: a 6-DOF tracker measures frames
     st = path_streams(model, jp, dx, T_tracker, jrate, rate, latency, noise, args.seed + 1, repeatability=rep,
-                      offset=offset, settling=_settling(args.settling))
+                      offset=offset, settling=_settling(args.settling),
+                      noise_orientation=quantity(args.orientation_noise, "angle", "--orientation-noise",
+                                                 positive=False) if frames else None)
     comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
                f"seed {args.seed}) driving {args.trajectory}; tracker {args.tracker_rate}, {args.latency} late, "
                f"noise {args.noise}" + (f"; joints settling as {args.settling}" if args.settling else ""))
-    write_points(out, st.stamps, st.points, [comment])
+    if frames:
+        from ..core.accuracy.io import Measurements, write_csv
+        T = np.tile(np.eye(4), (len(st.stamps), 1, 1))
+        T[:, :3, :3], T[:, :3, 3] = st.rotations, st.points
+        write_csv(out, Measurements(st.stamps, T, source="simulated"), comments=[comment])
+    else:
+        write_points(out, st.stamps, st.points, [comment])
     joints = write_joint_states(out.with_name(f"{out.stem}.joints.csv"), st.joint_stamps, st.joints, model.joint_names,
                                 model.joint_types, [comment])
     truth_path = _truth(args, model, dx, T_tracker, noise, out, len(st.stamps), 0, targets, "base", False,

@@ -107,6 +107,16 @@ def sections(doc) -> list:
                     ["distance mm", "moves", "minimum s", "mean s"],
                     [[f"{g['distance_m'] * 1e3:.1f}", g["moves"], f"{g['min_s']:.4f}", f"{g['mean_s']:.4f}"]
                      for g in st["positioning"]]))
+    r = doc.get("reorientation")
+    if r:
+        heads = ["AT_p mm", "RT_p mm", "excursion mm", "AT_a mrad", "AT_b mrad", "AT_c mrad", "RT_a mrad", "RT_b mrad",
+                 "RT_c mrad"]
+        keys = ["AT_p_m", "RT_p_m", "excursion_m", "AT_a_rad", "AT_b_rad", "AT_c_rad", "RT_a_rad", "RT_b_rad",
+                "RT_c_rad"]
+        out.append(("Path accuracy on reorientation", f"{r['cycles']} cycles of the tool turning "
+                    f"{np.degrees(r['turn_rad']):.1f} deg about its point, from {r['source']}, latency "
+                    f"{r['latency_s'] * 1e3:.3f} ms; {r['stations']} stations at equal fractions of each turn",
+                    heads, [[_mm(r[k]) for k in keys]]))
     if doc["missing"]:
         out.append(("Not in this report", "what each characteristic needs", ["characteristic", "needs"],
                     [[m["characteristic"], m["needs"]] for m in doc["missing"]]))

@@ -11,7 +11,8 @@
 - E (exchangeability) for each test pose measured on every robot given (``others``: other robots of the type);
 - static compliance C (m/N) for each test pose visited under loads (the measurements' load columns; the other
   characteristics take the unloaded visits only);
-- the path characteristics and the pose stabilisation time and overshoot at each stop of a stream (``path``).
+- the path characteristics and the pose stabilisation time and overshoot at each stop of a stream (``path``);
+- the path accuracy on reorientation from a 6-DOF tracker's stream (``reorientation.reorientation_report``).
 """
 from __future__ import annotations
 
@@ -75,9 +76,12 @@ def _pairs(names, cycles, a, b) -> tuple:
     return ia[:n], ib[:n]
 
 
-def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, others=(), path=None) -> dict:
+def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, others=(), path=None,
+                   reorientation=None) -> dict:
     """The ISO 9283 figures of ``meas`` (see the module docstring); ``others``: measurements of the same campaign
-    on other robots of the type (exchangeability); ``path``: a ``path_report`` result to include. Keys: robot,
+    on other robots of the type (exchangeability); ``path``: a ``path_report`` result to include;
+    ``reorientation``: (stamps, frames (n, 4, 4) tracker frame, joint stamps, joints, latency s, source) of a 6-DOF
+    tracker's stream along a reorientation, judged in the campaign's registration. Keys: robot,
     source, campaign, orientation_measured, conditions, pose (AP/RP per test pose), multidirectional, distance,
     drift, exchangeability, compliance, path, missing [{characteristic, needs}], warnings."""
     options = options or ISOOptions()
@@ -103,6 +107,19 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     out["exchangeability"] = _exchangeability(model, campaign, options, T, names, others, missing, warnings)
     out["compliance"] = _compliance(meas, loaded, res, campaign, missing)
     out["path"] = path
+    out["reorientation"] = None
+    if reorientation is None:
+        missing.append({"characteristic": "path accuracy on reorientation",
+                        "needs": "a 6-DOF tracker's stream along a reorientation (plan-campaign --path reorient; "
+                                 "--reorientation with --reorientation-joints and --latency)"})
+    else:
+        from .reorientation import reorientation_report
+        t, Tr, tj, qj, latency, source = reorientation
+        T_tb = np.asarray(res["registration"]["T_tracker_base"], float)
+        try:
+            out["reorientation"] = reorientation_report(model, t, Tr, tj, qj, T_tb, latency, source=source)
+        except ValueError as exc:
+            raise ISOReportError(f"{source}: {exc}") from None
     if path is None:
         missing.append({"characteristic": "AT, RT, CR, CO, AV, RV, FV (path)",
                         "needs": "the tracker's stream along a test path and the command (--stream with --joint-states "
@@ -121,9 +138,7 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     return out
 
 
-NOT_YET = (("path accuracy on reorientation", "a 6-DOF tracker's stream along a reorientation path: not evaluated by "
-                                              "this version"),
-           ("static compliance under torques", "poses measured under known torques at the tool: not evaluated by "
+NOT_YET = (("static compliance under torques", "poses measured under known torques at the tool: not evaluated by "
                                                "this version (forces are)"))
 
 

@@ -12,7 +12,10 @@ plane is the diagonal plane through the corners (-,-,-), (+,+,-), (+,+,+), (-,-,
   its four corners passed at the programmed speed;
 - ``weave``: the line from P3 to P2 woven across in the test plane (a sine of peak-to-peak ``stroke`` across
   the line, a whole number of periods of about ``pitch`` along it; ISO 9283 weaving deviations), then straight
-  back (another motion).
+  back (another motion);
+- ``reorient``: the tool point held at the cube's centre while the tool turns about the base frame's x axis
+  from ``-angle`` to ``+angle`` (ISO 9283 path accuracy on reorientation), then back (another motion); its
+  moves are timed by the angle turned (``speed`` rad/s, ``accel`` rad/s^2).
 
 The tool keeps the orientation of the centre pose. Each move starts and ends at rest with a trapezoidal
 speed profile (``speed`` m/s, ``accel`` m/s^2); a cycle is a dwell at the start, then the move(s). Joints
@@ -28,14 +31,15 @@ import numpy as np
 
 from .path import interp_columns
 
-PATHS = ("line", "circle", "rectangle", "weave")
+PATHS = ("line", "circle", "rectangle", "weave", "reorient")
 MAX_KNOT_STEP = 0.05  # rad or m: the largest joint change between knots before a path is called discontinuous
 
 
 @dataclass
 class ToolPath:
     """One test path: ``moves`` is a list of (k_i, 3) polylines (m) in the base frame, each driven from
-    rest to rest; ``test`` the index of the move that is the test path; ``R`` the tool orientation."""
+    rest to rest; ``test`` the index of the move that is the test path; ``R`` the tool orientation, or
+    ``turns`` the orientation at each point where it changes (a reorientation, timed by the angle turned)."""
 
     kind: str
     moves: list
@@ -43,6 +47,7 @@ class ToolPath:
     R: np.ndarray
     center: np.ndarray
     side: float
+    turns: list | None = None   # a reorientation's (k_i, 3, 3) tool orientation at each point of each move
 
 
 def _polyline(corners, spacing) -> np.ndarray:
@@ -55,9 +60,10 @@ def _polyline(corners, spacing) -> np.ndarray:
 
 
 def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, stroke: float | None = None,
-              pitch: float | None = None) -> ToolPath:
+              pitch: float | None = None, angle: float | None = None) -> ToolPath:
     """The test path ``kind`` (``PATHS``) of the cube of edge ``side`` (m) at ``center`` (m); a weave's ``stroke``
-    and ``pitch`` (m; default 10 % and 20 % of the edge)."""
+    and ``pitch`` (m; default 10 % and 20 % of the edge); a reorientation's ``angle`` (rad, default 30 degrees),
+    turned in steps of ``spacing`` rad per metre (0.5 mrad for the default spacing: 0.5 mm)."""
     if kind not in PATHS:
         raise ValueError(f"path: expected one of {', '.join(PATHS)}, got {kind!r}")
     c = np.asarray(center, float)
@@ -73,6 +79,16 @@ def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, s
     if kind == "line":
         fwd = _polyline(np.array([P3, P2]), spacing)
         return ToolPath(kind, [fwd, fwd[::-1].copy()], 0, R, c, side)
+    if kind == "reorient":
+        from ..geometry import exp_so3
+        angle = np.radians(30.0) if angle is None else float(angle)
+        if not 0 < angle <= np.pi / 2:
+            raise ValueError(f"reorient: expected an angle of 0 to 90 degrees, got {np.degrees(angle):g} degrees")
+        n = int(np.ceil(2 * angle / spacing)) + 1
+        th = np.linspace(-angle, angle, n)
+        turns = exp_so3(th[:, None] * np.array([1.0, 0.0, 0.0])) @ R
+        pts = np.tile(c, (n, 1))
+        return ToolPath(kind, [pts, pts.copy()], 0, R, c, side, [turns, turns[::-1].copy()])
     if kind == "weave":
         stroke = 0.1 * side if stroke is None else float(stroke)
         pitch = 0.2 * side if pitch is None else float(pitch)
@@ -156,7 +172,7 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
     q_prev = np.asarray(q_seed, float)
     for k, pts in enumerate(tp.moves):
         T = np.tile(np.eye(4), (len(pts), 1, 1))
-        T[:, :3, :3], T[:, :3, 3] = tp.R, pts
+        T[:, :3, :3], T[:, :3, 3] = (tp.R if tp.turns is None else tp.turns[k]), pts
         q = np.empty((len(pts), model.dof))
         step = 200
         for i in range(0, len(pts), step):  # each block starts from the previous block's last answer
@@ -173,7 +189,12 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
                              f"a change of branch); choose another centre or a smaller cube")
         if model.out_of_limits(q).any():
             raise ValueError(f"path {tp.kind}: the joints leave their limits along the path")
-        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        if tp.turns is None:
+            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        else:                               # a reorientation: timed by the angle turned
+            R = tp.turns[k]
+            step = np.arccos(np.clip((np.einsum("nij,nij->n", R[:-1], R[1:]) - 1.0) / 2.0, -1.0, 1.0))
+            s = np.concatenate([[0.0], np.cumsum(step)])
         tm = trapezoid_times(s, speed, accel)
         if k == 0:                          # the cycle starts at rest at the first knot
             times.append(t0)
@@ -189,7 +210,7 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
 
 def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: float = 0.5, cycles: int = 10,
               side: float | None = None, q_center=None, spacing: float = 0.5e-3, seed: int = 0,
-              stroke: float | None = None, pitch: float | None = None):
+              stroke: float | None = None, pitch: float | None = None, angle: float | None = None):
     """(JointPath, ToolPath) of the test path ``kind`` in an ISO cube the model reaches: centred at the tool
     pose of ``q_center`` (dof,) rad or m, or else at the cube of ``calibration.planning.iso_cube_joints``;
     of edge ``side`` m, or else the largest of 0.4 m halved until the whole path is reached within the joint
@@ -206,9 +227,11 @@ def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: f
     sides = [side] if side else [0.4 / 2 ** k for k in range(6)]
     why = ""
     for sd in sides:
-        tp = tool_path(kind, T[:3, 3], sd, T[:3, :3], spacing, stroke, pitch)
+        tp = tool_path(kind, T[:3, 3], sd, T[:3, :3], spacing, stroke, pitch, angle)
         T0 = T.copy()
         T0[:3, 3] = tp.moves[0][0]
+        if tp.turns is not None:
+            T0[:3, :3] = tp.turns[0][0]
         q0 = solve(model, T0[None], q_center[None])[0][0]
         try:
             return joint_path(model, tp, q0, speed, accel, dwell, cycles), tp

@@ -131,6 +131,8 @@ def corners(p, angle: float = CORNER_ANGLE, arm: float | None = None) -> np.ndar
     nearest the meeting point of the legs on either side."""
     s = arc_length(p)
     L = s[-1]
+    if not L > 0:
+        return np.zeros(0)
     arm = arm or min(5e-3, 0.02 * L)
     grid = np.arange(0.0, L, arm / 5.0)
     if len(grid) < 3:

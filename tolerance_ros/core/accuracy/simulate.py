@@ -186,7 +186,7 @@ class PathStreams:
 def path_streams(model: Mechanism, jp, dx=None, T_tracker_base=None, joint_rate: float = 500.0,
                  tracker_rate: float = 1000.0, latency: float = 0.008, noise: float = 10e-6, seed=0,
                  t0: float = 1000.0, lead: float = 0.5, repeatability: float = 0.0, offset=None,
-                 settling=None) -> PathStreams:
+                 settling=None, noise_orientation=None) -> PathStreams:
     """The joint states and the tracker's stream of the as-built robot (errors ``dx``) driving ``jp``
     (``iso_paths.JointPath``, run time 0 at clock time ``t0`` s), from ``lead`` s before to ``lead`` s after;
     the tracker's clock starts at a random phase of its period, its noise is Gaussian per axis (m).
@@ -194,13 +194,17 @@ def path_streams(model: Mechanism, jp, dx=None, T_tracker_base=None, joint_rate:
     to the joints the as-built robot reaches (the cycles then differ; the joint states do not show it).
     ``offset`` (3,) m: the tracked target's position on the tool frame (None: its origin). ``settling``
     (natural frequency rad/s, damping ratio): the joints the as-built robot reaches follow the command through
-    a second-order response (``settle``), so that it lags in motion and oscillates about each stop."""
+    a second-order response (``settle``), so that it lags in motion and oscillates about each stop.
+    ``noise_orientation`` (rad): the tracker measures frames (a 6-DOF tracker), with this noise (a small turn about
+    a random axis): ``rotations`` (n, 3, 3) in the tracker frame and ``true_rotations`` (base frame) beside."""
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     span = jp.duration + 2 * lead
     tj = t0 - lead + np.arange(int(span * joint_rate) + 1) / joint_rate
     tt = t0 - lead + (rng.uniform() + np.arange(int(span * tracker_rate))) / tracker_rate
     jitter = rng.standard_normal((jp.cycles, model.dof)) * repeatability
     true = np.empty((len(tt), 3))
+    frames = noise_orientation is not None
+    true_R = np.empty((len(tt), 3, 3)) if frames else None
     target = at_point(model, offset)
     reached = None
     if settling is not None:
@@ -210,11 +214,19 @@ def path_streams(model: Mechanism, jp, dx=None, T_tracker_base=None, joint_rate:
         tr = tt[i:i + 100_000] - t0
         cyc = np.clip(np.floor(tr / jp.period), 0, jp.cycles - 1).astype(int)
         q = jp.at(tr) + jitter[cyc] if reached is None else reached[i:i + 100_000]
-        true[i:i + 100_000] = target.fk(q, dx)[:, :3, 3]
+        T = target.fk(q, dx)
+        true[i:i + 100_000] = T[:, :3, 3]
+        if frames:
+            true_R[i:i + 100_000] = T[:, :3, :3]
     meas = true + rng.standard_normal(true.shape) * noise
     A = np.eye(4) if T_tracker_base is None else np.asarray(T_tracker_base, float)
+    rotations = None
+    if frames:
+        turned = _small_rotations(rng, len(tt), noise_orientation) @ true_R if noise_orientation > 0 else true_R
+        rotations = A[:3, :3] @ turned
     return PathStreams(joint_stamps=tj, joints=jp.at(tj - t0), stamps=tt + latency, points=meas @ A[:3, :3].T + A[:3, 3],
-                       true_times=tt, true_points=true, T_tracker_base=A, latency=latency, dx=dx, noise=noise)
+                       true_times=tt, true_points=true, T_tracker_base=A, latency=latency, dx=dx, noise=noise,
+                       rotations=rotations, true_rotations=true_R)
 
 
 def settle(q, dt: float, omega: float, zeta: float) -> np.ndarray:
