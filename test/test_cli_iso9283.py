@@ -153,14 +153,17 @@ def test_static_compliance_from_visits_under_load(capsys, tmp_path):
     cli(capsys, "plan-campaign", "--robot", ROBOT, "--iso9283", "--cycles", "2", "--out", tmp_path / "cube.yaml")
     for name, stiffness in (("soft", "20kNm/rad"), ("stiff", "80kNm/rad")):
         cli(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances", TOL, "--load",
-            "200N", "--joint-stiffness", stiffness, "--out", tmp_path / f"{name}.csv")
+            "200N", "--torque", "20Nm", "--joint-stiffness", stiffness, "--out", tmp_path / f"{name}.csv")
     soft, stiff = (json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml",
                                   "--measurements", tmp_path / f"{n}.csv", "--json")) for n in ("soft", "stiff"))
-    assert "loads of 200N on joints of 20kNm/rad" in (tmp_path / "soft.truth.yaml").read_text()
+    assert "loads of 200N and 20Nm on joints of 20kNm/rad" in json.dumps(yaml.safe_load(
+        (tmp_path / "soft.truth.yaml").read_text()))
     for pose in ("P1", "P2", "P3", "P4", "P5"):
         c, k = soft["compliance"][pose]["compliance_m_per_N"], stiff["compliance"][pose]
+        turn, kturn = soft["compliance"][pose]["compliance_rad_per_Nm"], k["compliance_rad_per_Nm"]
         for a in "xyz":          # four times as stiff, a quarter of the compliance (within the noise)
             assert k["compliance_m_per_N"][a] == pytest.approx(c[a] / 4, rel=0.1, abs=2e-8)
+            assert kturn[a] == pytest.approx(turn[a] / 4, rel=0.1, abs=2e-7)
         assert soft["pose"][pose]["n"] == 2
     code, out, err = run(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances",
                          TOL, "--load", "200", "--out", tmp_path / "x.csv")

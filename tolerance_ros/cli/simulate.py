@@ -75,6 +75,9 @@ def add_arguments(p):
                    help="with --campaign: each visit is also measured under this force at the tool along +x, -x, +y, "
                         "-y, +z and -z of the base frame (e.g. 200N), written in load columns (ISO 9283 static "
                         "compliance); the robot yields at its joints (--joint-stiffness)")
+    p.add_argument("--torque", metavar="TORQUE",
+                   help="with --campaign: each visit is also measured under this torque at the tool about +x, -x, +y, "
+                        "-y, +z and -z (e.g. 20Nm), written in load:mx, load:my, load:mz columns")
     p.add_argument("--joint-stiffness", default="50kNm/rad",
                    help="with --load: every revolute joint's stiffness (default 50kNm/rad; prismatic joints rigid)")
     p.add_argument("--errors", choices=["uniform", "extreme", "normal"], default="uniform",
@@ -293,7 +296,8 @@ def run(args):
     if out.suffix.lower() != ".csv":
         raise CLIError(f"--out: the measurements are a CSV file (name ending in .csv), got {args.out!r}")
     campaign_only = [o for o, v in (("--backlash", args.backlash != "0rad"), ("--thermal", args.thermal),
-                                    ("--cycles", args.cycles is not None), ("--load", args.load)) if v]
+                                    ("--cycles", args.cycles is not None), ("--load", args.load),
+                                    ("--torque", args.torque)) if v]
     if (args.trajectory or args.contact) and campaign_only:
         raise CLIError(f"{', '.join(campaign_only)}: with --campaign only")
     if args.settling and not args.trajectory:
@@ -335,9 +339,12 @@ def run(args):
     growth = _growth(args.thermal, stamps)
     cycles = np.array([c for _, c in seq])
     force = None
-    if args.load:                      # each visit: unloaded, then under the load along +-x, +-y, +-z
-        F = quantity(args.load, "force", "--load")
-        steps6 = np.vstack([np.zeros(3), *[s * F * np.eye(3)[k] for k in range(3) for s in (1, -1)]])
+    if args.load or args.torque:       # each visit: unloaded, then under each load along +-x, +-y, +-z
+        F = quantity(args.load, "force", "--load") if args.load else 0.0
+        M = quantity(args.torque, "torque", "--torque") if args.torque else 0.0
+        width = 6 if args.torque else 3
+        axes = [v * np.eye(width)[k] for v, first in ((F, 0), (M, 3)) if v for k in range(first, first + 3)]
+        steps6 = np.vstack([np.zeros(width), *[s * a for a in axes for s in (1, -1)]])
         k = len(steps6)
         force = np.tile(steps6, (len(q), 1))
         stiffness = quantity(args.joint_stiffness, "stiffness", "--joint-stiffness")
@@ -360,7 +367,8 @@ def run(args):
                                                                       else "")
                + (f", backlash {args.backlash}" if play > 0 else "") + (f", warming up {args.thermal}" if args.thermal
                                                                          else "")
-               + (f", loads of {args.load} on joints of {args.joint_stiffness}" if args.load else "")
+               + (f", loads of {' and '.join(x for x in (args.load, args.torque) if x)} on joints of "
+                  f"{args.joint_stiffness}" if args.load or args.torque else "")
                + f"; truth in {out.stem}.truth.yaml")
     write_csv(out, meas, comments=[comment])
     names, tg = (tuple(targets.names), targets) if targets is not None else (("",), None)
@@ -368,7 +376,8 @@ def run(args):
                         "base+tool" if targets is not None else "base", targets is None,
                         (f", backlash {args.backlash}" if play > 0 else "")
                         + (f", warming up {args.thermal}" if args.thermal else "")
-                        + (f", loads of {args.load} on joints of {args.joint_stiffness}" if args.load else ""))
+                        + (f", loads of {' and '.join(x for x in (args.load, args.torque) if x)} on joints of "
+                           f"{args.joint_stiffness}" if args.load or args.torque else ""))
     doc = {"measurements": str(out), "truth": str(truth_path), "rows": rows, "poses": len(campaign.names),
            "visits": len(q), "targets": [n for n in names if n], "noise_m": noise,
            "orientation_noise_rad": None if targets is not None else onoise}

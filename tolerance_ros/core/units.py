@@ -108,15 +108,16 @@ SPEED_UNITS = {"m/s": 1.0, "mm/s": 1e-3}
 ACCEL_UNITS = {"m/s^2": 1.0, "mm/s^2": 1e-3}
 FREQUENCY_UNITS = {"Hz": 1.0, "kHz": 1e3}
 FORCE_UNITS = {"N": 1.0, "kN": 1e3}
+TORQUE_UNITS = {"Nm": 1.0, "kNm": 1e3}
 ANGULAR_SPEED_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0}
 ANGULAR_ACCEL_UNITS = {"rad/s^2": 1.0, "deg/s^2": math.pi / 180.0}
 STIFFNESS_UNITS = {"Nm/rad": 1.0, "kNm/rad": 1e3}  # of a revolute joint
 _EXAMPLES = {"length": "1.4mm or 0.0014m", "angle": "0.3mrad, 0.02deg or 0.0003rad", "time": "1s, 250ms or 1h",
              "mass": "165kg or 0.5t", "speed": "0.2m/s or 200mm/s", "acceleration": "1m/s^2",
-             "frequency": "1000Hz or 1kHz", "force": "200N or 0.2kN", "stiffness": "50kNm/rad",
+             "frequency": "1000Hz or 1kHz", "force": "200N or 0.2kN", "torque": "20Nm", "stiffness": "50kNm/rad",
              "angular speed": "0.5rad/s or 30deg/s", "angular acceleration": "2.5rad/s^2"}
 _TABLES = {"time": DURATION_UNITS, "mass": MASS_UNITS, "speed": SPEED_UNITS, "acceleration": ACCEL_UNITS,
-           "frequency": FREQUENCY_UNITS, "force": FORCE_UNITS, "stiffness": STIFFNESS_UNITS,
+           "frequency": FREQUENCY_UNITS, "force": FORCE_UNITS, "torque": TORQUE_UNITS, "stiffness": STIFFNESS_UNITS,
            "angular speed": ANGULAR_SPEED_UNITS, "angular acceleration": ANGULAR_ACCEL_UNITS}
 
 

@@ -70,13 +70,18 @@ def sections(doc) -> list:
     if comp:
         def um(v):
             return "-" if v is None else f"{v * 1e6:.4f}"
-        out.append(("Static compliance", "the displacement along the load per newton at the tool, the least-squares "
-                    "slope over the visits under loads along each axis of the base frame", ["pose", "visits",
-                    "x mm/kN", "y mm/kN", "z mm/kN", "max load x N", "max load y N", "max load z N",
-                    "residual RMS mm"],
+        torques = any(v["compliance_rad_per_Nm"]["x"] is not None for v in comp.values())
+        out.append(("Static compliance", "the displacement along a force per newton at the tool"
+                    + (" and the turn about a torque's axis per newton metre" if torques else "")
+                    + ", the least-squares slopes over the visits under loads along each axis of the base frame",
+                    ["pose", "visits", "x mm/kN", "y mm/kN", "z mm/kN"]
+                    + (["x mrad/kNm", "y mrad/kNm", "z mrad/kNm"] if torques else [])
+                    + ["largest force N"] + (["largest torque Nm"] if torques else []) + ["residual RMS mm"],
                     [[p, v["n"]] + [um(v["compliance_m_per_N"][a]) for a in "xyz"]
-                     + [f"{v['max_load_N'][a]:g}" for a in "xyz"] + [_mm(v["residual_rms_m"])]
-                     for p, v in comp.items()]))
+                     + ([um(v["compliance_rad_per_Nm"][a]) for a in "xyz"] if torques else [])
+                     + [f"{max(v['max_load'][k] for k in ('fx', 'fy', 'fz')):g}"]
+                     + ([f"{max(v['max_load'][k] for k in ('mx', 'my', 'mz')):g}"] if torques else [])
+                     + [_mm(v["residual_rms_m"])] for p, v in comp.items()]))
     path = doc.get("path")
     if path:
         from .path_report import HEADS, segment_rows

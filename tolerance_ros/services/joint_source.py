@@ -1,7 +1,8 @@
 """Joint configurations over time for the joint-state publisher (ROS-free).
 
 Modes: 'campaign' (the test poses of a campaign, each held ``dwell`` seconds, for its cycles in its
-visiting order; a pose's pre-pose ``via``, where it has one, is held ``dwell`` seconds before it), 'random' (seeded uniform samples within the joint limits), 'selected' (the
+visiting order; a pose's pre-pose ``via``, where it has one, is held ``dwell`` seconds before it), 'random'
+(seeded uniform samples within the joint limits), 'selected' (the
 configurations of highest pose-selection index F, eq. 25) and 'trajectory' (a joint trajectory, e.g. an
 ISO 9283 test path of ``plan-campaign --path``, interpolated between its knots, for its cycles: the robot
 moves). With ``loop`` the sequence repeats; otherwise the last configuration is held once it has run out.

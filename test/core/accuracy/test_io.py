@@ -497,3 +497,10 @@ def test_loads_are_read_in_newtons_and_written_back(tmp_path):
     slow = read_csv(_write(tmp_path / "s.csv", text + "2,P1,1,2,x,0,0,0\n"), skip_bad=True)   # row by row
     assert slow.load.tolist() == m.load.tolist() and slow.skipped[0]["line"] == 4
     assert read_csv(_write(tmp_path / "n.csv", "stamp[s],x[mm],y[mm],z[mm]\n0,1,2,3\n")).load is None
+    wrench = read_csv(_write(tmp_path / "w.csv", "stamp[s],x[mm],y[mm],z[mm],load:fx[N],load:fy[N],load:fz[N],"
+                                                 "load:mx[kNm],load:my[Nm],load:mz[Nm]\n0,1,2,3,0,0,5,0.02,0,-3\n"))
+    assert wrench.load.tolist() == [[0, 0, 5, 20, 0, -3]]
+    assert np.allclose(read_csv(write_csv(tmp_path / "w2.csv", wrench)).load, wrench.load)
+    with pytest.raises(MeasurementError, match=r"the load needs all of load:fx, .*load:mz; missing column\(s\) "
+                                               r"\['load:fx', 'load:fy', 'load:fz', 'load:my', 'load:mz'\]"):
+        read_csv(_write(tmp_path / "m.csv", "stamp[s],x[mm],y[mm],z[mm],load:mx[Nm]\n0,1,2,3,0\n"))

@@ -117,21 +117,25 @@ def test_static_compliance_against_the_joints_stiffness(gao, cube):
     from tolerance_ros.core.accuracy.simulate import joint_compliance
     camp = campaign_from_dict(iso9283_campaign(gao, cube, cycles=3), model=gao)
     dx = as_built_errors(np.where(np.array(gao.param_kinds) == "length", 5e-5, 2e-4), 0)
-    q = np.repeat(camp.joints_for(gao), 3 * 7, axis=0)
-    steps = np.vstack([np.zeros(3), *[s * 300.0 * np.eye(3)[k] for k in range(3) for s in (1, -1)]])
-    F = np.tile(steps, (len(q) // 7, 1))
+    axes = [s * v * np.eye(6)[k] for k, v in zip(range(6), [300.0] * 3 + [30.0] * 3) for s in (1, -1)]
+    steps = np.vstack([np.zeros(6), *axes])                 # unloaded, then +-300 N and +-30 N m along each axis
+    q = np.repeat(camp.joints_for(gao), 3 * len(steps), axis=0)
+    W = np.tile(steps, (len(q) // len(steps), 1))
     K = np.full(gao.dof, 4e4)
     meas = measure_targets(gao, q, dx, None, NOISE, 1e-6, T_TRACKER, 1, np.arange(len(q), dtype=float),
-                           np.repeat(np.array(camp.names, object), 21), points=False,
-                           deflection=joint_compliance(gao, q, dx, F, K))
-    meas.load = F
+                           np.repeat(np.array(camp.names, object), 3 * len(steps)), points=False,
+                           deflection=joint_compliance(gao, q, dx, W, K))
+    meas.load = W
     r = iso9283_report(gao, meas, camp)
     for i, pose in enumerate(camp.names):
         _, EJ = gao.fk_and_jacobian(camp.joints_for(gao)[i:i + 1], dx)
-        J = EJ.J[0][:3][:, gao.joint_columns()]
-        truth = J @ np.diag(1 / K) @ J.T                        # m/N at the tool: J K^-1 J^T
-        C = np.array(r["compliance"][pose]["C_m_per_N"])
+        J = EJ.J[0][:, gao.joint_columns()]
+        truth = J @ np.diag(1 / K) @ J.T                        # at the tool: J K^-1 J^T (m/N, rad/N m, ...)
+        C = np.array(r["compliance"][pose]["C"], dtype=float)
         assert np.allclose(np.diag(C), np.diag(truth), rtol=0.05)
-        assert np.abs(C - truth).max() < 0.05 * np.abs(truth).max()
+        for block in (slice(0, 3), slice(3, 6)):              # forces on the point, torques on the turn
+            assert np.abs(C[block, block] - truth[block, block]).max() < 0.05 * np.abs(truth[block, block]).max()
+        v = r["compliance"][pose]
+        assert v["compliance_rad_per_Nm"]["z"] == pytest.approx(truth[5, 5], rel=0.05)
     assert r["pose"]["P1"]["n"] == 3                            # the pose figures take the unloaded visits
     assert "static compliance" not in {m["characteristic"] for m in r["missing"]}

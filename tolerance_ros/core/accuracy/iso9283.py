@@ -124,7 +124,8 @@ def distance_characteristics(commanded1, commanded2, attained1, attained2, orien
     ``D_j = |p1_j - p2_j|``, ``D_c = |c1 - c2|``: ``AD_p = mean(D) - D_c``; per axis ``D_xj = x1_j - x2_j`` and
     ``AD_x = mean(D_x) - D_cx`` (y, z); ``RD_p = 3 S_D`` and ``RD_x = 3 S_Dx`` with ``S`` the sample standard
     deviation. Orientation (rad): ``AD_a = mean(D_a) - D_ca`` with ``D_aj = a1_j - a2_j``, taken as the mean of
-    ``(a1_j - a_c1) - (a2_j - a_c2)`` so that no angle wraps, and ``RD_a = 3 S_Da`` (b, c). Keys: n, D_c, D_bar, AD_p, AD_x, AD_y, AD_z, RD_p, RD_x, RD_y, RD_z and, with
+    ``(a1_j - a_c1) - (a2_j - a_c2)`` so that no angle wraps, and ``RD_a = 3 S_Da`` (b, c). Keys: n, D_c,
+    D_bar, AD_p, AD_x, AD_y, AD_z, RD_p, RD_x, RD_y, RD_z and, with
     ``orientation``, AD_a, AD_b, AD_c, RD_a, RD_b, RD_c (None without).
     """
     T1, T2 = _attained(attained1, "attained1"), _attained(attained2, "attained2")
@@ -229,32 +230,43 @@ def exchangeability(barycentres) -> dict:
     return {"E": float(np.linalg.norm(spread)), "spread": spread.tolist(), "robots": len(b)}
 
 
-def static_compliance(attained, load) -> dict:
-    """ISO 9283 static compliance of one test pose from its visits (n, 4, 4) (m) under the loads (n, 3) N applied at
-    the tool (base frame; unloaded visits included): the least-squares ``p = p0 + C F``. Keys: C_m_per_N (3x3; a
-    column None where the loads never varied along that axis), compliance_m_per_N {x, y, z: C_kk, the displacement
-    along the load per newton}, max_load_N {x, y, z}, n, residual_rms_m. Needs loads along at least one axis."""
+def static_compliance(attained, load, orientation: bool = False) -> dict:
+    """ISO 9283 static compliance of one test pose from its visits (n, 4, 4) (m) under the loads at the tool (base
+    frame; unloaded visits included): (n, 3) forces N, or (n, 6) forces and torques N m. The least-squares
+    ``x = x0 + C W`` of the position and, with ``orientation``, the small turn (the rotation vector from the first
+    visit's orientation, base frame, rad) on the load components W that vary. Keys: C (6 x 6 or 3 x 6 rows: the
+    position m, then the turn rad; columns fx, fy, fz, mx, my, mz; None where a component never varied),
+    compliance_m_per_N {x, y, z} (the displacement along a force per newton), compliance_rad_per_Nm {x, y, z}
+    (the turn about a torque's axis per N m; None without torques or orientation), max_load {fx ... mz}, n,
+    residual_rms_m. Needs loads varying along at least one component."""
+    from ..geometry import rotation_error
     T = _attained(attained, "attained")
-    F = np.asarray(load, dtype=float)
-    if F.shape != (len(T), 3) or not np.all(np.isfinite(F)):
-        raise ValueError(f"load: expected (n, 3) finite forces (N), one per attained pose, got shape {F.shape}")
-    p = T[:, :3, 3]
-    Fc = F - F.mean(axis=0)
-    axes = [k for k in range(3) if np.ptp(F[:, k]) > 0]
-    if not axes:
+    W = np.asarray(load, dtype=float)
+    if W.ndim != 2 or W.shape not in ((len(T), 3), (len(T), 6)) or not np.all(np.isfinite(W)):
+        raise ValueError(f"load: expected (n, 3) forces or (n, 6) forces and torques, finite, one row per attained "
+                         f"pose, got shape {W.shape}")
+    W = np.c_[W, np.zeros((len(W), 6 - W.shape[1]))]
+    cols = [k for k in range(6) if np.ptp(W[:, k]) > 0]
+    if not cols:
         raise ValueError("static compliance: the loads never vary")
-    A = np.c_[np.ones(len(F)), F[:, axes]]
-    if len(F) <= len(axes) + 1 or np.linalg.matrix_rank(Fc[:, axes]) < len(axes):
-        raise ValueError(f"static compliance: {len(F)} visits do not determine the compliance along {len(axes)} "
-                         f"axis(es)")
-    coef, *_ = np.linalg.lstsq(A, p, rcond=None)
-    resid = p - A @ coef
-    C = [[None] * 3 for _ in range(3)]
-    for j, k in enumerate(axes):
-        for i in range(3):
+    Wc = W[:, cols] - W[:, cols].mean(axis=0)
+    if len(W) <= len(cols) + 1 or np.linalg.matrix_rank(Wc) < len(cols):
+        raise ValueError(f"static compliance: {len(W)} visits do not determine the compliance along {len(cols)} load "
+                         f"component(s)")
+    y = T[:, :3, 3]
+    if orientation:
+        y = np.c_[y, rotation_error(T[:, :3, :3], T[:1, :3, :3])]
+    A = np.c_[np.ones(len(W)), W[:, cols]]
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    resid = y[:, :3] - (A @ coef)[:, :3]
+    C = [[None] * 6 for _ in range(y.shape[1])]
+    for j, k in enumerate(cols):
+        for i in range(y.shape[1]):
             C[i][k] = float(coef[1 + j, i])
-    return {"C_m_per_N": C, "compliance_m_per_N": {ax: C[k][k] for k, ax in enumerate("xyz")},
-            "max_load_N": {ax: float(np.abs(F[:, k]).max()) for k, ax in enumerate("xyz")}, "n": len(F),
+    names = ("fx", "fy", "fz", "mx", "my", "mz")
+    return {"C": C, "compliance_m_per_N": {ax: C[k][k] for k, ax in enumerate("xyz")},
+            "compliance_rad_per_Nm": {ax: C[3 + k][3 + k] if orientation else None for k, ax in enumerate("xyz")},
+            "max_load": {nm: float(np.abs(W[:, k]).max()) for k, nm in enumerate(names)}, "n": len(W),
             "residual_rms_m": float(np.sqrt(np.mean(np.sum(resid ** 2, axis=1))))}
 
 

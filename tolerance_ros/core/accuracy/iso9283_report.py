@@ -131,15 +131,9 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
         missing.append({"characteristic": "pose stabilisation time, pose overshoot, minimum positioning time",
                         "needs": "the tracker's stream with the robot coming to rest after its motions (--stream; "
                                  "rests of 0.1 s or more; the moves over the distances to time, at full speed)"})
-    for what in NOT_YET:
-        missing.append({"characteristic": what[0], "needs": what[1]})
     out["missing"] = missing
     out["warnings"] = warnings
     return out
-
-
-NOT_YET = (("static compliance under torques", "poses measured under known torques at the tool: not evaluated by "
-                                               "this version (forces are)"))
 
 
 def _conditions(options, campaign, names, stamps) -> dict:
@@ -210,7 +204,8 @@ def _drift(options, campaign, commanded, T, names, stamps, ori, missing) -> dict
     if not out:
         span = float(stamps.max() - stamps.min()) if len(stamps) else 0.0
         missing.append({"characteristic": "dAP, dRP (drift of pose characteristics)",
-                        "needs": f"visits of a test pose spanning two windows of {options.drift_window:g} s (these span "
+                        "needs": f"visits of a test pose spanning two windows of {options.drift_window:g} s (these "
+                                 f"span "
                                  f"{span:.6g} s; the standard runs 8 h of cycles; --drift-window sets the window)"})
     return out
 
@@ -220,8 +215,8 @@ def _compliance(meas, loaded, res, campaign, missing) -> dict:
     registration."""
     if loaded is False or not loaded.any():
         missing.append({"characteristic": "static compliance",
-                        "needs": "visits measured under known loads at the tool (load:fx, load:fy, load:fz columns; "
-                                 "simulate --load 200N)"})
+                        "needs": "visits measured under known loads at the tool (load:fx, load:fy, load:fz columns, "
+                                 "and load:mx, load:my, load:mz for torques; simulate --load 200N --torque 20Nm)"})
         return {}
     T_tb = np.asarray(res["registration"]["T_tracker_base"], float)
     T = np.linalg.inv(T_tb) @ meas.T
@@ -231,7 +226,7 @@ def _compliance(meas, loaded, res, campaign, missing) -> dict:
         sel = names == pose
         if loaded[sel].any():
             try:
-                out[pose] = static_compliance(T[sel], meas.load[sel])
+                out[pose] = static_compliance(T[sel], meas.load[sel], bool(meas.has_orientation))
             except ValueError as exc:
                 out[pose] = {"note": str(exc)}
     return out

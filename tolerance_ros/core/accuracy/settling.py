@@ -78,7 +78,8 @@ def stop_figures(t, p, t_stop: float, t_end: float, approach, band: float, smoot
     outside = np.flatnonzero(d > band)
     out["attained_m"] = final.tolist()
     if outside.size and ts[outside[-1]] >= final_from:
-        out["note"] = (f"still {d[outside[-1]] * 1e3:.4g} mm from its attained pose at {ts[outside[-1]] - t_stop:.3f} s, "
+        out["note"] = (f"still {d[outside[-1]] * 1e3:.4g} mm from its attained pose at "
+                       f"{ts[outside[-1]] - t_stop:.3f} s, "
                        f"in the last {FINAL_FRACTION:.0%} of the rest: it did not settle within the band")
         return out
     out["settled"] = True

@@ -54,14 +54,16 @@ def backlash(q_steps, play, revolute) -> np.ndarray:
     return -0.5 * float(play) * s * np.asarray(revolute, bool)[None]
 
 
-def joint_compliance(model: Mechanism, q, dx, force, stiffness) -> np.ndarray:
-    """(n, dof) joint deflections (rad) of the as-built robot (``dx``) at joints q (n, dof) under the forces (n, 3)
-    N applied at its tool point (base frame): ``K^-1 J^T F`` with J the tool point's position Jacobian in the
-    joints and K the diagonal of ``stiffness`` (dof,) N m/rad (inf: a rigid joint, as every prismatic one)."""
+def joint_compliance(model: Mechanism, q, dx, load, stiffness) -> np.ndarray:
+    """(n, dof) joint deflections (rad) of the as-built robot (``dx``) at joints q (n, dof) under the loads at its
+    tool point (base frame): (n, 3) forces N or (n, 6) forces and torques N m, ``K^-1 J^T W`` with J the tool's
+    Jacobian in the joints (position rows, then rotation rows) and K the diagonal of ``stiffness`` (dof,) N m/rad
+    (inf: a rigid joint, as every prismatic one)."""
     q = np.asarray(q, float)
+    W = np.asarray(load, float)
     _, EJ = model.fk_and_jacobian(q, dx)
-    Jq = EJ.J[:, :3, model.joint_columns()] * model.joint_direction
-    tau = np.einsum("nij,ni->nj", Jq, np.asarray(force, float))
+    Jq = EJ.J[:, :W.shape[1], model.joint_columns()] * model.joint_direction
+    tau = np.einsum("nij,ni->nj", Jq, W)
     return tau / np.asarray(stiffness, float)[None]
 
 

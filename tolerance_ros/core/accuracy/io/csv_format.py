@@ -10,7 +10,8 @@ Rx(roll)``; optional, or ``qx qy qz qw`` quaternion columns instead), ``pose`` t
 optional: without it every row measures one target; several targets of one visit are rows of the same
 stamp), ``joint:<name>`` the joint reading at the measurement (rad or deg for revolute, m or mm for
 prismatic), ``load:fx load:fy load:fz`` the force applied at the tool (N or kN, base frame; optional, all
-three: ISO 9283 static compliance). Lengths: m, mm, um; angles: rad, deg, mrad; the stamp's unit (s, ms, us, ns) is required.
+three: ISO 9283 static compliance) and ``load:mx load:my load:mz`` the torque (Nm or kNm; optional, with the
+force). Lengths: m, mm, um; angles: rad, deg, mrad; the stamp's unit (s, ms, us, ns) is required.
 Any other column is an error naming it (``tolerance-ros import`` maps a file's own columns).
 The orientation columns come all three or all four, never some of them. A number is what ``float()``
 reads from ASCII digits, sign, point and exponent (no ``1_000``, no other digits, no nan or inf), and
@@ -34,7 +35,7 @@ import numpy as np
 
 from ...geometry import quat_to_matrices, rpy_from_matrix, rpy_to_matrices
 from ...resources import not_a_file
-from ...units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS
+from ...units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS, TORQUE_UNITS
 from .measurements import MeasurementError, Measurements, concat
 from .text import _check_text, _lines, _not_utf8, _show
 
@@ -120,7 +121,8 @@ def read_csv(path, skip_bad: bool = False, chunk_rows: int | None = None):
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _RPY, _QUAT = ("roll", "pitch", "yaw"), ("qx", "qy", "qz", "qw")
 _LOAD = ("load:fx", "load:fy", "load:fz")
-_KNOWN = ("stamp", "pose", "cycle", "target", "x", "y", "z") + _RPY + _QUAT + _LOAD
+_TORQUE = ("load:mx", "load:my", "load:mz")
+_KNOWN = ("stamp", "pose", "cycle", "target", "x", "y", "z") + _RPY + _QUAT + _LOAD + _TORQUE
 MAX_TARGET = 100  # characters of a target name
 MAX_POSE = 100    # characters of a test pose's name
 
@@ -136,12 +138,12 @@ class _Spec:
     num_names: list
     scale: np.ndarray
     joint_names: tuple
-    loads: bool = False       # the last three numeric columns are the load's
+    loads: int = 0            # the last columns are the load's: 3 (forces) or 6 (forces, torques)
 
     def rotations_and_joints(self, A):
         """(n, 3, 3) rotations (None without orientation; ValueError for a zero quaternion) and (n, dof)
         joint values of numeric rows ``A`` in SI."""
-        end = A.shape[1] - (3 if self.loads else 0)
+        end = A.shape[1] - self.loads
         if self.orientation == "rpy":
             return rpy_to_matrices(A[:, 4:7]), A[:, 7:end]
         if self.orientation == "quat":
@@ -150,7 +152,7 @@ class _Spec:
 
     def load(self, A):
         """(n, 3) forces (N) of numeric rows ``A`` in SI, or None without load columns."""
-        return A[:, -3:] if self.loads else None
+        return A[:, -self.loads:] if self.loads else None
 
 
 def _spec_from_header(header, source):
@@ -193,18 +195,21 @@ def _spec_from_header(header, source):
             raise MeasurementError(f"{source}: column {c!r} needs a unit (rad, deg, m, mm), got {unit!r}")
         scale.append(_scale(c, unit, kind, source))
     names += joints
-    loads = [c for c in _LOAD if c in cols]
-    if loads and len(loads) < 3:
-        raise MeasurementError(f"{source}: the load needs all of {', '.join(_LOAD)}; missing column(s) "
-                               f"{[c for c in _LOAD if c not in cols]}")
+    loads = [c for c in _LOAD + _TORQUE if c in cols]
+    torques = [c for c in _TORQUE if c in cols]
+    group = _LOAD + _TORQUE if torques else _LOAD
+    if loads and len(loads) < len(group):
+        raise MeasurementError(f"{source}: the load needs all of {', '.join(group)}; missing column(s) "
+                               f"{[c for c in group if c not in cols]}")
     for c in loads:
-        if cols[c][1] not in FORCE_UNITS:
-            raise MeasurementError(f"{source}: column {c!r} needs a force unit in brackets ({', '.join(FORCE_UNITS)}), "
-                                   f"got {cols[c][1]!r}")
-        scale.append(FORCE_UNITS[cols[c][1]])
+        units = TORQUE_UNITS if c in _TORQUE else FORCE_UNITS
+        if cols[c][1] not in units:
+            raise MeasurementError(f"{source}: column {c!r} needs a {'torque' if c in _TORQUE else 'force'} unit in "
+                                   f"brackets ({', '.join(units)}), got {cols[c][1]!r}")
+        scale.append(units[cols[c][1]])
     names += loads
     return _Spec(len(header), cols, "rpy" if rpy else "quat" if quat else None, [cols[c][0] for c in names],
-                 names, np.array(scale), tuple(c[len("joint:"):] for c in joints), bool(loads))
+                 names, np.array(scale), tuple(c[len("joint:"):] for c in joints), len(loads))
 
 
 def _read_csv_chunks(path, skip_bad, chunk_rows):
@@ -441,7 +446,8 @@ def write_csv(path, m: Measurements, comments=(), length_unit="mm", angle_unit="
     header = ["stamp[s]", "pose", "cycle"] + (["target"] if named else []) + [f"{c}[{length_unit}]" for c in "xyz"] + \
         ([f"{c}[{angle_unit}]" for c in ("roll", "pitch", "yaw")] if m.has_orientation else []) + \
         [f"joint:{n}[{u}]" for n, u in zip(m.joint_names, joint_units or ["rad"] * len(m.joint_names))] + \
-        ([f"{c}[N]" for c in _LOAD] if m.load is not None else [])
+        ([f"{c}[N]" for c in _LOAD] if m.load is not None else []) + \
+        ([f"{c}[Nm]" for c in _TORQUE] if m.load is not None and m.load.shape[1] == 6 else [])
     with path.open("w", newline="") as fh:
         for c in comments:
             fh.write(f"# {c}\n")

@@ -18,9 +18,9 @@ class Measurements:
     False) only its position is measured and its rotation is the identity, never read. ``target`` (n,)
     names the reflector or marker each row measured (None: one target, unnamed); rows of one pose visit
     share its stamp, joints and labels. ``line`` (n,): where each row came from in its file (the line of a
-    CSV row or of a campaign log's measurement; None where the reader has no lines). ``load`` (n, 3): the force
-    (N, base frame) applied at the tool when the row was measured (None: no load recorded; ISO 9283 static
-    compliance).
+    CSV row or of a campaign log's measurement; None where the reader has no lines). ``load`` (n, 3) or (n, 6): the force
+    (N, base frame) applied at the tool when the row was measured, and the torque (N m) where recorded (None: no
+    load recorded; ISO 9283 static compliance).
     """
 
     stamps: np.ndarray
