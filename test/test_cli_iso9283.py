@@ -218,3 +218,20 @@ def test_path_accuracy_on_reorientation_in_the_campaigns_registration(capsys, tm
                        tmp_path / "m.csv", "--reorientation", tmp_path / "p.csv", "--reorientation-joints",
                        tmp_path / "r.joints.csv", "--latency", "8ms")
     assert code == 2 and "no orientation columns" in err, err
+
+
+def test_minimum_positioning_time_over_the_programs_distances(capsys, tmp_path):
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--path", "positioning", "--distances", "10mm,40mm", "--speed",
+        "0.5m/s", "--accel", "5m/s^2", "--cycles", "2", "--out", tmp_path / "pos.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--trajectory", tmp_path / "pos.yaml", "--tolerances", TOL, "--out",
+        tmp_path / "p.csv")
+    path = json.loads(cli(capsys, "path-report", "--robot", ROBOT, "--measurements", tmp_path / "p.csv",
+                          "--joint-states", tmp_path / "p.joints.csv", "--latency", "8ms", "--json"))
+    groups = path["stops"]["positioning"]
+    assert [round(g["distance_m"], 6) for g in groups] == [0.01, 0.04] and [g["moves"] for g in groups] == [4, 4]
+    for g in groups:                  # a robot that follows its command: the move's own time, out and back
+        d, v, a = g["distance_m"], 0.5, 5.0
+        move = 2 * np.sqrt(d / a) if d < v * v / a else d / v + v / a
+        assert abs(g["min_s"] - move) <= 2.5e-3 and abs(g["mean_s"] - move) <= 2.5e-3
+    code, _, err = run(capsys, "plan-campaign", "--robot", ROBOT, "--path", "positioning", "--distances", "5m")
+    assert code == 2 and "positioning: expected distances up to" in err, err

@@ -29,7 +29,7 @@ def add_arguments(p):
     p.add_argument("--seed", type=int, default=0, help="seed of the candidate configurations (default 0)")
     p.add_argument("--cycles", type=int, help="visits per test pose in the campaign file (default 3), or cycles of "
                                                "the --path (default 10)")
-    p.add_argument("--path", choices=["line", "circle", "rectangle", "weave", "reorient"],
+    p.add_argument("--path", choices=["line", "circle", "rectangle", "weave", "reorient", "positioning"],
                    help="write an ISO 9283 test path in the ISO cube instead: the joint trajectory that drives it "
                         "(docs/path-accuracy.md)")
     p.add_argument("--iso9283", action="store_true",
@@ -42,6 +42,9 @@ def add_arguments(p):
                                     "10 %% of the cube's edge)")
     p.add_argument("--pitch", help="with --path weave: the weaving's period along the line (default 20 %% of the "
                                    "edge; rounded to a whole number of periods, at least 3)")
+    p.add_argument("--distances", metavar="D1,D2,...",
+                   help="with --path positioning: the moves, each out and back from the cube's centre along the test "
+                        "line, a unit on each (default 10mm,20mm,50mm,100mm,200mm, those that fit)")
     p.add_argument("--angle", help="with --path reorient: the tool turns from -ANGLE to +ANGLE about the base's x "
                                    "axis, its point held (default 30deg)")
     p.add_argument("--angular-speed", default="0.5rad/s",
@@ -110,7 +113,9 @@ def run_path(args, model):
         jp, tp = plan_path(model, args.path, speed, accel, dwell, cycles, side, center, seed=args.seed,
                            stroke=quantity(args.stroke, "length", "--stroke"),
                            pitch=quantity(args.pitch, "length", "--pitch"),
-                           angle=quantity(args.angle, "angle", "--angle"))
+                           angle=quantity(args.angle, "angle", "--angle"),
+                           distances=[quantity(x, "length", "--distances") for x in args.distances.split(",")]
+                           if args.distances else None)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     test = tp.moves[tp.test]
@@ -223,6 +228,8 @@ def run(args):
         raise CLIError("--stroke, --pitch: go with --path weave")
     if args.angle and args.path != "reorient":
         raise CLIError("--angle: goes with --path reorient")
+    if args.distances and args.path != "positioning":
+        raise CLIError("--distances: goes with --path positioning")
     if args.path:
         return run_path(args, model)
     if args.approach and not args.iso9283:

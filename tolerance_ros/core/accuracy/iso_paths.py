@@ -13,6 +13,8 @@ plane is the diagonal plane through the corners (-,-,-), (+,+,-), (+,+,+), (-,-,
 - ``weave``: the line from P3 to P2 woven across in the test plane (a sine of peak-to-peak ``stroke`` across
   the line, a whole number of periods of about ``pitch`` along it; ISO 9283 weaving deviations), then straight
   back (another motion);
+- ``positioning``: from the cube's centre along the test line and back, once for each of ``distances`` (ISO
+  9283 minimum positioning time; a rest between moves);
 - ``reorient``: the tool point held at the cube's centre while the tool turns about the base frame's x axis
   from ``-angle`` to ``+angle`` (ISO 9283 path accuracy on reorientation), then back (another motion); its
   moves are timed by the angle turned (``speed`` rad/s, ``accel`` rad/s^2).
@@ -31,7 +33,8 @@ import numpy as np
 
 from .path import interp_columns
 
-PATHS = ("line", "circle", "rectangle", "weave", "reorient")
+PATHS = ("line", "circle", "rectangle", "weave", "reorient", "positioning")
+POSITIONING_DISTANCES = (0.01, 0.02, 0.05, 0.1, 0.2)  # m: the moves of a positioning program, those that fit
 MAX_KNOT_STEP = 0.05  # rad or m: the largest joint change between knots before a path is called discontinuous
 
 
@@ -60,10 +63,11 @@ def _polyline(corners, spacing) -> np.ndarray:
 
 
 def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, stroke: float | None = None,
-              pitch: float | None = None, angle: float | None = None) -> ToolPath:
+              pitch: float | None = None, angle: float | None = None, distances=None) -> ToolPath:
     """The test path ``kind`` (``PATHS``) of the cube of edge ``side`` (m) at ``center`` (m); a weave's ``stroke``
     and ``pitch`` (m; default 10 % and 20 % of the edge); a reorientation's ``angle`` (rad, default 30 degrees),
-    turned in steps of ``spacing`` rad per metre (0.5 mrad for the default spacing: 0.5 mm)."""
+    turned in steps of ``spacing`` rad per metre (0.5 mrad for the default spacing: 0.5 mm); a positioning
+    program's ``distances`` (m; default those of ``POSITIONING_DISTANCES`` within the line)."""
     if kind not in PATHS:
         raise ValueError(f"path: expected one of {', '.join(PATHS)}, got {kind!r}")
     c = np.asarray(center, float)
@@ -79,6 +83,18 @@ def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, s
     if kind == "line":
         fwd = _polyline(np.array([P3, P2]), spacing)
         return ToolPath(kind, [fwd, fwd[::-1].copy()], 0, R, c, side)
+    if kind == "positioning":
+        d = (P2 - P3) / np.linalg.norm(P2 - P3)
+        room = 0.5 * float(np.linalg.norm(P2 - P3))      # from the centre to P2 along the line
+        ds = [x for x in POSITIONING_DISTANCES if x <= room] if distances is None else [float(x) for x in distances]
+        if not ds or any(not (0 < x <= room) for x in ds):
+            raise ValueError(f"positioning: expected distances up to {room * 1e3:g} mm (half the test line), got "
+                             f"{[round(x * 1e3, 3) for x in ds]} mm")
+        moves = []
+        for x in ds:
+            out = _polyline(np.array([c, c + x * d]), spacing)
+            moves += [out, out[::-1].copy()]
+        return ToolPath(kind, moves, 0, R, c, side)
     if kind == "reorient":
         from ..geometry import exp_so3
         angle = np.radians(30.0) if angle is None else float(angle)
@@ -210,7 +226,8 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
 
 def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: float = 0.5, cycles: int = 10,
               side: float | None = None, q_center=None, spacing: float = 0.5e-3, seed: int = 0,
-              stroke: float | None = None, pitch: float | None = None, angle: float | None = None):
+              stroke: float | None = None, pitch: float | None = None, angle: float | None = None,
+              distances=None):
     """(JointPath, ToolPath) of the test path ``kind`` in an ISO cube the model reaches: centred at the tool
     pose of ``q_center`` (dof,) rad or m, or else at the cube of ``calibration.planning.iso_cube_joints``;
     of edge ``side`` m, or else the largest of 0.4 m halved until the whole path is reached within the joint
@@ -227,7 +244,7 @@ def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: f
     sides = [side] if side else [0.4 / 2 ** k for k in range(6)]
     why = ""
     for sd in sides:
-        tp = tool_path(kind, T[:3, 3], sd, T[:3, :3], spacing, stroke, pitch, angle)
+        tp = tool_path(kind, T[:3, 3], sd, T[:3, :3], spacing, stroke, pitch, angle, distances)
         T0 = T.copy()
         T0[:3, 3] = tp.moves[0][0]
         if tp.turns is not None:
