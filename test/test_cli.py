@@ -791,3 +791,17 @@ def test_a_yaml_robot_of_urdf_kind_needs_the_urdf_kernels(tmp_path):
     assert kernel_needs(["allocate", "--robot", str(robot), "--limit", "1mm"]) == (("zonotope",), ("urdf",))
     robot.write_text("kind: dh\n")
     assert kernel_needs(["allocate", "--robot", str(robot), "--limit", "1mm"]) == (("zonotope",), ("dh",))
+
+
+def _commands():
+    from tolerance_ros.cli.main import COMMANDS
+    return [c.NAME for c in COMMANDS]
+
+
+@pytest.mark.parametrize("command", _commands())
+def test_every_commands_help_prints(capsys, command):
+    """argparse formats each help with %: a bare % in a help text (``100 % of rated``) breaks --help."""
+    from tolerance_ros.cli.main import build_parser
+    with pytest.raises(SystemExit) as done:
+        build_parser().parse_args([command, "--help"])
+    assert done.value.code == 0 and f"tolerance-ros {command}" in capsys.readouterr().out

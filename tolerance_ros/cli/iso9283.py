@@ -43,7 +43,7 @@ def add_arguments(p):
     p.add_argument("--reorientation-joints", metavar="JOINTS",
                    help="with --reorientation: the joint states logged along it")
     p.add_argument("--load", help="test condition: the load at the tool (e.g. '10 kg at 100 mm along z')")
-    p.add_argument("--speed", help="test condition: the programmed speed (e.g. '100 % of rated, 1 m/s')")
+    p.add_argument("--speed", help="test condition: the programmed speed (e.g. '100 %% of rated, 1 m/s')")
     p.add_argument("--temperature", help="test condition: the ambient temperature (e.g. '20.5 C')")
     p.add_argument("--measuring-system", help="test condition: the instrument (e.g. 'laser tracker, MPE 15 um')")
     p.add_argument("--out", metavar="DIR", help="write report.md, report.html, iso9283.json and plots into DIR")
