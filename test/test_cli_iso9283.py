@@ -104,6 +104,7 @@ def test_drift_and_exchangeability_and_the_path_in_one_report(capsys, tmp_path):
     (["--distance", "P2"], "--distance: expected two different test poses"),
     (["--distance", "P2,P9"], r"\['P9'\] are not in campaign"),
     (["--drift-window", "3600"], "--drift-window"),
+    (["--drift-window", "1e-300s"], "--drift-window: expected 1s to 720h"),
     (["--joint-states", "x.csv"], "go with --stream"),
     (["--latency", "8ms"], "--latency: goes with --stream or --reorientation"),
     (["--reorientation", "x.csv"], "give --reorientation-joints"),

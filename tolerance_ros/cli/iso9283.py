@@ -57,6 +57,7 @@ def _path(args, model):
         return None
     from ..core.accuracy.io.joint_states import read_points
     from ..core.accuracy.path_report import PathOptions, path_report
+    from .common import limit_option
     from .path_report import _command
     from types import SimpleNamespace
     stamps, points, source = read_points(args.stream)
@@ -65,7 +66,7 @@ def _path(args, model):
     latency = quantity(args.latency, "time", "--latency", positive=False)
     return path_report(model, stamps, points, tj, qj, None,
                        PathOptions(registration=args.registration, trajectory=trajectory, latency=latency,
-                                   band=quantity(args.band, "length", "--band")), source=source)
+                                   band=limit_option(model, args.band, "length", "--band")), source=source)
 
 
 def _reorientation(args, model):
@@ -111,6 +112,8 @@ def run(args):
         if len(pair) != 2 or not all(pair) or pair[0] == pair[1]:
             raise CLIError(f"--distance: expected two different test poses POSE1,POSE2, got {args.distance!r}")
     window = quantity(args.drift_window, "time", "--drift-window")
+    if not 1.0 <= window <= 30 * 86400.0:
+        raise CLIError(f"--drift-window: expected 1s to 720h, got {args.drift_window!r}")
     conditions = {"load": args.load, "speed": args.speed, "temperature": args.temperature,
                   "measuring_system": args.measuring_system}
     meas = read_measurements(args.measurements, joint_names=model.joint_names)

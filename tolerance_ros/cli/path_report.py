@@ -6,7 +6,7 @@ import numpy as np
 
 from ..core.budget import load_budget
 from ..render.text import table
-from .common import CLIError, load_model, missed, point_option, quantity
+from .common import CLIError, limit_option, load_model, missed, point_option, quantity
 
 NAME = "path-report"
 HELP = "ISO 9283 path accuracy of a tracker's stream along a commanded path (AT, RT, CR, CO, AV, RV, FV, latency)"
@@ -112,7 +112,7 @@ def run(args):
     tj, qj, trajectory, command_source = _command(args, model, recorded, ignored)
     options = PathOptions(registration=args.registration, latency=latency, window=window, stations=args.stations,
                           speed_window=speed_window, offset=offset, trajectory=trajectory, reverse=args.reverse,
-                          band=quantity(args.band, "length", "--band"))
+                          band=limit_option(model, args.band, "length", "--band"))
     doc = path_report(model, stamps, points, tj, qj, budget, options, source=source)
     doc["command"] = {"source": command_source, "kind": "trajectory" if args.trajectory else "joint states",
                       "ignored_columns": ignored}
