@@ -136,7 +136,7 @@ def _md_table(heads, rows) -> list:
 
 def _title(doc) -> str:
     return (f"ISO 9283 test report: {doc['robot']}, campaign {doc['campaign']}, {doc['measurements']} measurements "
-            f"from {doc['source']}")
+            + (f"({doc['under_load']} under load) " if doc.get("under_load") else "") + f"from {doc['source']}")
 
 
 def write_iso9283_report(doc, out_dir) -> dict:

@@ -95,7 +95,8 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
         model, meas.select(~loaded) if loaded is not False else meas, campaign, options.registration)
     ori = bool(res["orientation_measured"])
     missing, warnings = [], list(res.get("warnings", []))
-    out = {"robot": model.name, "source": meas.source, "campaign": campaign.name, "measurements": len(T),
+    out = {"robot": model.name, "source": meas.source, "campaign": campaign.name, "measurements": len(meas),
+           "under_load": 0 if loaded is False else int(loaded.sum()),
            "orientation_measured": ori, "registration": {k: res["registration"][k] for k in ("method", "residual_rms_m")
                                                          if k in res["registration"]},
            "conditions": _conditions(options, campaign, names, stamps),

@@ -2,7 +2,9 @@
 
 The weave's axes come from the command path of the cycle: its line is the first principal direction of the
 command points, its width the second (both lie in the weaving plane). The lateral signal ``y(t)`` is a
-path's component along the width. Its upward crossings of the median give the weaving periods; the first and
+path's component along the width. Its upward crossings of the median (each counted once the signal has gone
+``HYSTERESIS`` of the half swing below and above it: noise about the median at rest is no crossing) give the
+weaving periods; the first and
 the last period (the motion speeding up and slowing down) are left out, and at least ``MIN_PERIODS`` must
 remain. Over those periods:
 
@@ -19,6 +21,7 @@ import numpy as np
 
 MIN_PERIODS = 3        # weaving periods judged in a cycle, besides the first and the last
 MIN_STROKE = 1e-3      # m: a command path swinging less than this across its line is not a weave
+HYSTERESIS = 0.2       # of the swing's half width: a crossing counts once the signal has cleared this on each side
 
 
 def weave_axes(p) -> tuple:
@@ -37,7 +40,14 @@ def signal_figures(t, y) -> dict | None:
     if len(t) < 8:
         return None
     yc = y - np.median(y)
-    up = np.flatnonzero((yc[:-1] < 0) & (yc[1:] >= 0))
+    h = HYSTERESIS * 0.5 * float(np.percentile(yc, 95) - np.percentile(yc, 5))
+    side = np.where(yc > h, 1, np.where(yc < -h, -1, 0))
+    seen = np.maximum.accumulate(np.where(side != 0, np.arange(len(yc)), 0))
+    side = side[seen]                                   # each sample: the side it was last clearly on
+    rise = np.flatnonzero((side[:-1] == -1) & (side[1:] == 1)) + 1
+    below = np.maximum.accumulate(np.where(yc < 0, np.arange(len(yc)), 0))
+    up = below[rise]                                    # the last sample under the median before each rise
+    up = up[(up + 1 < len(yc)) & (yc[np.minimum(up + 1, len(yc) - 1)] >= 0)]
     if len(up) < MIN_PERIODS + 3:
         return None
     tu = t[up] - yc[up] * (t[up + 1] - t[up]) / (yc[up + 1] - yc[up])   # the crossings, interpolated
