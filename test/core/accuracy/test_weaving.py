@@ -48,3 +48,12 @@ def test_a_robot_near_resonance_overshoots_its_weave(gao, weave):
 def test_a_path_that_does_not_weave_has_no_weaving_figures(gao):
     jp, _ = plan_path(gao, "line", 0.1, 1.0, 0.5, 2, None, None, seed=0)
     assert _weaving(gao, jp, 10e-6)["weaving"] is None
+
+
+def test_noise_about_the_median_at_rest_is_no_crossing():
+    rng = np.random.default_rng(1)
+    t = np.arange(0, 5.0, 1e-3)
+    swing = (t > 0.5) & (t < 4.5)                    # at rest on the median, 4 s of a 2 Hz weave, at rest again
+    y = np.where(swing, 0.004 * np.sin(2 * np.pi * 2.0 * (t - 0.5)), 0.0) + rng.normal(0, 2e-5, len(t))
+    r = signal_figures(t, y)
+    assert r["periods"] == 4 and r["frequency_hz"] == pytest.approx(2.0, rel=2e-3)   # 7 rises, less 2
