@@ -236,3 +236,23 @@ def test_minimum_positioning_time_over_the_programs_distances(capsys, tmp_path):
         assert abs(g["min_s"] - move) <= 2.5e-3 and abs(g["mean_s"] - move) <= 2.5e-3
     code, _, err = run(capsys, "plan-campaign", "--robot", ROBOT, "--path", "positioning", "--distances", "5m")
     assert code == 2 and "positioning: expected distances up to" in err, err
+
+
+def test_a_rosbag2_recording_streams_into_the_report_as_into_path_report(capsys, tmp_path):
+    from tolerance_ros.core.accuracy.io.joint_states import read_joint_states, read_points
+    from tolerance_ros.core.accuracy.io.rosbag import write_rosbag_streams
+    from tolerance_ros.core.models import load_robot
+    gao = load_robot(ROBOT)
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--iso9283", "--cycles", "3", "--out", tmp_path / "cube.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances", TOL, "--out",
+        tmp_path / "m.csv")
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--path", "line", "--cycles", "2", "--out", tmp_path / "line.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--trajectory", tmp_path / "line.yaml", "--tolerances", TOL, "--out",
+        tmp_path / "s.csv")
+    stamps, points, _ = read_points(tmp_path / "s.csv")
+    tj, qj = read_joint_states(tmp_path / "s.joints.csv", gao.joint_names, gao.joint_types)
+    write_rosbag_streams(tmp_path / "bag", stamps, points, tj, qj, gao.joint_names)
+    doc = json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--measurements",
+                         tmp_path / "m.csv", "--stream", tmp_path / "bag", "--json"))
+    path = json.loads(cli(capsys, "path-report", "--robot", ROBOT, "--measurements", tmp_path / "bag", "--json"))
+    assert doc["path"]["overall"]["AT_p_m"] == path["overall"]["AT_p_m"] and doc["path"]["cycles"] == 2

@@ -27,8 +27,9 @@ def add_arguments(p):
                    help="fit the tracker's placement (base, default) or take the measurements as base-frame (none: "
                         "the measuring frame is the robots' common mounting, as exchangeability asks)")
     p.add_argument("--stream", metavar="POINTS",
-                   help="the tracker's stream along a test path (as path-report's --measurements): the path "
-                        "characteristics AT, RT, CR, CO, AV, RV, FV")
+                   help="the tracker's stream along a test path (as path-report's --measurements: a CSV of points, "
+                        "or a rosbag2 recording with the joint states): the path characteristics AT, RT, CR, CO, "
+                        "AV, RV, FV, the stops' and the weaving's")
     p.add_argument("--joint-states", metavar="JOINTS", help="with --stream: the joint states logged along the path")
     p.add_argument("--trajectory", metavar="FILE", help="with --stream: the joint trajectory driven")
     p.add_argument("--latency", help="with --stream or --reorientation: the tracker's latency, given (e.g. 8ms): the "
@@ -55,14 +56,20 @@ def _path(args, model):
         if args.joint_states or args.trajectory:
             raise CLIError("--joint-states, --trajectory: go with --stream (the path's tracker points)")
         return None
+    from types import SimpleNamespace
     from ..core.accuracy.io.joint_states import read_points
+    from ..core.accuracy.io.rosbag import is_recording, read_rosbag_streams
     from ..core.accuracy.path_report import PathOptions, path_report
     from .common import limit_option
     from .path_report import _command
-    from types import SimpleNamespace
-    stamps, points, source = read_points(args.stream)
+    recorded = None
+    if is_recording(args.stream) and not (args.joint_states or args.trajectory):   # both streams, one read
+        stamps, points, *recorded = read_rosbag_streams(args.stream, model.joint_names)
+        source = str(args.stream)
+    else:
+        stamps, points, source = read_points(args.stream)
     command = SimpleNamespace(joint_states=args.joint_states, trajectory=args.trajectory, measurements=args.stream)
-    tj, qj, trajectory, _ = _command(command, model)
+    tj, qj, trajectory, _ = _command(command, model, recorded)
     latency = quantity(args.latency, "time", "--latency", positive=False)
     return path_report(model, stamps, points, tj, qj, None,
                        PathOptions(registration=args.registration, trajectory=trajectory, latency=latency,
