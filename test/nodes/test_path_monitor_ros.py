@@ -90,6 +90,7 @@ def test_path_report_topic_and_diagnostics(tmp_path):
         doc = json.loads(reports[-1].data)
         counts = monitor.path.counts
         assert doc["cycles"] == 2 and len(doc["segments"]) == 4 and doc["overall"]["AT_p_m"] < 1e-3, counts
+        assert doc["stops"]["band_m"] == 1e-4 and doc["stops"]["judged"] == 1   # the stop after the first cycle
         assert counts["rejected"] == 0, monitor.path.reasons
         assert wait_for(lambda: any(s.name.endswith("path monitor") and "AT_p" in s.message
                                     for d in diags for s in d.status), 20)

@@ -37,6 +37,27 @@ def test_online_figures_equal_the_offline_report(gao, rect):
     assert c["outside_joint_states"] == offline["outside"]["outside_joint_states"]
 
 
+def test_online_stops_equal_the_offline_ones_one_motion_late(gao):
+    """A robot that rings at its stops: the monitor judges each stop when the next motion starts (or the streams
+    end), with the figures path-report gives offline."""
+    from tolerance_ros.core.accuracy.iso_paths import plan_path
+    from tolerance_ros.core.accuracy.simulate import path_streams
+    jp, _ = plan_path(gao, "line", 0.1, 1.0, 0.5, 3, None, None, seed=0)
+    st = path_streams(gao, jp, None, T_TB, 500, 1000, 0.008, 10e-6, 3, settling=(2 * np.pi * 8, 0.2))
+    offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints,
+                          options=PathOptions(latency=0.008, T_tracker_base=T_TB))["stops"]
+    mon = PathMonitor(gao, latency=0.008, T_tracker_base=T_TB)
+    reports = feed(mon, st)
+    assert [r["stops"]["judged"] for r in reports if r.get("judged")][:3] == [0, 1, 2]   # the stop before each
+    from tolerance_ros.core.accuracy.settling import summary
+    online = summary(list(mon.stop_list), mon.band)
+    assert len(online["stops"]) == len(offline["stops"]) == 6
+    for on, off in zip(online["stops"], offline["stops"]):
+        for key in ("t_stop_s", "rest_s", "stabilisation_time_s", "overshoot_m", "positioning_time_s"):
+            assert on[key] == pytest.approx(off[key], rel=1e-9, abs=1e-12), key
+    assert online["stabilisation_time_s"]["max"] > 0.05
+
+
 def test_online_estimates_its_latency_and_placement(gao, rect):
     st = rect
     offline = path_report(gao, st.stamps, st.points, st.joint_stamps, st.joints)

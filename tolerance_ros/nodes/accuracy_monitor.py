@@ -102,6 +102,8 @@ class AccuracyMonitor(Node):
                                                            "tolerance/path_report when a motion ends")
         self.path_latency = declare(self, "path_latency", "", "the tracker's latency against the joint states (e.g. "
                                                               "8ms); empty: estimated from the streams")
+        self.path_band = declare(self, "path_band", 1e-4, "the stabilisation band (m) of the pose stabilisation time "
+                                 "and overshoot at each stop of the path monitor", (1e-7, 0.1))
         self.path_registration = declare(self, "path_registration", "given",
                                          "given: the path monitor uses tracker_to_base (or the calibration's); "
                                          "estimate: it fits the tracker's placement from the streams")
@@ -195,7 +197,7 @@ class AccuracyMonitor(Node):
             raise ValueError(f"path_registration: expected given or estimate, got {self.path_registration!r}")
         latency = parse_quantity(self.path_latency, "time", "path_latency") if self.path_latency else None
         return PathMonitor(model, budget, latency, T_tracker_base if self.path_registration == "given" else None,
-                           offset=targets.offsets[0], name=status_name(self, "path monitor"))
+                           offset=targets.offsets[0], name=status_name(self, "path monitor"), band=self.path_band)
 
     def flush_path(self):
         """Judge the queued streams; publish the report of each path that ended."""

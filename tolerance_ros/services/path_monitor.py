@@ -26,6 +26,8 @@ check foresaw drops its buffers, is counted (``errors``) and said, and the next 
 """
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from ..core.accuracy import path as P
@@ -35,6 +37,7 @@ from ..core.accuracy.repeats import split_runs
 from ..core.accuracy.streams import LiveOrder
 from ..core.accuracy.path_report import LATENCY_SHARE, command_points
 from ..core.accuracy.registration import KabschAccumulator, kabsch
+from ..core.accuracy.settling import judge_stop, motion, summary
 from .monitor import MIN_GAP_S
 
 OK, WARN, ERROR = 0, 1, 2
@@ -69,7 +72,8 @@ class PathMonitor:
                  speed_window: float = 0.01, rest_speed: float = 1e-3, min_rest: float = 0.05,
                  window: float | None = None,
                  max_cycles: int = 1000, max_buffer: float = 120.0, max_groups: int = 10, step: float | None = None,
-                 estimate_after: float = 8.0, offset=None, name: str = "tolerance_ros: path monitor"):
+                 estimate_after: float = 8.0, offset=None, name: str = "tolerance_ros: path monitor",
+                 band: float = 1e-4, max_stops: int = 1000):
         self.model, self.budget = model, budget
         self.latency = None if latency is None else float(latency)
         self.latency_doc = None if latency is None else {"latency_s": self.latency, "std_s": 0.0, "given": True}
@@ -100,6 +104,9 @@ class PathMonitor:
         self.last = None
         self.gaps = {"joint_states": StampGaps(), "points": StampGaps()}  # what never arrived, seen in the stamps
         self.holes = []                              # why the latest motions were not judged
+        self.band = float(band)                      # the stabilisation band of the stops (m)
+        self.pending = None                          # the motion whose stop is judged when its rest ends
+        self.stop_list = deque(maxlen=max_stops)     # the latest stops' figures (``settling.judge_stop``)
 
     # -- input ---------------------------------------------------------------------------------------------
     def add_joint_states(self, stamps, joints) -> list:
@@ -169,6 +176,7 @@ class PathMonitor:
         points were dropped."""
         dropped = len(self.tm)
         self.tm, self.pm = self.tm[:0], self.pm[:0]
+        self.pending = None                          # its rest is gone with the buffer
         if kind in (None, "joints"):
             self.tj, self.qj, self.pc = self.tj[:0], self.qj[:0], self.pc[:0]
             self.first_joint = None
@@ -253,7 +261,10 @@ class PathMonitor:
         return {"level": level, "name": self.name, "hardware_id": "", "message": message, "values": values}
 
     def finish(self) -> list:
-        """The end of the streams: the points left are counted (at rest, or outside the joint states' span)."""
+        """The end of the streams: the last stop is judged, the points left are counted (at rest, or outside the
+        joint states' span)."""
+        if self.pending is not None and len(self.tj) and len(self.tm) and self.latency is not None:
+            self._judge_stop(min(float(self.tj[-1]), float(self.tm[-1] - self.latency)))
         if self.latency is not None and len(self.tm):
             ta = self.tm - self.latency
             out = (ta < (self.first_joint if self.first_joint is not None else np.inf)) | \
@@ -340,9 +351,21 @@ class PathMonitor:
         self.latency, self.latency_doc, self.A = tau, lat_doc, A
         return True
 
+    def _judge_stop(self, t_end: float):
+        """The figures of the stop after the pending motion, its rest lasting to ``t_end`` (``settling``)."""
+        mv, self.pending = self.pending, None
+        if mv is None or self.A is None or self.latency is None:
+            return
+        ta = self.tm - self.latency
+        j0, j1 = np.searchsorted(ta, [mv["stop_s"], t_end], side="left")
+        R, t = self.A[:3, :3], self.A[:3, 3]
+        self.stop_list.append(judge_stop(ta[j0:j1 + 1], (self.pm[j0:j1 + 1] - t) @ R, mv, t_end, self.band))
+
     def _take(self, i0, i1) -> list:
         """Judge the motion [i0, i1] of the buffer, unless a gap in its streams leaves it not judged; count the
-        points before it, drop the buffer up to its end."""
+        points before it, drop the buffer up to its end. The stop before it is judged first (its rest ends
+        where this motion starts), and this motion's stop waits for the next motion or the end."""
+        self._judge_stop(float(self.tj[i0]))
         ta = self.tm - self.latency
         j0, j1 = np.searchsorted(ta, [self.tj[i0], self.tj[i1]])
         hole = P.hole_in_motion(self.gaps, self.tj, i0, i1, self.tm, j0, j1)
@@ -365,6 +388,7 @@ class PathMonitor:
             report = self._judge(i0, i1, j0, j1, ta)
         else:                                          # interpolated across lost messages: not judged
             report = self._not_judged(hole, j1 - j0, float(self.tj[i0]), float(self.tj[i1]))
+        self.pending = motion(self.tj, self.pc, i0, i1) if hole is None else None
         self.tm, self.pm = self.tm[j1:], self.pm[j1:]
         self.tj, self.qj, self.pc = self.tj[i1:], self.qj[i1:], self.pc[i1:]
         return report
@@ -428,7 +452,8 @@ class PathMonitor:
                "path": self.groups.index(group), "cycles": len(group.per), "cycles_seen": group.cycles,
                "path_length_m": group.length, "speed_m_s": max(s["v_c_m_s"] for s in segs), "segments": segs,
                "overall": P.overall(segs), "counts": dict(self.counts), "refused": None, "missed": [],
-               "stream_gaps": {s: g.summary() for s, g in self.gaps.items()}, "not_judged": list(self.holes)}
+               "stream_gaps": {s: g.summary() for s, g in self.gaps.items()}, "not_judged": list(self.holes),
+               "stops": summary(list(self.stop_list), self.band)}
         if self.budget is not None and self.budget.limit_position is not None:
             limit = self.budget.limit_position
             shift = 2.0 * (doc["latency_std_s"] or 0.0) * doc["speed_m_s"]

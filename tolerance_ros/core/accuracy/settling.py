@@ -152,13 +152,30 @@ def stops(t, p, tj, p_c, runs, band: float, smooth: float = 0.04) -> dict:
     per = []
     for k, (i0, i1) in enumerate(runs):
         t_end = float(tj[runs[k + 1][0]]) if k + 1 < len(runs) else t_last
-        t0, t1 = rest_instants(tj[i0:i1 + 1], p_c[i0:i1 + 1])
-        s = stop_figures(t, p, t1, t_end, approach_direction(p_c, i0, i1), band, smooth)
-        s["move_m"] = float(np.linalg.norm(p_c[i1] - p_c[i0]))
-        s["motion_s"] = float(t1 - t0)
-        s["positioning_time_s"] = None if s["stabilisation_time_s"] is None else \
-            s["motion_s"] + s["stabilisation_time_s"]
-        per.append(s)
+        per.append(judge_stop(t, p, motion(tj, p_c, i0, i1), t_end, band, smooth))
+    return summary(per, band, smooth)
+
+
+def motion(tj, p_c, i0: int, i1: int) -> dict:
+    """What a stop needs of the motion [i0, i1] of the command before it: start_s and stop_s (``rest_instants``),
+    approach (``approach_direction``), move_m (the command's distance from its start)."""
+    t0, t1 = rest_instants(tj[i0:i1 + 1], p_c[i0:i1 + 1])
+    return {"start_s": t0, "stop_s": t1, "approach": approach_direction(p_c, i0, i1),
+            "move_m": float(np.linalg.norm(p_c[i1] - p_c[i0]))}
+
+
+def judge_stop(t, p, mv: dict, t_end: float, band: float, smooth: float = 0.04) -> dict:
+    """``stop_figures`` of the stop after the motion ``mv`` (``motion``), its rest lasting to ``t_end``, with the
+    move, the motion's duration and the positioning time (None when it did not settle)."""
+    s = stop_figures(t, p, mv["stop_s"], t_end, mv["approach"], band, smooth)
+    s["move_m"] = mv["move_m"]
+    s["motion_s"] = float(mv["stop_s"] - mv["start_s"])
+    s["positioning_time_s"] = None if s["stabilisation_time_s"] is None else s["motion_s"] + s["stabilisation_time_s"]
+    return s
+
+
+def summary(per, band: float, smooth: float = 0.04) -> dict:
+    """The stops' figures (``stops``) of the stops ``per`` (``judge_stop``)."""
     judged = [s for s in per if s["settled"]]
     st = [s["stabilisation_time_s"] for s in judged]
     ov = [s["overshoot_m"] for s in judged if s["overshoot_m"] is not None]
