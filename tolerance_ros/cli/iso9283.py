@@ -57,19 +57,11 @@ def _path(args, model):
             raise CLIError("--joint-states, --trajectory: go with --stream (the path's tracker points)")
         return None
     from types import SimpleNamespace
-    from ..core.accuracy.io.joint_states import read_points
-    from ..core.accuracy.io.rosbag import is_recording, read_rosbag_streams
     from ..core.accuracy.path_report import PathOptions, path_report
     from .common import limit_option
-    from .path_report import _command
-    recorded = None
-    if is_recording(args.stream) and not (args.joint_states or args.trajectory):   # both streams, one read
-        stamps, points, *recorded = read_rosbag_streams(args.stream, model.joint_names)
-        source = str(args.stream)
-    else:
-        stamps, points, source = read_points(args.stream)
-    command = SimpleNamespace(joint_states=args.joint_states, trajectory=args.trajectory, measurements=args.stream)
-    tj, qj, trajectory, _ = _command(command, model, recorded)
+    from .path_report import read_streams
+    stream = SimpleNamespace(joint_states=args.joint_states, trajectory=args.trajectory, measurements=args.stream)
+    stamps, points, source, (tj, qj, trajectory, _) = read_streams(stream, model)
     latency = quantity(args.latency, "time", "--latency", positive=False)
     return path_report(model, stamps, points, tj, qj, None,
                        PathOptions(registration=args.registration, trajectory=trajectory, latency=latency,

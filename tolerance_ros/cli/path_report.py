@@ -84,9 +84,21 @@ def _command(args, model, recorded=None, ignored=None):
     return m.stamps, model.check_joints(m.joints, args.measurements), None, args.measurements
 
 
-def run(args):
+def read_streams(args, model, ignored=None):
+    """(stamps, points, source, (joint stamps, joints, trajectory, its source)) of ``args.measurements`` (points
+    CSV, campaign log, or a rosbag2 recording of both streams) and the command (``_command``)."""
     from ..core.accuracy.io.joint_states import read_points
     from ..core.accuracy.io.rosbag import is_recording, read_rosbag_streams
+    recorded = None
+    if is_recording(args.measurements) and not (args.joint_states or args.trajectory):  # both streams, one read
+        stamps, points, *recorded = read_rosbag_streams(args.measurements, model.joint_names)
+        source = str(args.measurements)
+    else:
+        stamps, points, source = read_points(args.measurements)
+    return stamps, points, source, _command(args, model, recorded, ignored)
+
+
+def run(args):
     from ..core.accuracy.path_report import PathOptions, path_report
     from ..render.path_report import HEADS, segment_rows, summary_lines, write_path_report
     model = load_model(args)
@@ -102,14 +114,8 @@ def run(args):
         if offset is None:
             raise CLIError(f"--target-offset: expected X,Y,Z with a unit on each (e.g. 0mm,0mm,120mm), got "
                            f"{args.target_offset!r}")
-    recorded = None
-    if is_recording(args.measurements) and not (args.joint_states or args.trajectory):  # both streams, one read
-        stamps, points, *recorded = read_rosbag_streams(args.measurements, model.joint_names)
-        source = str(args.measurements)
-    else:
-        stamps, points, source = read_points(args.measurements)
     ignored = []
-    tj, qj, trajectory, command_source = _command(args, model, recorded, ignored)
+    stamps, points, source, (tj, qj, trajectory, command_source) = read_streams(args, model, ignored)
     options = PathOptions(registration=args.registration, latency=latency, window=window, stations=args.stations,
                           speed_window=speed_window, offset=offset, trajectory=trajectory, reverse=args.reverse,
                           band=limit_option(model, args.band, "length", "--band"))
