@@ -166,6 +166,17 @@ def test_static_compliance_from_visits_under_load(capsys, tmp_path):
             assert k["compliance_m_per_N"][a] == pytest.approx(c[a] / 4, rel=0.1, abs=2e-8)
             assert kturn[a] == pytest.approx(turn[a] / 4, rel=0.1, abs=2e-7)
         assert soft["pose"][pose]["n"] == 2
+    lines = (tmp_path / "stiff.csv").read_text().splitlines()       # the loads along +x, +y, +z only: not even
+    push = [l for l in lines if l.startswith(("#", "stamp")) or min(map(float, l.split(",")[-6:])) >= 0]
+    (tmp_path / "push.csv").write_text("\n".join(push) + "\n")
+    both = json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml",
+                          "--measurements", tmp_path / "soft.csv", "--other", tmp_path / "push.csv", "--json"))
+    # one as-built robot (seed 0, the same noise) twice: its unloaded visits agree; with the loaded ones pushing
+    # one way, the other robot's barycentres moved by 25 to 47 um
+    assert max(both["exchangeability"][p]["E"] for p in ("P1", "P2", "P3", "P4", "P5")) < 5e-6
+    printed = cli(capsys, "report", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--measurements",
+                  tmp_path / "soft.csv")
+    assert "NOTE: 120 measurement(s) were taken under a load at the tool" in printed     # 5 poses x 2 x 12 loads
     code, out, err = run(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances",
                          TOL, "--load", "200", "--out", tmp_path / "x.csv")
     assert code == 2 and "--load" in err and "has no unit" in err, err

@@ -240,6 +240,8 @@ def _exchangeability(model, campaign, options, T, names, others, missing, warnin
         return {}
     robots = [(T, names)]
     for m in others:
+        if m.load is not None and np.any(m.load != 0):            # the unloaded visits, as for the first robot
+            m = m.select(~np.any(m.load != 0, axis=1))
         res, To, no, *_ = _pose_data(model, m, campaign, options.registration)
         warnings += [f"{m.source}: {w}" for w in res.get("warnings", [])]
         robots.append((To, no))
