@@ -333,8 +333,7 @@ class MonitorLogic:
                   "last_position_error_m": self.last["position_error"] if self.last else None,
                   "last_bound_m": self.last["bound"] if self.last else None,
                   "budget": (self.budget.source or self.budget.robot) if self.budget else "none",
-                  "drift_max_m": max((d["dAP_p_m"] for d in self.drift.summary()["poses"].values()
-                                      if d["dAP_p_m"] is not None), default=None)}
+                  "drift_max_m": self.drift.largest}
         for name, g in self.gaps.items():
             values[f"{name}_gaps"], values[f"{name}_missing"] = g.gaps, g.missing
         return {"level": level, "name": self.name, "message": msg,

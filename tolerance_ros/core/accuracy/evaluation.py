@@ -43,8 +43,8 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     labels = _labels(meas)
     screened = checks.screen(model, q, meas, campaign, labels)
     warnings, notes = list(screened.notes), []
-    if meas.load is not None and np.any(meas.load != 0):
-        notes.append(f"{int(np.any(meas.load != 0, axis=1).sum())} measurement(s) were taken under a load at the "
+    if meas.loaded.any():
+        notes.append(f"{int(meas.loaded.sum())} measurement(s) were taken under a load at the "
                      f"tool (load columns): their errors include the robot's deflection (iso9283 judges them as "
                      f"its static compliance and the unloaded ones as the pose characteristics)")
     T_tool_all = model.fk(q)

@@ -113,10 +113,6 @@ def _angles(T, C) -> np.ndarray:
     return wrap(rpy_from_matrix(T[:, :3, :3]) - rpy_from_matrix(np.asarray(C, float)[None, :3, :3]))
 
 
-def _std(x) -> np.ndarray:
-    return np.sqrt(np.sum((x - x.mean(axis=0)) ** 2, axis=0) / (len(x) - 1))
-
-
 def distance_characteristics(commanded1, commanded2, attained1, attained2, orientation: bool = True) -> dict:
     """ISO 9283 distance accuracy and repeatability between two commanded poses, from ``n >= 2`` paired visits
     (attained1[j] and attained2[j] of cycle j; (n, 4, 4) each, m and rad).
@@ -136,17 +132,17 @@ def distance_characteristics(commanded1, commanded2, attained1, attained2, orien
     d = T1[:, :3, 3] - T2[:, :3, 3]
     D = np.linalg.norm(d, axis=1)
     out = {"n": len(D), "D_c": float(np.linalg.norm(dc)), "D_bar": float(D.mean()),
-           "AD_p": float(D.mean() - np.linalg.norm(dc)), "RD_p": float(3 * _std(D))}
+           "AD_p": float(D.mean() - np.linalg.norm(dc)), "RD_p": float(3 * np.std(D, ddof=1))}
     for k, ax in enumerate("xyz"):
         out[f"AD_{ax}"] = float(d[:, k].mean() - dc[k])
-        out[f"RD_{ax}"] = float(3 * _std(d[:, k]))
+        out[f"RD_{ax}"] = float(3 * np.std(d[:, k], ddof=1))
     for k, ax in enumerate("abc"):
         out[f"AD_{ax}"] = out[f"RD_{ax}"] = None
     if orientation:
         da = wrap(_angles(T1, C1) - _angles(T2, C2))
         for k, ax in enumerate("abc"):
             out[f"AD_{ax}"] = float(da[:, k].mean())
-            out[f"RD_{ax}"] = float(3 * _std(da[:, k]))
+            out[f"RD_{ax}"] = float(3 * np.std(da[:, k], ddof=1))
     return out
 
 
@@ -292,7 +288,7 @@ class DriftTracker:
             return
         s = self.poses.get(pose)
         if s is None:
-            s = self.poses[pose] = {"t0": stamp, "first": None, "start": stamp, "sum": np.zeros(3), "n": 0,
+            s = self.poses[pose] = {"first": None, "start": stamp, "sum": np.zeros(3), "n": 0,
                                     "t_sum": 0.0, "dAP_p": None, "dAP_p_max": 0.0, "per_h": None, "windows": 0}
         if stamp < s["start"]:          # out of order or a clock reset: that visit does not count
             return
@@ -314,6 +310,11 @@ class DriftTracker:
                 s["per_h"] = d / ((t - s["first"][1]) / 3600.0)
             s["windows"] += 1
         s["sum"], s["t_sum"], s["n"] = np.zeros(3), 0.0, 0
+
+    @property
+    def largest(self) -> float | None:
+        """The largest latest dAP_p of the test poses (m), or None before any window closed after the first."""
+        return max((s["dAP_p"] for s in self.poses.values() if s["dAP_p"] is not None), default=None)
 
     @property
     def over(self) -> list:

@@ -64,14 +64,10 @@ def _pairs(names, cycles, a, b) -> tuple:
     else in their order."""
     ia, ib = np.flatnonzero(names == a), np.flatnonzero(names == b)
     if (cycles[ia] >= 0).all() and (cycles[ib] >= 0).all():
-        common = np.intersect1d(cycles[ia], cycles[ib])
-        first = {}
-        for i in ia:
-            first.setdefault(int(cycles[i]), i)
-        second = {}
-        for i in ib:
-            second.setdefault(int(cycles[i]), i)
-        return np.array([first[c] for c in common], int), np.array([second[c] for c in common], int)
+        ca, first_a = np.unique(cycles[ia], return_index=True)     # each cycle's first visit
+        cb, first_b = np.unique(cycles[ib], return_index=True)
+        _, ka, kb = np.intersect1d(ca, cb, return_indices=True)
+        return ia[first_a[ka]], ib[first_b[kb]]
     n = min(len(ia), len(ib))
     return ia[:n], ib[:n]
 
@@ -87,16 +83,15 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     options = options or ISOOptions()
     if campaign is None:
         raise ISOReportError("an ISO 9283 report needs the campaign (its test poses and approaches)")
-    loaded = meas.load is not None and np.any(meas.load != 0, axis=1)
-    if loaded is not False and loaded.all():
+    loaded = meas.loaded
+    if loaded.all():
         raise ISOReportError(f"{meas.source}: every row is under load; the pose characteristics and the compliance "
                              f"need the unloaded visits too")
-    res, T, names, stamps, cycles, commanded = _pose_data(
-        model, meas.select(~loaded) if loaded is not False else meas, campaign, options.registration)
+    res, T, names, stamps, cycles, commanded = _pose_data(model, meas.select(~loaded), campaign, options.registration)
     ori = bool(res["orientation_measured"])
     missing, warnings = [], list(res.get("warnings", []))
     out = {"robot": model.name, "source": meas.source, "campaign": campaign.name, "measurements": len(meas),
-           "under_load": 0 if loaded is False else int(loaded.sum()),
+           "under_load": int(loaded.sum()),
            "orientation_measured": ori, "registration": {k: res["registration"][k] for k in ("method", "residual_rms_m")
                                                          if k in res["registration"]},
            "conditions": _conditions(options, campaign, names, stamps),
@@ -106,7 +101,7 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     out["distance"] = _distance(options, campaign, commanded, T, names, cycles, ori, missing)
     out["drift"] = _drift(options, campaign, commanded, T, names, stamps, ori, missing)
     out["exchangeability"] = _exchangeability(model, campaign, options, T, names, others, missing, warnings)
-    out["compliance"] = _compliance(meas, loaded, res, campaign, missing)
+    out["compliance"] = _compliance(meas, res, campaign, missing)
     out["path"] = path
     out["reorientation"] = None
     if reorientation is None:
@@ -206,15 +201,16 @@ def _drift(options, campaign, commanded, T, names, stamps, ori, missing) -> dict
         span = float(stamps.max() - stamps.min()) if len(stamps) else 0.0
         missing.append({"characteristic": "dAP, dRP (drift of pose characteristics)",
                         "needs": f"visits of a test pose spanning two windows of {options.drift_window:g} s (these "
-                                 f"span "
-                                 f"{span:.6g} s; the standard runs 8 h of cycles; --drift-window sets the window)"})
+                                 f"span {span:.6g} s; the standard runs 8 h of cycles; --drift-window sets the "
+                                 f"window)"})
     return out
 
 
-def _compliance(meas, loaded, res, campaign, missing) -> dict:
+def _compliance(meas, res, campaign, missing) -> dict:
     """Static compliance per test pose: every visit (loaded or not) in the base frame of the unloaded ones'
     registration."""
-    if loaded is False or not loaded.any():
+    loaded = meas.loaded
+    if not loaded.any():
         missing.append({"characteristic": "static compliance",
                         "needs": "visits measured under known loads at the tool (load:fx, load:fy, load:fz columns, "
                                  "and load:mx, load:my, load:mz for torques; simulate --load 200N --torque 20Nm)"})
@@ -240,8 +236,7 @@ def _exchangeability(model, campaign, options, T, names, others, missing, warnin
         return {}
     robots = [(T, names)]
     for m in others:
-        if m.load is not None and np.any(m.load != 0):            # the unloaded visits, as for the first robot
-            m = m.select(~np.any(m.load != 0, axis=1))
+        m = m.select(~m.loaded)                                 # the unloaded visits, as for the first robot
         res, To, no, *_ = _pose_data(model, m, campaign, options.registration)
         warnings += [f"{m.source}: {w}" for w in res.get("warnings", [])]
         robots.append((To, no))

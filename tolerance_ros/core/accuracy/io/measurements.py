@@ -40,6 +40,13 @@ class Measurements:
         return len(self.stamps)
 
     @property
+    def loaded(self) -> np.ndarray:
+        """(n,) bool: the rows measured under a load at the tool (all False without load columns)."""
+        if self.load is None:
+            return np.zeros(len(self), bool)
+        return np.any(self.load != 0, axis=1)
+
+    @property
     def target_names(self) -> tuple:
         """The targets in order of first appearance (``("",)`` for one unnamed target)."""
         if self.target is None:
