@@ -142,6 +142,10 @@ APPROACHED = [{"name": "P1+x", "joints": [0, 10, 20, 30, 40, 50, 60], "of": "P1"
 def test_approaches_of_a_test_pose_with_their_pre_poses(gao):
     c = campaign_from_dict({**GOOD, "poses": GOOD["poses"] + APPROACHED}, model=gao)
     assert c.approaches() == {"P1": ["P1+x", "P1+y"]}
+    q, pose, cycle, via = c.steps(gao)             # each pre-pose driven just before its pose, every cycle
+    assert pose.tolist() == [0, 1, 2, 2, 3, 3] * 3 and via.tolist() == [False, False, True, False, True, False] * 3
+    assert cycle.tolist() == [0] * 6 + [1] * 6 + [2] * 6
+    assert np.allclose(q[2], c.poses[2].via) and np.allclose(q[3], c.joints_for(gao)[2])
     assert c.poses[2].via[0] == pytest.approx(np.deg2rad(2)) and c.poses[3].approach == "+y"
 
 

@@ -321,23 +321,15 @@ def run(args):
         raise CLIError(f"--backlash: expected 0 to 50mrad, got {args.backlash!r}")
     dx = as_built_errors(delta, args.seed, args.errors)
     T_tracker = transform([1.5, -0.3, 0.2], [0.05, -0.02, 1.2])
-    qk = campaign.joints_for(model)
-    seq = campaign.sequence()
-    steps, visit = [], []          # every configuration driven (pre-poses too) and which of them are visits
-    for i, _ in seq:
-        if campaign.poses[i].via is not None:
-            steps.append(campaign.poses[i].via)
-            visit.append(False)
-        steps.append(qk[i])
-        visit.append(True)
-    steps, visit = np.array(steps), np.array(visit)
+    steps, pose, cycle, via = campaign.steps(model)    # every configuration driven, pre-poses too
+    visit = ~via
     q = steps[visit]
     stamps = np.flatnonzero(visit) * campaign.dwell_s
-    labels = np.array([campaign.names[i] for i, _ in seq], dtype=object)
+    labels = np.array(campaign.names, dtype=object)[pose[visit]]
     revolute = np.array([t != "prismatic" for t in model.joint_types])
     deflection = backlash(steps, play, revolute)[visit] if play > 0 else None
     growth = _growth(args.thermal, stamps)
-    cycles = np.array([c for _, c in seq])
+    cycles = cycle[visit]
     force = None
     if args.load or args.torque:       # each visit: unloaded, then under each load along +-x, +-y, +-z
         F = quantity(args.load, "force", "--load") if args.load else 0.0

@@ -72,6 +72,20 @@ class Campaign:
     def names(self) -> list:
         return [p.name for p in self.poses]
 
+    def steps(self, model) -> tuple:
+        """Every configuration the robot is driven to, in visiting order (``sequence``), a pose's pre-pose
+        (``via``) just before it: (q (m, dof) SI, pose (m,) index into ``poses``, cycle (m,), via (m,) bool)."""
+        joints = self.joints_for(model)
+        q, pose, cycle, via = [], [], [], []
+        for i, c in self.sequence():
+            for qk, is_via in ([(self.poses[i].via, True)] if self.poses[i].via is not None else []) + \
+                    [(joints[i], False)]:
+                q.append(qk)
+                pose.append(i)
+                cycle.append(c)
+                via.append(is_via)
+        return np.array(q), np.array(pose), np.array(cycle), np.array(via)
+
     def approaches(self) -> dict:
         """{test pose: [names of the campaign poses that approach it (``of``)]} for the test poses approached
         in more than one way (ISO 9283 multi-directional pose accuracy variation)."""

@@ -37,16 +37,9 @@ class JointStateSequence:
         elif mode == "campaign":
             if campaign is None:
                 raise ValueError("mode 'campaign' needs a campaign")
-            joints = campaign.joints_for(model)
-            q, self.labels, self.cycles = [], [], []
-            for i, c in campaign.sequence():   # a pose with a pre-pose (``via``): the pre-pose first, a step of its own
-                tp = campaign.poses[i]
-                steps = ([(tp.via, f"{tp.name} via")] if tp.via is not None else []) + [(joints[i], tp.name)]
-                for qk, label in steps:
-                    q.append(qk)
-                    self.labels.append(label)
-                    self.cycles.append(c)
-            self.q = np.array(q)
+            self.q, pose, cycle, via = campaign.steps(model)   # a pre-pose (``via``): a step of its own
+            self.labels = [campaign.names[i] + (" via" if v else "") for i, v in zip(pose, via)]
+            self.cycles = [int(c) for c in cycle]
             self.dwell = float(dwell if dwell is not None else campaign.dwell_s)
         else:
             if count < 1:

@@ -22,26 +22,18 @@ def cube(gao):
 def _run(model, campaign, seed=0, play=0.0, growth=None, tracker=T_TRACKER, noise=NOISE):
     """(measurements, noise-free attained positions in the base frame, pose names) of one simulated robot."""
     dx = as_built_errors(np.where(np.array(model.param_kinds) == "length", 5e-5, 2e-4), seed)
-    qk = dict(zip(campaign.names, campaign.joints_for(model)))
-    steps, visit, names = [], [], []
-    for i, _ in campaign.sequence():
-        tp = campaign.poses[i]
-        if tp.via is not None:
-            steps.append(tp.via)
-            visit.append(False)
-        steps.append(qk[tp.name])
-        visit.append(True)
-        names.append(tp.name)
-    steps, visit = np.array(steps), np.array(visit)
+    steps, pose, cycle, via = campaign.steps(model)
+    visit = ~via
+    names = np.array(campaign.names, object)[pose[visit]]
     q = steps[visit]
     stamps = np.flatnonzero(visit) * campaign.dwell_s
     d = backlash(steps, play, np.ones(model.dof, bool))[visit]
     g = None if growth is None else thermal_expansion(stamps, *growth)
-    meas = measure_targets(model, q, dx, None, noise, 1e-6, tracker, seed + 1, stamps, np.array(names, object),
+    meas = measure_targets(model, q, dx, None, noise, 1e-6, tracker, seed + 1, stamps, names,
                            points=False, deflection=d, growth=g)
-    meas.cycle = np.array([c for _, c in campaign.sequence()])
+    meas.cycle = cycle[visit]
     true = model.fk(q + d, dx)[:, :3, 3] * (1.0 if g is None else 1.0 + g[:, None])
-    return meas, true, np.array(names, object)
+    return meas, true, names
 
 
 def test_vap_and_ad_against_a_robot_with_backlash(gao, cube):
