@@ -50,8 +50,8 @@ def add_arguments(p):
     p.add_argument("--out", metavar="DIR", help="write report.md, report.html, iso9283.json and plots into DIR")
 
 
-def _path(args, model):
-    """path_report's result for ``--stream``, or None."""
+def _path(args, model, latency):
+    """path_report's result for ``--stream`` (``latency`` s: given, or None), or None."""
     if not args.stream:
         if args.joint_states or args.trajectory:
             raise CLIError("--joint-states, --trajectory: go with --stream (the path's tracker points)")
@@ -62,19 +62,18 @@ def _path(args, model):
     from .path_report import read_streams
     stream = SimpleNamespace(joint_states=args.joint_states, trajectory=args.trajectory, measurements=args.stream)
     stamps, points, source, (tj, qj, trajectory, _) = read_streams(stream, model)
-    latency = quantity(args.latency, "time", "--latency", positive=False)
     return path_report(model, stamps, points, tj, qj, None,
                        PathOptions(registration=args.registration, trajectory=trajectory, latency=latency,
                                    band=limit_option(model, args.band, "length", "--band")), source=source)
 
 
-def _reorientation(args, model):
+def _reorientation(args, model, latency):
     """(stamps, frames, joint stamps, joints, latency, source) of ``--reorientation``, or None."""
     if not args.reorientation:
         if args.reorientation_joints:
             raise CLIError("--reorientation-joints: goes with --reorientation")
         return None
-    if not (args.reorientation_joints and args.latency):
+    if not (args.reorientation_joints and latency is not None):
         raise CLIError("--reorientation: give --reorientation-joints (the joint states along it) and --latency (the "
                        "tracker's; a fixed tool point shows no speed to estimate it from)")
     from ..core.accuracy.io import read_measurements
@@ -84,8 +83,7 @@ def _reorientation(args, model):
         raise CLIError(f"--reorientation: {args.reorientation} has no orientation columns; the path accuracy on "
                        f"reorientation needs a 6-DOF tracker's frames")
     tj, qj = read_joint_states(args.reorientation_joints, model.joint_names, model.joint_types)
-    return (m.stamps, m.T, tj, model.check_joints(qj, args.reorientation_joints),
-            quantity(args.latency, "time", "--latency", positive=False), str(args.reorientation))
+    return m.stamps, m.T, tj, model.check_joints(qj, args.reorientation_joints), latency, str(args.reorientation)
 
 
 def _numeric(cell) -> bool:
@@ -119,8 +117,9 @@ def run(args):
     others = [read_measurements(f, joint_names=model.joint_names) for f in args.other]
     if args.latency and not (args.stream or args.reorientation):
         raise CLIError("--latency: goes with --stream or --reorientation")
-    path = _path(args, model)
-    reorientation = _reorientation(args, model)
+    latency = quantity(args.latency, "time", "--latency", positive=False)
+    path = _path(args, model, latency)
+    reorientation = _reorientation(args, model, latency)
     try:
         doc = iso9283_report(model, meas, campaign, ISOOptions(pair, window, args.registration, conditions), others,
                              path, reorientation)

@@ -94,7 +94,6 @@ def add_arguments(p):
 
 def run_path(args, model):
     """``--path``: the test path's joint trajectory written to ``--out`` (YAML, SI)."""
-    import yaml
     from ..core.accuracy.iso_paths import plan_path
     from ..core.accuracy.path import arc_length, corners
     cycles = 10 if args.cycles is None else args.cycles
@@ -127,10 +126,7 @@ def run_path(args, model):
             f"[{', '.join(f'{v * 1e3:.1f}' for v in tp.center)}] mm, {speed:g} {'rad/s' if turning else 'm/s'}, "
             f"{cycles} cycles; SI (s, rad, m)")
     if args.out:
-        from pathlib import Path
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(f"# {desc}\n" + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
+        write_yaml(args.out, desc, doc)
     if args.json:
         return {k: v for k, v in doc.items() if k != "points"} | {"points": len(jp.t), "file": args.out}
     print(desc)
@@ -143,8 +139,17 @@ def run_path(args, model):
 
 def tp_angle(tp) -> float:
     """Half the angle (rad) a reorientation turns through."""
+    from ..core.geometry import rotation_error
     R = tp.turns[tp.test]
-    return 0.5 * float(np.arccos(np.clip((np.trace(R[0].T @ R[-1]) - 1.0) / 2.0, -1.0, 1.0)))
+    return 0.5 * float(np.linalg.norm(rotation_error(R[-1], R[0])))
+
+
+def write_yaml(path, desc, doc):
+    """A campaign or trajectory file: ``desc`` as its first comment line, then ``doc`` as YAML."""
+    import yaml
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(f"# {desc}\n" + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
 
 
 def run_contacts(args, model):
@@ -169,12 +174,8 @@ def run_contacts(args, model):
     desc = (f"{args.n} contacts chosen by tolerance-ros plan-campaign: {idx} ({REFERENCES[idx]}) over {pl.candidates} "
             f"candidates touching {', '.join(args.contact)} (seed {args.seed}), nominal robot and rig: {which}")
     if args.out:
-        import yaml
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(f"# {desc}\n" + yaml.safe_dump(campaign_dict(model, pl.q, f"{model.name}_contacts",
-                                                                     args.cycles or 1, description=desc),
-                                                        sort_keys=False, default_flow_style=None, width=120))
+        write_yaml(args.out, desc, campaign_dict(model, pl.q, f"{model.name}_contacts", args.cycles or 1,
+                                                 description=desc))
     if args.json:
         return pl.to_dict() | {"robot": model.name, "campaign_file": args.out}
     print(f"robot {model.name}: {args.n} contacts maximising {idx} ({REFERENCES[idx]}) over {pl.candidates} "
@@ -191,8 +192,6 @@ def run_contacts(args, model):
 
 def run_iso9283(args, model, ws):
     """``--iso9283``: the ISO 9283 cube's test poses, with their approaches (``planning.iso9283_campaign``)."""
-    import numpy as np
-    import yaml
     from ..core.calibration.planning import iso9283_campaign, iso_cube_joints
     approach = quantity(args.approach, "length", "--approach") if args.approach else None
     qc, _ = ws.sample(int(args.candidates), np.random.default_rng(args.seed), 10 * int(args.candidates))
@@ -207,9 +206,7 @@ def run_iso9283(args, model, ws):
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     if args.out:
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(f"# {desc}\n" + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
+        write_yaml(args.out, desc, doc)
     if args.json:
         return {"robot": model.name, "campaign_file": args.out, "description": desc,
                 "poses": [p["name"] for p in doc["poses"]], "cycles": doc["cycles"]}
@@ -272,12 +269,8 @@ def run(args):
             f"exchange over {pl.candidates} candidates (seed {args.seed}); restrictions: "
             f"{ws.describe()}")
     if out_path is not None:
-        import yaml
-        out_path.parent.mkdir(parents=True, exist_ok=True)
-        out_path.write_text(f"# {desc}\n" + yaml.safe_dump(campaign_dict(model, pl.q, f"{model.name}_planned",
-                                                                            args.cycles, description=desc,
-                                                                            restrictions=ws.rest.texts),
-                                                             sort_keys=False, default_flow_style=None, width=120))
+        write_yaml(out_path, desc, campaign_dict(model, pl.q, f"{model.name}_planned", args.cycles, description=desc,
+                                                 restrictions=ws.rest.texts))
     plots = []
     if args.plot:
         from ..render import plots as P

@@ -143,9 +143,10 @@ def _run_trajectory(args, model, delta, noise, out):
                       offset=offset, settling=_settling(args.settling),
                       noise_orientation=quantity(args.orientation_noise, "angle", "--orientation-noise",
                                                  positive=False) if frames else None)
+    settling = f"joints settling as {args.settling}" if args.settling else ""
     comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
                f"seed {args.seed}) driving {args.trajectory}; tracker {args.tracker_rate}, {args.latency} late, "
-               f"noise {args.noise}" + (f"; joints settling as {args.settling}" if args.settling else ""))
+               f"noise {args.noise}" + (f"; {settling}" if settling else ""))
     if frames:
         from ..core.accuracy.io import Measurements, write_csv
         T = np.tile(np.eye(4), (len(st.stamps), 1, 1))
@@ -156,8 +157,7 @@ def _run_trajectory(args, model, delta, noise, out):
     joints = write_joint_states(out.with_name(f"{out.stem}.joints.csv"), st.joint_stamps, st.joints, model.joint_names,
                                 model.joint_types, [comment])
     truth_path = _truth(args, model, dx, T_tracker, noise, out, len(st.stamps), 0, targets, "base", False,
-                        f" driving {args.trajectory}" + (f", joints settling as {args.settling}" if args.settling
-                                                         else ""))
+                        f" driving {args.trajectory}" + (f", {settling}" if settling else ""))
     doc = {"measurements": str(out), "joint_states": str(joints), "truth": str(truth_path), "rows": len(st.stamps),
            "joint_state_rows": len(st.joint_stamps), "latency_s": latency, "noise_m": noise,
            "duration_s": jp.duration}
@@ -354,22 +354,18 @@ def run(args):
     meas.cycle = np.repeat(cycles, rows // len(q))
     if force is not None:
         meas.load = np.repeat(force, rows // len(q), axis=0)
+    robot = ((f", backlash {args.backlash}" if play > 0 else "") + (f", warming up {args.thermal}" if args.thermal
+                                                                     else "")
+             + (f", loads of {' and '.join(x for x in (args.load, args.torque) if x)} on joints of "
+                f"{args.joint_stiffness}" if args.load or args.torque else ""))   # in the file and in its truth
     comment = (f"simulated by tolerance-ros simulate: {model.name} as built within {args.tolerances} ({args.errors}, "
                f"seed {args.seed}), tracker noise {args.noise}" + (f" / {args.orientation_noise}" if targets is None
                                                                       else "")
-               + (f", backlash {args.backlash}" if play > 0 else "") + (f", warming up {args.thermal}" if args.thermal
-                                                                         else "")
-               + (f", loads of {' and '.join(x for x in (args.load, args.torque) if x)} on joints of "
-                  f"{args.joint_stiffness}" if args.load or args.torque else "")
-               + f"; truth in {out.stem}.truth.yaml")
+               + robot + f"; truth in {out.stem}.truth.yaml")
     write_csv(out, meas, comments=[comment])
     names, tg = (tuple(targets.names), targets) if targets is not None else (("",), None)
     truth_path = _truth(args, model, dx, T_tracker, noise, out, rows, len(campaign.names), tg,
-                        "base+tool" if targets is not None else "base", targets is None,
-                        (f", backlash {args.backlash}" if play > 0 else "")
-                        + (f", warming up {args.thermal}" if args.thermal else "")
-                        + (f", loads of {' and '.join(x for x in (args.load, args.torque) if x)} on joints of "
-                           f"{args.joint_stiffness}" if args.load or args.torque else ""))
+                        "base+tool" if targets is not None else "base", targets is None, robot)
     doc = {"measurements": str(out), "truth": str(truth_path), "rows": rows, "poses": len(campaign.names),
            "visits": len(q), "targets": [n for n in names if n], "noise_m": noise,
            "orientation_noise_rad": None if targets is not None else onoise}

@@ -80,12 +80,13 @@ def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, s
     P2, P3 = c + 0.8 * h * np.array([1, 1, 1.0]), c - 0.8 * h * np.array([1, 1, 1.0])
     P4, P5 = c + 0.8 * h * np.array([1, 1, -1.0]), c + 0.8 * h * np.array([-1, -1, 1.0])
     R = np.eye(3) if R is None else np.asarray(R, float)
+    L = float(np.linalg.norm(P2 - P3))                 # the test line, from P3 to P2
+    d = (P2 - P3) / L
     if kind == "line":
         fwd = _polyline(np.array([P3, P2]), spacing)
         return ToolPath(kind, [fwd, fwd[::-1].copy()], 0, R, c, side)
     if kind == "positioning":
-        d = (P2 - P3) / np.linalg.norm(P2 - P3)
-        room = 0.5 * float(np.linalg.norm(P2 - P3))      # from the centre to P2 along the line
+        room = 0.5 * L                                 # from the centre to P2 along the line
         ds = [x for x in POSITIONING_DISTANCES if x <= room] if distances is None else [float(x) for x in distances]
         if not ds or any(not (0 < x <= room) for x in ds):
             raise ValueError(f"positioning: expected distances up to {room * 1e3:g} mm (half the test line), got "
@@ -111,10 +112,8 @@ def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, s
         if not (0 < stroke <= side and 0 < pitch <= side):
             raise ValueError(f"weave: expected a stroke and a pitch up to the cube's edge {side * 1e3:g} mm, got "
                              f"{stroke * 1e3:g} mm and {pitch * 1e3:g} mm")
-        d = (P2 - P3) / np.linalg.norm(P2 - P3)
         across = w - (w @ d) * d
         across /= np.linalg.norm(across)
-        L = float(np.linalg.norm(P2 - P3))
         periods = max(3, int(round(L / pitch)))
         n = int(np.ceil(L * np.hypot(1.0, np.pi * stroke * periods / L) / spacing)) + 1
         sb = np.linspace(0.0, L, n)
@@ -208,9 +207,9 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
         if tp.turns is None:
             s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
         else:                               # a reorientation: timed by the angle turned
+            from ..geometry import rotation_error
             R = tp.turns[k]
-            step = np.arccos(np.clip((np.einsum("nij,nij->n", R[:-1], R[1:]) - 1.0) / 2.0, -1.0, 1.0))
-            s = np.concatenate([[0.0], np.cumsum(step)])
+            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(rotation_error(R[1:], R[:-1]), axis=1))])
         tm = trapezoid_times(s, speed, accel)
         if k == 0:                          # the cycle starts at rest at the first knot
             times.append(t0)

@@ -19,7 +19,7 @@ import numpy as np
 
 from . import path as P
 from .iso9283 import wrap
-from ..geometry import rpy_from_matrix
+from ..geometry import rotation_error, rpy_from_matrix
 
 REST_SPEED = 1e-3      # rad/s (or m/s) of the fastest joint: the command at rest below this
 
@@ -63,7 +63,7 @@ def reorientation_report(model, stamps, T_tracker, joint_stamps, joints, T_track
         dev_p.append(P.interp_columns(at, ts, dp))
         dev_a.append(P.interp_columns(at, ts, da))
         ends = model.fk(qj[[i0, i1]])
-        turned.append(float(np.arccos(np.clip((np.trace(ends[0, :3, :3].T @ ends[1, :3, :3]) - 1) / 2, -1, 1))))
+        turned.append(float(np.linalg.norm(rotation_error(ends[1, :3, :3], ends[0, :3, :3]))))
     if not dev_p:
         raise ValueError("reorientation: no tracker frame lies along the command's motions (the streams do not "
                          "overlap, or the latency is wrong)")
