@@ -9,14 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from ..core.jsonio import dumps
+from .path_report import HEADS, _mm, segment_rows, stops_line, weaving_line
 from .plots import _legend_beside, _name_ticks, _plt, _save, _subplots, _tick_names_height, panels_plot
 
-
-def _mm(v):
-    return "-" if v is None else f"{v * 1e3:.4f}"
-
-
-_mrad = _mm
+_mrad = _mm   # rad as mrad: the same scale and digits
 
 
 def sections(doc) -> list:
@@ -84,13 +80,11 @@ def sections(doc) -> list:
                      + [_mm(v["residual_rms_m"])] for p, v in comp.items()]))
     path = doc.get("path")
     if path:
-        from .path_report import HEADS, segment_rows
         out.append(("Path characteristics (AT, RT, CR, CO, AV, RV, FV)",
                     f"{path['cycles']} cycles from {path['source']}, latency {path['latency_s'] * 1e3:.3f} ms; "
                     "the figures of path-report", HEADS, segment_rows(path)))
     w = (path or {}).get("weaving")
     if w:
-        from .path_report import weaving_line
         out.append(("Weaving deviations (WS, WF)", weaving_line(w) + "; the stroke peak to peak across the weave's "
                     "line, the frequency over its whole periods but the first and the last",
                     ["cycle", "periods", "stroke mm", "commanded mm", "WS %", "frequency Hz", "commanded Hz", "WF %"],
@@ -99,7 +93,6 @@ def sections(doc) -> list:
                      for k, c in enumerate(w["cycles"])]))
     st = (path or {}).get("stops")
     if st and st["judged"]:
-        from .path_report import stops_line
         out.append(("Pose stabilisation time and overshoot", stops_line(st) + "; on the command's clock, so give the "
                     "tracker's latency (--latency) where the robot lags its command", ["stop at s", "rest s",
                     "stabilisation ms", "overshoot mm", "note"],
