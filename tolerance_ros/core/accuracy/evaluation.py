@@ -18,7 +18,7 @@ IDENTIFY_MAX = 20000  # up to this many measurements the nonlinear identificatio
 
 
 def evaluate_file(model, meas, budget=None, campaign=None, registration="base", keep_rows=True,
-                  sigma_position=1e-5, sigma_orientation=None, robust=True) -> dict:
+                  sigma_position=1e-5, sigma_orientation=None, robust=True, identification=True) -> dict:
     """Evaluate measurements (see the module docstring), after the checks of ``checks``: a length unit that
     cannot be right, a joint column out of range, the wrong campaign or a registered residual no robot
     error explains are refused (``checks.CheckError``); rows beyond the joint limits are listed in
@@ -30,6 +30,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     Every error is taken at the measured target; measurements without orientation get no orientation
     figure. ``warnings`` names what the verdict should be read with (measurements in another frame than the
     one claimed, a target offset the registration does not fit, poses the campaign does not have).
+    ``identification`` False: none (a caller that needs only the registered rows).
     """
     if len(meas) == 0:
         raise MeasurementError(f"{meas.source}: no measurements")
@@ -106,7 +107,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
         keys = np.array([acc._key(n, k) if n else "" for n, k in zip(lab, idx)], dtype=object)
         out["per_pose"] = per_pose_statistics(list(acc.commanded()), acc.commanded(), T_base, keys,
                                               meas.has_orientation)
-    if len(q) <= IDENTIFY_MAX:
+    if identification and len(q) <= IDENTIFY_MAX:
         ori = sigma_orientation if meas.has_orientation else None
         ident = identify(model, q, T_base, delta, FitOptions(sigma_position=sigma_position, sigma_orientation=ori),
                          Unknowns(targets=reg.targets, target_index=idx))
@@ -114,7 +115,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
         if delta is not None:
             out["identification"]["groups"] = aliased_groups(model, q, T_base, delta, sigma_position, ori, reg.targets,
                                                              idx)
-    else:
+    elif identification:
         out["identification"] = out["summary"].pop("identification", None)
     if keep_rows:
         cat = {k: np.concatenate([r[k] for r in rows]) for k in rows[0] if k not in ("dp", "dphi", "orientation_error")

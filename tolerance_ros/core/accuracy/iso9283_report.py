@@ -52,7 +52,7 @@ def _pose_data(model, meas, campaign, registration) -> tuple:
     if meas.pose is None or not any(str(p) for p in meas.pose):
         raise ISOReportError(f"{meas.source}: no pose column; the ISO 9283 characteristics need each row named by its "
                              f"test pose")
-    res = evaluate_file(model, meas, None, campaign, registration=registration)
+    res = evaluate_file(model, meas, None, campaign, registration=registration, identification=False)
     rows = res["rows"]
     names = np.array([str(p) for p in rows["pose"]], dtype=object)
     cyc = rows["visit_cycle"] if rows["visit_cycle"] is not None else np.full(len(names), -1)
