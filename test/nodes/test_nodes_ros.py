@@ -396,7 +396,7 @@ def test_the_monitor_judges_reflectors_on_their_own_topics_from_a_calibration(gr
     from geometry_msgs.msg import PointStamped
     from sensor_msgs.msg import JointState
     from tolerance_ros.core.accuracy.simulate import measure_targets
-    from tolerance_ros.core.accuracy.targets import Targets
+    from tolerance_ros.core.targets import Targets
     from tolerance_ros.core.calibration.calibrate import calibrate_measurements
     from tolerance_ros.core.calibration.calibration_file import save_calibration
     from tolerance_ros.core.geometry import transform

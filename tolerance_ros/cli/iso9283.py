@@ -56,12 +56,11 @@ def _path(args, model, latency):
         if args.joint_states or args.trajectory:
             raise CLIError("--joint-states, --trajectory: go with --stream (the path's tracker points)")
         return None
-    from types import SimpleNamespace
+    from ..core.accuracy.io.path_streams import read_streams
     from ..core.accuracy.path_report import PathOptions, path_report
     from .common import limit_option
-    from .path_report import read_streams
-    stream = SimpleNamespace(joint_states=args.joint_states, trajectory=args.trajectory, measurements=args.stream)
-    stamps, points, source, (tj, qj, trajectory, _) = read_streams(stream, model)
+    stamps, points, source, (tj, qj, trajectory, _) = read_streams(model, args.stream, args.joint_states,
+                                                                    args.trajectory)
     return path_report(model, stamps, points, tj, qj, None,
                        PathOptions(registration=args.registration, trajectory=trajectory, latency=latency,
                                    band=limit_option(model, args.band, "length", "--band")), source=source)

@@ -192,7 +192,8 @@ def run_contacts(args, model):
 
 def run_iso9283(args, model, ws):
     """``--iso9283``: the ISO 9283 cube's test poses, with their approaches (``planning.iso9283_campaign``)."""
-    from ..core.calibration.planning import iso9283_campaign, iso_cube_joints
+    from ..core.accuracy.iso9283 import iso_cube_joints
+    from ..core.calibration.planning import iso9283_campaign
     approach = quantity(args.approach, "length", "--approach") if args.approach else None
     qc, _ = ws.sample(int(args.candidates), np.random.default_rng(args.seed), 10 * int(args.candidates))
     q, note = iso_cube_joints(model, qc, args.seed, allowed=lambda x: ws.check(x).ok)

@@ -97,7 +97,7 @@ def _tolerances(model, spec):
 
 
 def _targets(specs):
-    from ..core.accuracy.targets import Targets
+    from ..core.targets import Targets
     if not specs:
         return None
     names, offsets = [], []

@@ -27,10 +27,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.accuracy.targets import AtTarget
+from ..core.targets import AtTarget
 from ..core.calibration.calibration_file import (CalibrationError, calibration_from_text, calibration_robot_name,
                                                  load_calibration)
-from ..core.calibration.compensate import MATCHES, compensate
+from ..core.calibration.compensate import compensate
+from ..core.models.ik import MATCHES
 from ..core.ingest import MAX_POSITION_M
 from ..core.models.base import ModelError
 from .contracts import ContractError, Limits

@@ -28,7 +28,7 @@ from . import markers
 from ..core.accuracy.accumulator import AccuracyAccumulator
 from ..core.accuracy.checks import StreamCheck
 from ..core.accuracy.iso9283 import DriftTracker
-from ..core.accuracy.targets import Targets
+from ..core.targets import Targets
 from .contracts import check_budget
 from .guards import summary
 

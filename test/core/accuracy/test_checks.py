@@ -10,7 +10,7 @@ from helpers import XARM7_URDF, example_urdf
 from tolerance_ros.core.accuracy import checks
 from tolerance_ros.core.accuracy.evaluation import evaluate_file
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_targets
-from tolerance_ros.core.accuracy.targets import Targets
+from tolerance_ros.core.targets import Targets
 from tolerance_ros.core.calibration.calibrate import calibrate_measurements
 from tolerance_ros.core.calibration.validation import predict_measurements
 from tolerance_ros.core.calibration.calibration_file import CalibrationError, calibration_robot, save_calibration

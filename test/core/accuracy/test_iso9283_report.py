@@ -5,7 +5,8 @@ import pytest
 
 from tolerance_ros.core.accuracy.iso9283_report import ISOOptions, ISOReportError, iso9283_report
 from tolerance_ros.core.accuracy.simulate import as_built_errors, backlash, measure_targets, thermal_expansion
-from tolerance_ros.core.calibration.planning import iso9283_campaign, iso_cube_joints
+from tolerance_ros.core.accuracy.iso9283 import iso_cube_joints
+from tolerance_ros.core.calibration.planning import iso9283_campaign
 from tolerance_ros.core.campaign import campaign_from_dict
 from tolerance_ros.core.geometry import transform
 

@@ -95,7 +95,7 @@ def test_joint_states_at_rest_are_refused(gao):
 def test_the_target_jacobian_is_the_offset_points_finite_difference(gao):
     """The bound tube at a target off the tool frame: the position rows of the error Jacobian at that point
     equal central differences of its position over each parameter."""
-    from tolerance_ros.core.accuracy.targets import at_point
+    from tolerance_ros.core.targets import at_point
     q = gao.sample_joints(4, 3)
     offset = np.array([0.03, -0.02, 0.12])
     J = at_point(gao, offset).error_jacobian(q).position

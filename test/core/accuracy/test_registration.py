@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from tolerance_ros.core.accuracy.registration import register
-from tolerance_ros.core.accuracy.targets import Targets
+from tolerance_ros.core.targets import Targets
 from tolerance_ros.core.geometry import transform
 
 

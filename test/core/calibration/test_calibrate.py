@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from helpers import random_dh
-from tolerance_ros.core.calibration.identification import base_matrix
+from tolerance_ros.core.identification import base_matrix
 from tolerance_ros.core.accuracy.io import Measurements
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
 from tolerance_ros.core.budget import load_budget

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from helpers import pin_fk, random_dh
-from tolerance_ros.core.calibration.identification import base_matrix
+from tolerance_ros.core.identification import base_matrix
 from tolerance_ros.core.accuracy.simulate import as_built_errors
 from tolerance_ros.core.calibration.calibrate import calibrated_mechanism
 from tolerance_ros.core.calibration.calibrated_robot import (calibrated_dh_yaml, calibrated_urdf_text,

@@ -7,7 +7,8 @@ from helpers import fd_jacobian, random_dh
 from tolerance_ros.core.accuracy.simulate import as_built_errors
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.calibration.calibrate import calibrated_mechanism
-from tolerance_ros.core.calibration.compensate import compensate, into_limits, joint_jacobian
+from tolerance_ros.core.calibration.compensate import compensate
+from tolerance_ros.core.models.ik import into_limits, joint_jacobian
 from tolerance_ros.core.geometry import rotation_error
 from tolerance_ros.core.models import DHChain
 

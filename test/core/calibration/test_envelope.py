@@ -8,7 +8,8 @@ import pytest
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.calibration.calibrate import calibrate
-from tolerance_ros.core.calibration.compensate import compensate, joint_jacobian
+from tolerance_ros.core.calibration.compensate import compensate
+from tolerance_ros.core.models.ik import joint_jacobian
 from tolerance_ros.core.calibration.envelope import (CONDITIONED, MAX_JOINT_CORRECTION, MAX_TOOL_CORRECTION,
                                                     CorrectionError, Envelope, correction, envelope_postures)
 

@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_targets
-from tolerance_ros.core.accuracy.targets import Targets
+from tolerance_ros.core.targets import Targets
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.calibration.calibrate import calibrate_measurements
 from tolerance_ros.core.calibration.elastic import DeflectedChain, gravity_loads, has_inertials

@@ -6,7 +6,8 @@ import pytest
 from tolerance_ros.core.accuracy.simulate import as_built_errors
 from tolerance_ros.core.budget import load_budget
 from tolerance_ros.core.calibration.calibrate import calibrated_mechanism
-from tolerance_ros.core.calibration.compensate import compensate, joint_jacobian
+from tolerance_ros.core.calibration.compensate import compensate
+from tolerance_ros.core.models.ik import joint_jacobian
 from tolerance_ros.core.calibration.trajectory import compensate_trajectory
 
 

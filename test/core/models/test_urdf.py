@@ -290,7 +290,7 @@ def test_corrected_origins_round_trip_through_the_urdf_exactly(seed, tmp_path):
     base = rng.normal(0, 1e-3, 6)
     q = chain.sample_joints(25, seed)
     want = calibrated_mechanism(chain, dx, base).fk(q)
-    from tolerance_ros.core.calibration.identification import base_matrix
+    from tolerance_ros.core.identification import base_matrix
     np.testing.assert_allclose(want, base_matrix(base) @ chain.fk(q, dx), atol=1e-13, rtol=0)
     np.testing.assert_allclose(pin_fk(calibrated_urdf_text(chain, text, dx, base), chain.tip_link, chain, q), want,
                                atol=1e-13, rtol=0)
@@ -314,7 +314,7 @@ def test_continuous_joints_take_unwrapped_angles_and_compare_them_modulo_a_turn(
     """The Kinova's continuous joints logged unwrapped (4.79 rad): the same pose as their wrap, within the limits
     for every check, and a compensation keeps them on the turn they were commanded on."""
     from tolerance_ros.core.accuracy.checks import screen
-    from tolerance_ros.core.calibration.compensate import into_limits
+    from tolerance_ros.core.models.ik import into_limits
     chain = URDFChain(example_urdf("kinova.urdf"), tip_link="j2s6s200_end_effector")
     assert chain.continuous.tolist() == [True, False, False, True, False, True]
     q = np.mean(chain.joint_limits, axis=1)[None].repeat(3, axis=0)

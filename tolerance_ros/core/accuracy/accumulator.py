@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import criterion_bound
-from ..calibration.identification import base_jacobian, identify_from_normal_equations
+from ..identification import base_jacobian, identify_from_normal_equations
 from .iso9283 import pose_characteristics
 from .registration import to_base_frame
-from .targets import Targets, shift_jacobian
+from ..targets import Targets, shift_jacobian
 from .verdicts import EXCEEDED, VERDICTS, budget_check, pose_errors
 
 

@@ -8,11 +8,11 @@ import numpy as np
 from ..ingest import IngestError, JointOrder
 from . import checks
 from .accumulator import AccuracyAccumulator
-from ..calibration.identification import FitOptions, Unknowns, identify
+from ..identification import FitOptions, Unknowns, identify
 from .io import MeasurementError, read_csv
 from .iso9283 import pose_characteristics
 from .registration import KabschAccumulator, Registration, register
-from .targets import Targets
+from ..targets import Targets
 
 IDENTIFY_MAX = 20000  # up to this many measurements the nonlinear identification runs on all of them
 

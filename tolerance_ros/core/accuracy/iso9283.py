@@ -328,3 +328,34 @@ class DriftTracker:
         return {"window_s": self.window, "limit_m": self.limit,
                 "poses": {p: {"windows": s["windows"], "dAP_p_m": s["dAP_p"], "dAP_p_max_m": s["dAP_p_max"],
                               "dAP_p_per_h_m": s["per_h"]} for p, s in self.poses.items()}}
+
+
+def iso_cube_joints(model, q_candidates, rng=0, centres=10, allowed=None):
+    """(joints (5, dof) of the ISO 9283 cube's test poses P1-P5, note), or (None, note).
+
+    The cube is centred on a candidate tool pose in front of the robot (the ``centres`` nearest the
+    median tool position of the candidates with x > 0 in the base frame, in turn) at that pose's
+    orientation, with the largest edge (halving from half the median distance of those candidates from
+    their median) whose five poses the nominal model reaches (and, with ``allowed``, a function of joints
+    (k, dof) -> (k,) bool, that it allows).
+    """
+    from ..models.ik import nominal_solution
+    T = model.fk(q_candidates)
+    front = T[:, 0, 3] > 0
+    T = T[front] if front.sum() >= 5 else T
+    qf = q_candidates[front] if front.sum() >= 5 else q_candidates
+    P = T[:, :3, 3]
+    dist = np.linalg.norm(P - np.median(P, axis=0), axis=1)
+    for c in np.argsort(dist)[:centres]:
+        side = 0.5 * np.median(dist)
+        for _ in range(5):
+            targets = np.tile(T[c], (5, 1, 1))
+            targets[:, :3, 3] = iso_cube_points(P[c], side)
+            q = nominal_solution(model, targets, seed=qf[c], tol_position=1e-7, tol_orientation=1e-7)
+            if np.allclose(model.fk(q), targets, atol=1e-6) and not model.out_of_limits(q).any() and \
+                    (allowed is None or allowed(q).all()):
+                return q, (f"ISO 9283 cube P1-P5, edge {side * 1e3:.0f} mm, centred at "
+                           f"[{', '.join(f'{v * 1e3:.0f}' for v in P[c])}] mm")
+            side /= 2.0
+    return None, ("ISO 9283 cube: no reachable cube found in front of the robot" +
+                  (" within the restrictions" if allowed is not None else ""))

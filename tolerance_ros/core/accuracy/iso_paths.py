@@ -21,7 +21,7 @@ plane is the diagonal plane through the corners (-,-,-), (+,+,-), (+,+,+), (-,-,
 
 The tool keeps the orientation of the centre pose. Each move starts and ends at rest with a trapezoidal
 speed profile (``speed`` m/s, ``accel`` m/s^2); a cycle is a dwell at the start, then the move(s). Joints
-come from the nominal model's inverse kinematics (``calibration.compensate.nominal_solution``) at knots
+come from the nominal model's inverse kinematics (``models.ik.nominal_solution``) at knots
 every ``spacing`` along the path, continued from knot to knot, and are linear in time between knots.
 SI throughout.
 """
@@ -182,7 +182,7 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
                cycles: int = 1) -> JointPath:
     """The joint trajectory of ``tp`` for ``model``: IK at every knot (position and orientation ``tp.R``),
     continued from ``q_seed`` (dof,); ValueError when a knot is out of reach or the joints jump."""
-    from ..calibration.compensate import solve
+    from ..models.ik import solve
     times, qs, t0 = [], [], 0.0
     q_prev = np.asarray(q_seed, float)
     for k, pts in enumerate(tp.moves):
@@ -228,12 +228,12 @@ def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: f
               stroke: float | None = None, pitch: float | None = None, angle: float | None = None,
               distances=None):
     """(JointPath, ToolPath) of the test path ``kind`` in an ISO cube the model reaches: centred at the tool
-    pose of ``q_center`` (dof,) rad or m, or else at the cube of ``calibration.planning.iso_cube_joints``;
+    pose of ``q_center`` (dof,) rad or m, or else at the cube of ``iso9283.iso_cube_joints``;
     of edge ``side`` m, or else the largest of 0.4 m halved until the whole path is reached within the joint
     limits without a jump. ValueError when none is."""
-    from ..calibration.compensate import solve
+    from ..models.ik import solve
     if q_center is None:
-        from ..calibration.planning import iso_cube_joints
+        from .iso9283 import iso_cube_joints
         q_iso, note = iso_cube_joints(model, model.sample_joints(2000, seed), seed)
         if q_iso is None:
             raise ValueError(f"{model.name}: {note}")

@@ -42,7 +42,7 @@ from .weaving import weaving
 from .streams import Timeline, tidy
 from .checks import PLAUSIBLE_RESIDUAL, units_problem
 from .registration import kabsch
-from .targets import at_point
+from ..targets import at_point
 
 LATENCY_SHARE = 0.1   # of the design limit: the most the latency's uncertainty (2 u x speed) may move the path
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .targets import Targets
+from ..targets import Targets
 
 COVER = 4096      # rotations of the seeded cover of SO(3) on which f(R) is evaluated
 REFINE = 4        # distinct best candidates refined by Levenberg-Marquardt

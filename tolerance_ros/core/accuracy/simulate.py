@@ -15,7 +15,7 @@ import numpy as np
 from ..analysis import sample_errors
 from ..geometry import exp_so3
 from ..models.base import Mechanism
-from .targets import at_point
+from ..targets import at_point
 
 
 def as_built_errors(delta, seed=0, distribution="uniform") -> np.ndarray:
@@ -85,7 +85,7 @@ def measure_targets(model: Mechanism, q, dx=None, targets=None, noise_position=0
     elastic deflection, its backlash), not to the joints it reports; ``growth`` (n,) scales the positions about
     the base origin by ``1 + growth`` (``thermal_expansion``)."""
     from .io import Measurements
-    from .targets import Targets
+    from ..targets import Targets
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     q = np.asarray(q, float)
     targets = targets if targets is not None else Targets.at_tool(frames=not points)

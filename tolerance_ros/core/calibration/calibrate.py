@@ -36,7 +36,7 @@ from .crossval import Folds, kept_figures, pose_groups, score, validate
 from .elastic import Load
 from .mechanism import calibrated_mechanism, corrected_origins
 from .result import Calibration, nominal_fingerprint
-from .identification import PRIOR, REGISTRATIONS, FitOptions
+from ..identification import PRIOR, REGISTRATIONS, FitOptions
 from .robust import MODELS, FitData, estimate_sets, fit, prior_vector
 
 __all__ = ["Calibration", "FitOptions", "MODELS", "PRIOR", "REGISTRATIONS", "calibrate", "calibrate_measurements",

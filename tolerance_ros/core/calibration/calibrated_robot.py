@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .identification import base_matrix
+from ..identification import base_matrix
 from ..geometry import rpy_from_matrix
 from ..models.base import Mechanism
 from ..models.dh import DHChain

@@ -68,13 +68,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .identification import BASE_NAMES
+from ..identification import BASE_NAMES
 from ..geometry import rpy_from_matrix
 from ..models.base import Mechanism, ModelError
 from ..models.loader import frame_from_dict, load_robot
 from ..resources import ConfigNotFound, not_a_file
 from ..units import UnitError, angle_scale, length_scale, parse_number
-from ..accuracy.targets import Targets
+from ..targets import Targets
 from ..yamlio import loads_yaml, read_yaml
 from .elastic import Load
 from .provenance import ProvenanceError, check_blocks, signature, stamped, verified_provenance

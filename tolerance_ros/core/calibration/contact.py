@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..accuracy.targets import shift_jacobian
+from ..targets import shift_jacobian
 from ..models.base import Mechanism
 from .crossval import folds_of, pose_groups
-from .identification import (PRIOR, SCALE_WITHOUT_BUDGET, Convergence, _minimise, _preference, _Layout,
+from ..identification import (PRIOR, SCALE_WITHOUT_BUDGET, Convergence, _minimise, _preference, _Layout,
                              column_scale, dependent_columns)
 from .robust import prior_vector
 

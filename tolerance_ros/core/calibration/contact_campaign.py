@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..accuracy.checks import CheckError
-from ..accuracy.targets import Targets
+from ..targets import Targets
 from ..models.base import Mechanism
 from .contact import (PLANE, PLAUSIBLE_ANGLE, PLAUSIBLE_LENGTH, ContactData, calibrate_contacts, initial_rig,
                       not_converged_words, target_points, validate_contacts)

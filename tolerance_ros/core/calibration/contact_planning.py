@@ -20,7 +20,7 @@ from ..accuracy.simulate import touch
 from ..models.base import Mechanism
 from .contact import PLANE, ContactData, ContactLayout, Rig, SCALE_WITHOUT_BUDGET, TOL_RANK, _hold_scale, _Reference, \
     _stack
-from .identification import _Layout, _preference, dependent_columns
+from ..identification import _Layout, _preference, dependent_columns
 from .planning import CRITERIA, design_indices, select
 
 RANDOM_SETS = 20

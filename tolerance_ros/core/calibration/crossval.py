@@ -14,7 +14,7 @@ import numpy as np
 from .. import interrupt
 from ..accuracy.iso9283 import pose_characteristics
 from ..accuracy.verdicts import pose_errors
-from .identification import FitOptions
+from ..identification import FitOptions
 from .robust import FitData, fit, predict
 
 

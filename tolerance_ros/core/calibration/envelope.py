@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models.base import PRISMATIC, Mechanism, ModelError
-from .compensate import LENGTH, compensate, joint_jacobian
+from .compensate import compensate
+from ..models.ik import LENGTH, joint_jacobian
 
 MAX_JOINT_CORRECTION = 0.02   # rad: 20 mrad (1.15 deg) on a revolute joint
 MAX_TOOL_CORRECTION = 0.005   # m: 5 mm of the tool point (also the bound of a prismatic joint's change)

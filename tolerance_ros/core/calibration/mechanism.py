@@ -6,7 +6,7 @@ import copy
 
 import numpy as np
 
-from .identification import base_matrix
+from ..identification import base_matrix
 from ..geometry import axis_angle_matrix, rpy_from_matrix, transform
 from ..models.base import PRISMATIC, Mechanism, ModelError
 from ..models.dh import DHChain

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .identification import BASE_NAMES, base_jacobian, column_scale, dependent_parameters
-from ..accuracy.iso9283 import iso_cube_points
+from ..identification import BASE_NAMES, base_jacobian, column_scale, dependent_parameters
+from ..accuracy.iso9283 import iso_cube_joints
 from ..models.base import Mechanism
 
 CRITERIA = {"observability": "O1", "condition": "O2", "min-singular": "O3", "noise-amplification": "O4"}
@@ -181,37 +181,6 @@ def select(G, n: int, index="O1", seed=0, max_exchanges=None, tick=None):
     return np.array(design), exchanges
 
 
-def iso_cube_joints(model: Mechanism, q_candidates, rng=0, centres=10, allowed=None):
-    """(joints (5, dof) of the ISO 9283 cube's test poses P1-P5, note), or (None, note).
-
-    The cube is centred on a candidate tool pose in front of the robot (the ``centres`` nearest the
-    median tool position of the candidates with x > 0 in the base frame, in turn) at that pose's
-    orientation, with the largest edge (halving from half the median distance of those candidates from
-    their median) whose five poses the nominal model reaches (and, with ``allowed``, a function of joints
-    (k, dof) -> (k,) bool, that it allows).
-    """
-    from .compensate import nominal_solution
-    T = model.fk(q_candidates)
-    front = T[:, 0, 3] > 0
-    T = T[front] if front.sum() >= 5 else T
-    qf = q_candidates[front] if front.sum() >= 5 else q_candidates
-    P = T[:, :3, 3]
-    dist = np.linalg.norm(P - np.median(P, axis=0), axis=1)
-    for c in np.argsort(dist)[:centres]:
-        side = 0.5 * np.median(dist)
-        for _ in range(5):
-            targets = np.tile(T[c], (5, 1, 1))
-            targets[:, :3, 3] = iso_cube_points(P[c], side)
-            q = nominal_solution(model, targets, seed=qf[c], tol_position=1e-7, tol_orientation=1e-7)
-            if np.allclose(model.fk(q), targets, atol=1e-6) and not model.out_of_limits(q).any() and \
-                    (allowed is None or allowed(q).all()):
-                return q, (f"ISO 9283 cube P1-P5, edge {side * 1e3:.0f} mm, centred at "
-                           f"[{', '.join(f'{v * 1e3:.0f}' for v in P[c])}] mm")
-            side /= 2.0
-    return None, ("ISO 9283 cube: no reachable cube found in front of the robot" +
-                  (" within the restrictions" if allowed is not None else ""))
-
-
 PROGRESS_STEPS = 1000  # the total of ``plan``'s progress
 
 
@@ -221,7 +190,7 @@ def plan(model: Mechanism, n: int, criterion="observability", candidates=2000, s
     """Choose ``n`` poses within the joint limits that maximise the criterion (see the module docstring).
 
     iso_joints : (k, dof) joints of an ISO 9283 cube campaign to compare with (default: built by
-    ``iso_cube_joints``). The random set's indices are the medians over ``random_draws`` seeded draws
+    ``accuracy.iso9283.iso_cube_joints``). The random set's indices are the medians over ``random_draws`` seeded draws
     of ``n`` candidates. workspace : a ``core.workspace.Workspace``: the candidates are drawn within its
     joint ranges until ``candidates`` pass its check or ``max_draws`` (default 10 x candidates) are drawn;
     ValueError with the counts when fewer than ``n`` pass. ``progress(done, PROGRESS_STEPS)`` is called as
@@ -316,7 +285,7 @@ def iso9283_campaign(model: Mechanism, q_poses, approach=None, directions=("+x",
     pre-pose's joints in ``via`` (the nominal model's inverse kinematics from the pose's own joints; ISO 9283
     multi-directional pose accuracy variation). ValueError naming the pose when a pre-pose is out of reach or of
     limits (or, with ``allowed``, a function of joints (k, dof) -> (k,) bool, not allowed)."""
-    from .compensate import nominal_solution
+    from ..models.ik import nominal_solution
     q_poses = np.asarray(q_poses, float)
     names = names or [f"P{i + 1}" for i in range(len(q_poses))]
     doc = campaign_dict(model, q_poses, f"{model.name}_iso9283", cycles, dwell, description)

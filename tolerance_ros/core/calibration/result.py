@@ -6,8 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .identification import BASE_NAMES, base_matrix
-from ..accuracy.targets import AtTarget, Targets
+from ..identification import BASE_NAMES, base_matrix
+from ..targets import AtTarget, Targets
 from ..models.base import Mechanism
 from .elastic import DeflectedChain, Load
 from .mechanism import calibrated_mechanism

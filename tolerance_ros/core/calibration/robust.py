@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .identification import FitOptions, Unknowns, base_matrix, identify
+from ..identification import FitOptions, Unknowns, base_matrix, identify
 from ..accuracy.checks import outliers
 from ..accuracy.registration import register
 from ..models.base import PRISMATIC, Mechanism

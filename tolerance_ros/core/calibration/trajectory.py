@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models.base import Mechanism
-from .compensate import LENGTH, Compensation, compensate, joint_jacobian
+from .compensate import Compensation, compensate
+from ..models.ik import LENGTH, joint_jacobian
 
 
 @dataclass

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .identification import base_matrix
+from ..identification import base_matrix
 from ..accuracy import checks
 from ..accuracy.verdicts import pose_errors
 from ..models.base import Mechanism

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models.base import ErrorJacobian, Mechanism, WrappedMechanism
+from .models.base import ErrorJacobian, Mechanism, WrappedMechanism
 
 MAX_OFFSET = 5.0  # m: a target farther from the tool frame is refused as a unit mistake
 

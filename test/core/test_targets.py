@@ -7,7 +7,7 @@ import pytest
 
 from tolerance_ros.core.accuracy.evaluation import evaluate_file
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure_targets
-from tolerance_ros.core.accuracy.targets import Targets, shift_jacobian
+from tolerance_ros.core.targets import Targets, shift_jacobian
 from tolerance_ros.core.geometry import transform
 from tolerance_ros.core.jsonio import dumps
 

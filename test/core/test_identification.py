@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from tolerance_ros.core.calibration.identification import FitOptions, Unknowns, identify
+from tolerance_ros.core.identification import FitOptions, Unknowns, identify
 from tolerance_ros.core.accuracy.registration import register
 from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
 from tolerance_ros.core.geometry import transform
@@ -53,7 +53,7 @@ def test_streaming_identification_is_the_same_result_as_the_batch_fit(gao, truth
     """The accumulator's one linearised step from the normal equations agrees with the batch Gauss-Newton
     fit on the same (position) data, with the same identifiability."""
     from tolerance_ros.core.accuracy.accumulator import AccuracyAccumulator
-    from tolerance_ros.core.calibration.identification import Identification
+    from tolerance_ros.core.identification import Identification
     delta, dx, q, T = truth
     Tb = register(gao.fk(q), T).to_base(T)
     batch = identify(gao, q, Tb, delta, FitOptions(sigma_position=1e-5))
@@ -71,7 +71,7 @@ def test_streaming_identification_is_the_same_result_as_the_batch_fit(gao, truth
 def test_dependent_parameters_keep_one_of_each_dependent_set():
     """Two equal parameter columns and one equal to a base column: QR pivoting keeps one of the pair,
     holds the other, and holds the one the base already explains; independent columns stay."""
-    from tolerance_ros.core.calibration.identification import dependent_parameters
+    from tolerance_ros.core.identification import dependent_parameters
     rng = np.random.default_rng(0)
     base = rng.standard_normal((60, 6))
     A = rng.standard_normal((60, 4))
@@ -86,7 +86,7 @@ def test_a_tall_jacobian_holds_the_same_columns_as_its_square_twin(seed):
     """The columns held depend only on the columns' inner products: a Jacobian of 3,000 rows (reduced first by
     an orthogonal transformation) holds exactly the columns its 30-row twin of the same geometry holds (taken as
     it is), ties of equal columns included."""
-    from tolerance_ros.core.calibration.identification import dependent_columns
+    from tolerance_ros.core.identification import dependent_columns
     rng = np.random.default_rng(seed)
     small = rng.standard_normal((30, 16))
     small[:, 3] = small[:, 1]                                   # a tie: equal columns
@@ -142,8 +142,8 @@ def test_every_column_of_the_fit_jacobian_matches_finite_differences():
     """Parameters, base correction, target points and rotations (measured frames) and compliances."""
     from helpers import example_urdf
     from tolerance_ros.core.models import URDFChain
-    from tolerance_ros.core.calibration.identification import _Layout, _stack, _targets_with, base_matrix
-    from tolerance_ros.core.accuracy.targets import Targets
+    from tolerance_ros.core.identification import _Layout, _stack, _targets_with, base_matrix
+    from tolerance_ros.core.targets import Targets
     from tolerance_ros.core.calibration.elastic import gravity_loads
     model = URDFChain(example_urdf("ur5_robot.urdf"), tip_link="tool0")
     rng = np.random.default_rng(1)
@@ -176,7 +176,7 @@ def _scipy_cost(model, q, T_base, ident, prior, targets, idx, gravity=None, cmas
     (tolerances 1e-15) on a residual written here from the model's forward kinematics alone (no Jacobian of
     ours): |measured point - B(x) T(q + g c, dx) X_k|^2 + prior @ x^2."""
     from scipy.optimize import least_squares
-    from tolerance_ros.core.calibration.identification import base_matrix
+    from tolerance_ros.core.identification import base_matrix
     p = model.n_params
     free = ident.free_columns
     x0 = ident.x.copy()
@@ -226,7 +226,7 @@ def test_identify_reaches_the_optimum_scipy_finds_on_a_dh_arm(gao, truth, regula
     prior = np.zeros(len(ident.x))
     if regularised:
         prior[:gao.n_params] = np.where(np.isinf(prior_std), 0.0, (1e-5 / prior_std) ** 2)
-    from tolerance_ros.core.accuracy.targets import Targets
+    from tolerance_ros.core.targets import Targets
     cost = _scipy_cost(gao, q, Tb, ident, prior, Targets.at_tool(), np.zeros(len(q), int))
     assert conv.cost == pytest.approx(cost, rel=1e-9)
     capped = identify(gao, q, Tb, prior_std, FitOptions(sigma_position=1e-5, iterations=1), hold="dependent",
@@ -239,10 +239,10 @@ def test_identify_reaches_the_optimum_scipy_finds_on_a_urdf_arm_with_targets_and
     """The FANUC URDF (origins at pitch +-pi/2), three reflectors fitted with the registration, a compliance per
     joint loaded by a point mass at the flange, a prior on the origin errors: scipy's minimum to 1e-9."""
     from pathlib import Path
-    from tolerance_ros.core.accuracy.targets import Targets
+    from tolerance_ros.core.targets import Targets
     from tolerance_ros.core.calibration.elastic import Load
     from tolerance_ros.core.models import URDFChain
-    model = URDFChain(Path(__file__).resolve().parents[2] / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf")
+    model = URDFChain(Path(__file__).resolve().parents[1] / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf")
     rng = np.random.default_rng(3)
     q = model.sample_joints(40, 4)
     dx = rng.normal(0, 2e-4, model.n_params)

@@ -17,9 +17,9 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from ..geometry import exp_so3, matrix_log_vec, rotation_error
-from ..models.base import ModelError
-from ..accuracy.targets import Targets, shift_jacobian
+from .geometry import exp_so3, matrix_log_vec, rotation_error
+from .models.base import ModelError
+from .targets import Targets, shift_jacobian
 
 BASE_NAMES = ("base.x", "base.y", "base.z", "base.rx", "base.ry", "base.rz")
 SCALE_WITHOUT_BUDGET = 1e-3  # column scale (m or rad) of parameters without a tolerance, and of the base
