@@ -805,3 +805,62 @@ def test_every_commands_help_prints(capsys, command):
     with pytest.raises(SystemExit) as done:
         build_parser().parse_args([command, "--help"])
     assert done.value.code == 0 and f"tolerance-ros {command}" in capsys.readouterr().out
+
+
+def test_report_exits_3_only_on_a_part_proven_out_and_names_it(capsys, tmp_path, gao):
+    """A part 10x its tolerance is proven out (exit 3, named, the rule in the header); the same arm without that
+    fault exits 0 with every part within or undecided; a rule that cannot be right is refused (exit 2)."""
+    from tolerance_ros.core.accuracy.io import Measurements, write_csv
+    from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.geometry import transform
+    delta = load_budget("gao2023_delta2", gao).vector_for(gao)
+    q = np.tile(gao.sample_joints(30, 4), (3, 1))
+    docs = {}
+    for name, fault in (("within", 0.0), ("faulty", 10 * delta[gao.param_names.index("a3")])):
+        dx = as_built_errors(delta, 5)
+        dx[gao.param_names.index("a3")] = fault or dx[gao.param_names.index("a3")]
+        T = measure(gao, q, dx, 1e-5, 1e-5, transform([1, 0, 0], [0, 0, 0.5]), seed=2)
+        path = write_csv(tmp_path / f"{name}.csv", Measurements(np.arange(90.0), T, q, gao.joint_names,
+                                                                 np.array([""] * 90, dtype=object), np.full(90, -1)))
+        code, out, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", path, "--budget",
+                             "gao2023_delta2", "--out", tmp_path / name)
+        docs[name] = (code, out, err, json.loads((tmp_path / name / "report.json").read_text()))
+    code, out, err, doc = docs["faulty"]
+    assert code == 3 and "FAILED: 1 part(s) decided out of tolerance" in err.strip().splitlines()[-1]
+    assert "a3" in err.splitlines()[-1] and "guarded:2" in err.splitlines()[-1]
+    groups = doc["identification"]["groups"]
+    a3 = next(g for g in groups["groups"] if g["parameters"][0] == "a3")
+    assert a3["decision"] == "out" and a3["unit"] == "m" and {"error", "std", "tolerance"} <= set(a3)
+    assert groups["rule"] == "guarded:2" and "2.3 %" in groups["rule_words"]
+    md = (tmp_path / "faulty" / "report.md").read_text()
+    assert "decision rule guarded:2" in md.split("## Registration")[0] and "| a3 | mm |" in md
+    code, out, err, doc = docs["within"]
+    assert code == 0, err
+    assert {g["decision"] for g in doc["identification"]["groups"]["groups"]} <= {"within", "undecided"}
+    code, _, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", tmp_path / "within.csv",
+                       "--budget", "gao2023_delta2", "--decision-rule", "guarded:0")
+    assert code == 2 and "--decision-rule" in err
+
+
+def test_calibrate_judges_the_parts_it_identifies_against_a_budget(capsys, tmp_path, gao):
+    """calibrate --budget: the same groups and rule as report; a part 10x its tolerance is decided out (exit 3,
+    named), its section in calibration.md, and the calibration is still written."""
+    from tolerance_ros.core.accuracy.io import Measurements, write_csv
+    from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.geometry import transform
+    delta = load_budget("gao2023_delta2", gao).vector_for(gao)
+    q = np.tile(gao.sample_joints(30, 4), (3, 1))
+    dx = as_built_errors(delta, 5)
+    dx[gao.param_names.index("d3")] = 10 * delta[gao.param_names.index("d3")]
+    T = measure(gao, q, dx, 1e-5, 1e-5, transform([1, 0, 0], [0, 0, 0.5]), seed=2)
+    path = write_csv(tmp_path / "m.csv", Measurements(np.arange(90.0), T, q, gao.joint_names,
+                                                      np.array([""] * 90, dtype=object), np.full(90, -1)))
+    code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", path, "--budget",
+                         "gao2023_delta2", "--parameters", "full", "--folds", "3", "--out", tmp_path / "cal", "--json")
+    assert code == 3 and "decided out of tolerance by the decision rule guarded:2: d3" in err.splitlines()[-1]
+    doc = json.loads(out)
+    assert [g["parameters"][0] for g in doc["budget"]["out_of_tolerance"]] == ["d3"]
+    assert (tmp_path / "cal" / "calibration.yaml").exists()
+    assert "## Against the budget gao2023_delta2" in (tmp_path / "cal" / "calibration.md").read_text()

@@ -88,6 +88,7 @@ def test_a_calibration_from_the_log_is_answered_and_put_in_force(gao, campaign, 
     ({"id": "b6", "log": "a\x00b.csv"}, "invalid_request", "holds a NUL byte"),
     ({"id": "b7", "log": "x" * 300 + ".csv"}, "invalid_request", "longer than a file name can be"),
     ({"id": "b8", "log": "/" + "d/" * 3000 + "m.csv"}, "invalid_request", "longer than a file name can be"),
+    ({"id": "b9", "decision_rule": "guarded:0"}, "invalid_request", "decision_rule: decision rule"),
 ])
 def test_bad_requests_are_refused_naming_the_field(campaign, req, code, message):
     out = Recorder()
@@ -192,3 +193,25 @@ def test_a_calibration_outside_the_envelope_is_answered_not_put_in_force(campaig
         assert (tmp_path / "e1" / "calibration.refused.yaml").exists() and not (tmp_path / "e1" / "calibration.yaml").exists()
     finally:
         svc.close()
+
+
+def test_the_parts_a_calibration_identifies_are_judged_against_the_nodes_budget(gao, campaign):
+    """With a budget in force, the answer judges each identified part (report's groups and decision rule); the arm
+    was built within delta_2, so no part is decided out; without a budget there is no such section."""
+    budget = load_budget("gao2023_delta2", gao)
+    for given, rid, rule in ((budget, "j1", None), (budget, "j2", "simple"), (None, "j3", None)):
+        out = Recorder()
+        svc = CalibrationService(RobotSet(["gao2023_7dof"], "gao2023_7dof"), out, current_log=lambda: str(campaign),
+                                 budget=lambda: given)
+        try:
+            svc.handle(json.dumps({"id": rid, "log": "current", **({"decision_rule": rule} if rule else {})}))
+            resp = wait(out, rid)
+        finally:
+            svc.close()
+        if given is None:
+            assert "budget" not in resp
+            continue
+        grp = resp["budget"]
+        assert grp["rule"] == (rule or "guarded:2") and grp["source"] == budget.source
+        assert not grp["out_of_tolerance"] and sum(grp["counts"].values()) == len(grp["groups"]) > 10
+        assert {g["decision"] for g in grp["groups"]} <= ({"within"} if rule else {"within", "undecided"})

@@ -47,6 +47,11 @@ def add_arguments(p):
     p.add_argument("--signing-key", metavar="PEM",
                    help="sign calibration.yaml with this Ed25519 private key (`tolerance-ros signing-key` makes one), "
                         "for nodes that trust only signed calibrations (parameter trusted_calibration_keys)")
+    p.add_argument("--budget", help="tolerance budget: judge each identified part against it (report's groups and "
+                                    "decision rule); exit 3 when a part is decided out")
+    p.add_argument("--decision-rule", default="guarded:2", metavar="guarded:K|simple",
+                   help="with --budget: how a part is judged (default guarded:2: out when |error| - K u > tolerance, "
+                        "within when |error| + K u <= tolerance, else undecided; simple: out when |error| > tolerance)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="write the calibrated robot file, calibration.yaml, calibration.md/.json and plots into DIR "
                         "(a calibration that is refused goes to calibration.refused.yaml, and no robot file)")
@@ -125,11 +130,16 @@ def run(args):
     files = write_files(args, model, cal, out, key)
     written = write_calibration_report(cal, out, files)
     files.update(report=written["report"], json=written["json"], plots=written["plots"])
+    budget = against_budget(args, model, cal, Path(written["report"]))
     if args.json:
         doc = cal.to_dict()
         doc["files"] = files
+        if budget is not None:
+            doc["budget"] = budget
         return doc
     print_calibration(cal, meas.source)
+    if budget is not None:
+        print_budget(budget)
     for f in dict.fromkeys(files[k] for k in ("robot", "urdf", "calibration", "refused", "report", "json")
                            if k in files):
         print(f"wrote {f}")
@@ -156,6 +166,46 @@ def write_files(args, model, cal, out, key) -> dict:
     if not cal.convergence.get("converged", True):
         missed(args, f"calibration: the fit {cal.convergence['words']}")
     return files
+
+
+def against_budget(args, model, cal, report):
+    """With ``--budget``: the identified parts judged against it (``conformity.judged``, the groups of each
+    estimated parameter and the held ones it absorbs), a section appended to the calibration's report; exit 3 when
+    a part is decided out. None without a budget."""
+    if not args.budget:
+        return None
+    from ..core.budget import load_budget
+    from ..core.conformity import DecisionRule, judged
+    from ..render.accuracy_report import budget_lines
+    try:
+        rule = DecisionRule.parse(args.decision_rule)
+    except ValueError as exc:
+        raise CLIError(f"--decision-rule: {exc}") from None
+    budget = load_budget(args.budget, model)
+    res = judged(cal.names, cal.kinds, cal.dx, cal.std, cal.held, cal.aliases, budget.vector_for(model), rule)
+    res["budget"] = args.budget
+    if "prior" in str(cal.model.get("label", "")):
+        res["note"] = ("the chosen fit is regularised: its prior pulls each estimate toward nominal, so a part out "
+                       "of tolerance may be decided within or undecided")
+    with report.open("a") as fh:
+        fh.write("\n".join(["", f"## Against the budget {res['budget']}", ""] + budget_lines(res)
+                           + (["", f"Note: {res['note']}."] if "note" in res else [])) + "\n")
+    out = [g["parameters"][0] for g in res["out_of_tolerance"]]
+    if out:
+        missed(args, f"{len(out)} part(s) decided out of tolerance by the decision rule {rule}: {', '.join(out)}")
+    return res
+
+
+def print_budget(res):
+    """The parts judged against the budget, as ``report`` prints them (out and undecided listed)."""
+    from ..render.accuracy_report import decision_counts, group_rows
+    print(f"\nagainst the budget {res['budget']}, {len(res['groups'])} identified parts: "
+          f"{decision_counts(res['counts'])}; {res['rule_words']}")
+    shown = [r for r, g in zip(group_rows(res["groups"]), res["groups"]) if g["decision"] in ("out", "undecided")]
+    if shown:
+        print(table(["group", "unit", "error", "u", "tolerance", "|error|/tol", "decision"], shown))
+    if "note" in res:
+        print(f"NOTE: {res['note']}")
 
 
 def run_contacts(args, model, opts, key):

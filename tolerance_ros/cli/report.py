@@ -23,6 +23,11 @@ def add_arguments(p):
                         "are left out of it and of the verdicts, and listed)")
     p.add_argument("--out", metavar="DIR", help="write report.md, plots, JSON and CSV into DIR")
     p.add_argument("--stream", action="store_true", help="constant memory for large CSV files (summary only)")
+    p.add_argument("--decision-rule", default="guarded:2", metavar="guarded:K|simple",
+                   help="how an identified part is judged against the budget (default guarded:2, ISO 14253-1 guarded "
+                        "acceptance and rejection: out when |error| - K u > tolerance, within when |error| + K u <= "
+                        "tolerance, else undecided; simple: out when |error| > tolerance). Exit 3 follows a part proven "
+                        "out")
 
 
 SKIPPED_SHOWN = 10  # skipped rows and records listed by `report` (--json lists them all)
@@ -33,7 +38,12 @@ def run(args):
     from ..core.accuracy.io import read_measurements
     from ..core.campaign import load_campaign
     from ..render.accuracy_report import write_report
+    from ..core.conformity import DecisionRule
     model = load_model(args)
+    try:
+        rule = DecisionRule.parse(args.decision_rule)
+    except ValueError as exc:
+        raise CLIError(f"--decision-rule: {exc}") from None
     budget = load_budget(args.budget, model) if args.budget else None
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     if args.stream:
@@ -42,8 +52,9 @@ def run(args):
             raise CLIError("--skip-bad: not available with --stream, which stops at the first bad row")
         if args.registration == "base+tool":
             raise CLIError("--stream: the tool offset needs all measurements at once; use --registration base")
-        res = stream_file(model, args.measurements, budget, campaign, registration=args.registration)
+        res = stream_file(model, args.measurements, budget, campaign, registration=args.registration, rule=rule)
         _over_limit(args, res["summary"])
+        _proven_out(args, res["summary"].get("identification"))
         if args.json:
             return res
         s = res["summary"]
@@ -52,8 +63,10 @@ def run(args):
               f"{s['position_error_m']['mean'] * 1e3:.4f} mm, max {s['position_error_m']['max'] * 1e3:.4f} mm")
         return None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
-    res = evaluate_file(model, meas, budget, campaign, registration=args.registration, robust=not args.no_robust)
+    res = evaluate_file(model, meas, budget, campaign, registration=args.registration, robust=not args.no_robust,
+                        rule=rule)
     _over_limit(args, res["summary"])
+    _proven_out(args, res.get("identification"))
     files = write_report(res, args.out, model, budget) if args.out else {}
     body = {k: v for k, v in res.items() if k != "rows"}
     body["files"] = files
@@ -96,16 +109,17 @@ def run(args):
         print(table(["pose", "n"] + [heads[k] for k in keys], rows))
     ident = res.get("identification")
     if ident and ident.get("groups") is not None:
-        from ..render.accuracy_report import group_text
+        from ..render.accuracy_report import decision_counts, group_rows
         grp = ident["groups"]
-        out = grp["out_of_tolerance"]
-        print(f"identification against the budget: {len(out)} of {len(grp['groups'])} groups out of tolerance "
-              f"(a group: an estimated parameter and the held ones it absorbs)"
-              + "".join(f"\n  {group_text(g)}: {g['error'] * 1e3:+.4f} against {g['tolerance'] * 1e3:.4f} "
-                        f"({g['ratio']:.2f}x; mm or mrad)" for g in out)
-              + (f"\n  absorbed by the registration (no campaign sees them): "
-                 f"{', '.join(grp['absorbed_by_registration'])}" if grp["absorbed_by_registration"] else "")
-              + (f"\n  not seen by these measurements: {', '.join(grp['not_seen'])}" if grp["not_seen"] else ""))
+        print(f"identification against the budget, {len(grp['groups'])} groups (an estimated parameter and the held "
+              f"ones it absorbs): {decision_counts(grp['counts'])}; {grp['rule_words']}")
+        shown = [r for r, g in zip(group_rows(grp["groups"]), grp["groups"]) if g["decision"] in ("out", "undecided")]
+        if shown:
+            print(table(["group", "unit", "error", "u", "tolerance", "|error|/tol", "decision"], shown))
+        if grp["absorbed_by_registration"]:
+            print(f"absorbed by the registration (no campaign sees them): {', '.join(grp['absorbed_by_registration'])}")
+        if grp["not_seen"]:
+            print(f"not seen by these measurements: {', '.join(grp['not_seen'])}")
     elif ident:
         print(f"identification: without a budget no parameter is judged; rank {ident.get('rank')} of "
               f"{ident.get('unknowns')} unknowns")
@@ -119,3 +133,15 @@ def _over_limit(args, summary):
     if n:
         what = "; ".join(f"{v} over the {k}" for k, v in summary["exceeded"].items() if "limit" in k and v)
         missed(args, f"{n} of {summary['measurements']} measurements over the design limit ({what})")
+
+
+def _proven_out(args, ident):
+    """Exit 3 when the identification proves a part out of its tolerance (by the decision rule), naming them."""
+    if not ident:
+        return
+    grp = ident.get("groups")
+    out = [("+".join(g["parameters"]) if len(g["parameters"]) > 1 else g["parameters"][0]) for g in grp["groups"]
+           if g["decision"] == "out"] if grp else [o["name"] for o in ident.get("out_of_tolerance", [])]
+    if out:
+        rule = grp["rule"] if grp else ident.get("decision_rule")
+        missed(args, f"{len(out)} part(s) decided out of tolerance by the decision rule {rule}: {', '.join(out)}")

@@ -5,7 +5,8 @@ nonlinear model, positions and optionally orientations) and for the streaming on
 (``identify_from_normal_equations``: one regularised least-squares step from normal equations that
 were accumulated in constant memory, positions only). Both use the prior ``N(0, delta^2)`` of the
 tolerances when a budget is given (a weak ridge otherwise), judge identifiability from the singular
-values of the column-scaled Jacobian, and list the identifiable parameters outside their tolerance.
+values of the column-scaled Jacobian, and list the identifiable parameters proven out of their tolerance (by a
+``conformity.DecisionRule``, guarded by the estimate's uncertainty).
 For a calibration, ``identify(..., hold="dependent")`` holds a minimal set of dependent parameters at
 nominal (chosen by QR with column pivoting, ``dependent_parameters``) so that the others are
 estimated without a prior, and ``noise_from_residuals`` scales their covariance by the residual noise.
@@ -17,6 +18,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
+from .conformity import DEFAULT_RULE, DecisionRule
 from .geometry import exp_so3, matrix_log_vec, rotation_error
 from .models.base import ModelError
 from .targets import Targets, shift_jacobian
@@ -34,7 +36,8 @@ class Identification:
     held parameters it absorbs, ``{name: {held: c}}`` with ``estimate = own error + sum c * held error``
     to first order (SI ratios, at nominal); ``sigma`` is the position noise (m) that scales the
     covariance (estimated from the residuals when asked); ``fit_condition`` is the condition number of
-    the column-scaled Jacobian of the estimated unknowns (parameters and base).
+    the column-scaled Jacobian of the estimated unknowns (parameters and base); ``out_of_tolerance`` the
+    identifiable parameters decided out by the rule ``decision_rule`` (with a budget).
     """
 
     names: tuple
@@ -50,6 +53,7 @@ class Identification:
     iterations: int
     method: str = "gauss-newton"
     out_of_tolerance: list = field(default_factory=list)
+    decision_rule: str | None = None
     held: list = field(default_factory=list)
     aliases: dict = field(default_factory=dict)
     sigma: float | None = None
@@ -77,7 +81,8 @@ class Identification:
                 "base_correction": dict(zip(BASE_NAMES, map(float, self.base))), "rank": self.rank,
                 "unknowns": self.n_unknowns, "condition": self.condition, "unidentifiable": self.unidentifiable,
                 "residual_rms_before_m": self.residual_rms_before, "residual_rms_after_m": self.residual_rms_after,
-                "iterations": self.iterations, "out_of_tolerance": self.out_of_tolerance, "held": self.held,
+                "iterations": self.iterations, "out_of_tolerance": self.out_of_tolerance,
+                "decision_rule": self.decision_rule, "held": self.held,
                 "aliases": self.aliases, "sigma_m": self.sigma, "fit_condition": self.fit_condition,
                 "convergence": None if self.convergence is None else self.convergence.to_dict(),
                 "undetermined": dict(self.undetermined)}
@@ -308,7 +313,8 @@ def _aliases(Js, free, held, scale, names, tol=1e-6) -> dict:
     return out
 
 
-def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iterations, method, estimate_base=True):
+def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iterations, method, estimate_base=True,
+            rule: DecisionRule = DEFAULT_RULE):
     p = model.n_params
     names = tuple(model.param_names) + BASE_NAMES
     zero_effect = set(np.setdiff1d(np.arange(p + 6), cols).tolist())
@@ -320,12 +326,15 @@ def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iteratio
                            rms0, rms1, iterations, method)
     if delta is not None:
         d = np.asarray(delta, float)
+        decided = rule.decide(ident.dx, ident.std, d)
         for j, n in enumerate(model.param_names):
-            if n in unident or d[j] <= 0 or abs(ident.dx[j]) <= d[j]:
+            if n in unident or d[j] <= 0 or decided[j] != "out":
                 continue
             ident.out_of_tolerance.append({"name": n, "error": float(ident.dx[j]), "tolerance": float(d[j]),
-                                           "ratio": float(abs(ident.dx[j]) / d[j]), "std": float(ident.std[j])})
+                                           "ratio": float(abs(ident.dx[j]) / d[j]), "std": float(ident.std[j]),
+                                           "decision": "out"})
         ident.out_of_tolerance.sort(key=lambda o: -o["ratio"])
+        ident.decision_rule = str(rule)
     return ident
 
 
@@ -508,7 +517,7 @@ class Unknowns:
 
 def identify(model, q, T_meas, delta=None, options: FitOptions | None = None, unknowns: Unknowns | None = None, *,
              hold=None, noise_from_residuals=False, weights=None, start=None, analysis=True,
-             tol_rank=1e-6) -> Identification:
+             tol_rank=1e-6, rule: DecisionRule = DEFAULT_RULE, clusters=None) -> Identification:
     """Estimate parameter errors dx (and a base correction) from measured base-frame poses (n, 4, 4).
 
     Levenberg-Marquardt on the nonlinear model until converged (``Convergence``: the step and gradient
@@ -534,7 +543,10 @@ def identify(model, q, T_meas, delta=None, options: FitOptions | None = None, un
     nominal, then at the solution among the
     columns still free (refitted when the solution shows more); a list of names holds those. With
     ``noise_from_residuals`` the covariance is scaled by the residual noise ``|r|^2 / (rows - effective
-    unknowns)`` instead of ``sigma_position^2`` (the prior, if any, is kept).
+    unknowns)`` instead of ``sigma_position^2`` (the prior, if any, is kept); with ``clusters`` (n,), the group of
+    each measurement (the visits of one test pose), by the larger of that and the noise of the groups' means
+    (``cluster_noise``): an error the model lacks at a pose (backlash, a deflection) repeats at every visit of it
+    and is not averaged away by the visits.
     """
     o, u = options or FitOptions(), unknowns or Unknowns()
     sigma_position, sigma_orientation, iterations = o.sigma_position, o.sigma_orientation, o.iterations
@@ -614,6 +626,8 @@ def identify(model, q, T_meas, delta=None, options: FitOptions | None = None, un
             raise ValueError(f"identification: {rows_used} residuals for {len(free)} unknowns; the noise cannot be "
                              f"estimated (measure more poses)")
         noise = float(np.sqrt(r @ r / dof))
+        if clusters is not None:
+            noise = max(noise, cluster_noise(r, rows_used // max(int(np.count_nonzero(w)), 1), clusters, w, edf))
     cov = np.zeros((layout.n, layout.n))
     cov[np.ix_(free, free)] = Hinv * np.outer(sf, sf) * noise ** 2
     cols = np.flatnonzero(np.linalg.norm(Js0, axis=0) > 0)
@@ -624,7 +638,7 @@ def identify(model, q, T_meas, delta=None, options: FitOptions | None = None, un
     else:
         rank, cond, weight = 0, float("nan"), np.zeros(layout.n)
     ident = _result(model, x[main], cov[np.ix_(main, main)], rank, cond, weight[main], cols[cols < p + 6], delta,
-                    rms0, float(np.sqrt(r @ r / rows_used)), conv.iterations, "gauss-newton", estimate_base)
+                    rms0, float(np.sqrt(r @ r / rows_used)), conv.iterations, "gauss-newton", estimate_base, rule)
     ident.x = x
     ident.free_columns = free
     ident.convergence = conv
@@ -690,6 +704,20 @@ def _unknown_names(model, layout) -> list:
     return names
 
 
+def cluster_noise(r, rows, clusters, weights, edf) -> float:
+    """Noise (m) of the residuals ``r`` (n * rows,) seen through the means of their measurements' groups
+    ``clusters`` (n,): ``sqrt(sum_g n_g |mean_g|^2 / (G rows - edf))`` over the G groups of the measurements
+    with a weight (a random effect per group: sigma^2 + n_g tau^2 in expectation, sigma^2 where the visits
+    differ by noise only); 0 when the groups leave no degree of freedom."""
+    keep = np.asarray(weights) > 0
+    R = np.asarray(r, float).reshape(-1, rows)[keep]
+    _, inv, cnt = np.unique(np.asarray(clusters)[keep], return_inverse=True, return_counts=True)
+    sums = np.zeros((len(cnt), rows))
+    np.add.at(sums, inv, R)
+    dof = len(cnt) * rows - edf
+    return float(np.sqrt(np.sum(sums ** 2 / cnt[:, None]) / dof)) if dof >= 1 else 0.0
+
+
 def _undetermined(names, free, cov, prior, scale, sigma_position, noise, layout) -> dict:
     """{name: reason} of the estimated parameters and compliances the data cannot tell: set by the prior (its
     posterior std above ``PRIOR_SHARE`` of the prior's), or a near-copy of another unknown (posterior
@@ -729,7 +757,7 @@ def _compliance_scale(gravity, layout) -> np.ndarray:
 
 
 def identify_from_normal_equations(model, JtJ, Jtr, rtr, rows, delta=None, sigma_position=1e-5,
-                                   tol_rank=1e-6) -> Identification:
+                                   tol_rank=1e-6, rule: DecisionRule = DEFAULT_RULE, clusters=None) -> Identification:
     """One regularised least-squares step from accumulated normal equations (``J^T J``, ``J^T r``,
     ``r^T r`` over ``rows`` residuals, unknowns [dx; base], position rows, at the nominal parameters);
     see ``identify``."""
@@ -746,4 +774,4 @@ def identify_from_normal_equations(model, JtJ, Jtr, rtr, rows, delta=None, sigma
     rank, cond, weight = _identifiability(np.sqrt(np.maximum(lam, 0.0)), V, cols, p + 6, tol_rank)
     rss_after = max(rtr - 2.0 * x @ Jtr + x @ JtJ @ x, 0.0)
     return _result(model, x, cov, rank, cond, weight, cols, delta, float(np.sqrt(rtr / rows)),
-                   float(np.sqrt(rss_after / rows)), 1, "linearised")
+                   float(np.sqrt(rss_after / rows)), 1, "linearised", rule=rule)

@@ -136,7 +136,7 @@ class AccuracyMonitor(Node):
         self.calibrator = CalibrationService(self.robots, self.calibrate_outbox, self.current_log,
                                              save_dir=self.log_dir / "calibrations", log_dir=self.log_dir,
                                              made_by=self.get_fully_qualified_name(), envelope=self.gate.envelope,
-                                             signing_key=self.signing_key)
+                                             signing_key=self.signing_key, budget=self.current_budget)
         self.calibrate_pubs = {"response": self.create_publisher(String, f"{CALIBRATE_TOPIC}/response",
                                                                  SERVICE_RESPONSE_QOS),
                                "progress": self.create_publisher(String, f"{CALIBRATE_TOPIC}/progress",
@@ -307,6 +307,10 @@ class AccuracyMonitor(Node):
                 marker.text = m.get("text", "")
             out.markers.append(marker)
         self.marker_pub.publish(out)
+
+    def current_budget(self):
+        """The budget in force (the calibrate service judges the parts it identifies against it), or None."""
+        return None if self.logic is None else self.logic.budget
 
     def current_log(self):
         """The campaign log being written (what a calibrate request's ``"log": "current"`` means)."""

@@ -103,7 +103,11 @@ def markdown(res, model, budget, files) -> str:
     s = res["summary"]
     L = [f"# Accuracy report: {model.name}", "", f"Measurements: {res['measurements']} from `{res['source']}`"
          + (f"; {len(res['skipped_rows'])} measurements skipped (each with its reason in report.json)" if res["skipped_rows"] else ""),
-         "", "## Registration", "", _registration_line(res["registration"]), ""]
+         ""]
+    ident = res.get("identification") or {}
+    if budget is not None and ident.get("groups"):
+        L += [f"Parts are judged against the budget by the {ident['groups']['rule_words']}.", ""]
+    L += ["## Registration", "", _registration_line(res["registration"]), ""]
     pe = s["position_error_m"]
     oe = s.get("orientation_error_rad")
     L += ["## Errors (base frame, after registration, at each measured target)", "",
@@ -147,43 +151,65 @@ def markdown(res, model, budget, files) -> str:
               ""]
         if ident.get("unidentifiable"):
             L += [f"Not separable from others with these poses: {', '.join(ident['unidentifiable'])}.", ""]
-        oot = ident.get("out_of_tolerance", [])
-        if oot:
-            L += ["Out of tolerance:", "", "| parameter | identified | tolerance | ratio |", "|---|---|---|---|"]
-            for o in oot:
-                unit, sc = ("mm", 1e3) if model.param_kinds[model.param_names.index(o["name"])] == "length" else ("mrad", 1e3)
-                L.append(f"| {o['name']} | {o['error'] * sc:+.4f} {unit} | {o['tolerance'] * sc:.4f} {unit} | "
-                         f"{o['ratio']:.2f} |")
-            L.append("")
-        elif budget is not None:
-            L += ["No identifiable parameter is out of tolerance.", ""]
         grp = ident.get("groups")
+        oot = ident.get("out_of_tolerance", [])
         if grp:
-            L += ["### What the data can see, against the budget", "",
-                  "Each estimated parameter measures itself plus the held parameters it absorbs (to first order); "
-                  "the group's tolerance is the worst case of its members' tolerances, so that a fault in any of "
-                  "them shows.", "", "| group | error | tolerance | ratio | |", "|---|---|---|---|---|"]
-            for g in grp["groups"]:
-                L.append(f"| {group_text(g)} | {g['error'] * 1e3:+.4f} | {g['tolerance'] * 1e3:.4f} | "
-                         f"{g['ratio']:.2f} | {'OUT' if g['out'] else ''} |")
-            L += ["", "(errors and tolerances in mm for a length first member, mrad for an angle one)"]
+            L += ["### What the data can see, against the budget", ""] + budget_lines(grp)
             if grp.get("absorbed_by_registration"):
                 L += ["", "Absorbed by the registration (no campaign sees them): "
                       + ", ".join(grp["absorbed_by_registration"]) + "."]
             if grp.get("not_seen"):
                 L += ["", "Not seen by these measurements: " + ", ".join(grp["not_seen"]) + "."]
             L.append("")
+        elif oot:
+            L += [f"Proven out of tolerance (decision rule {ident.get('decision_rule')}):", "",
+                  "| parameter | identified | u | tolerance | ratio |", "|---|---|---|---|---|"]
+            for o in oot:
+                unit = "mm" if model.param_kinds[model.param_names.index(o["name"])] == "length" else "mrad"
+                L.append(f"| {o['name']} | {o['error'] * 1e3:+.4f} {unit} | {o['std'] * 1e3:.4f} {unit} | "
+                         f"{o['tolerance'] * 1e3:.4f} {unit} | {o['ratio']:.2f} |")
+            L.append("")
+        elif budget is not None:
+            L += [f"No identifiable parameter is proven out of tolerance (decision rule "
+                  f"{ident.get('decision_rule')}).", ""]
     if files.get("plots"):
         L += ["## Plots", ""] + [f"![{Path(p).stem}]({Path(p).name})" for p in files["plots"]] + [""]
     return "\n".join(L)
 
 
+def budget_lines(grp) -> list:
+    """Markdown lines of the parts judged against a budget (``conformity.judged``): the rule, the counts and one
+    table row per group."""
+    return ["Each estimated parameter measures itself plus the held parameters it absorbs (to first order); the "
+            "group's tolerance is the worst case of its members' tolerances, so that a fault in any of them shows. "
+            f"Its decision accounts for the estimate's standard uncertainty: {grp['rule_words']}.", "",
+            "Decisions: " + decision_counts(grp["counts"]) + ".", "",
+            "| group | unit | error | u | tolerance | abs(error)/tolerance | decision |", "|---|---|---|---|---|---|---|"] \
+        + ["| " + " | ".join(r) + " |" for r in group_rows(grp["groups"])]
+
+
+def decision_counts(counts: dict) -> str:
+    """'1 out, 2 undecided, 17 within, 2 free' (the decisions that occur)."""
+    return ", ".join(f"{n} {k}" for k, n in counts.items() if n) or "none"
+
+
+def group_rows(groups) -> list:
+    """[[group, unit, error, u, tolerance, ratio, decision]] of ``conformity.parameter_groups``, in mm or mrad by
+    the group's first member; a part the budget leaves free has tolerance 'free'."""
+    rows = []
+    for g in groups:
+        unit = "mm" if g["unit"] == "m" else "mrad"
+        free = not np.isfinite(g["tolerance"])
+        rows.append([group_text(g), unit, f"{g['error'] * 1e3:+.4f}", f"{g['std'] * 1e3:.4f}",
+                     "free" if free else f"{g['tolerance'] * 1e3:.4f}",
+                     "-" if free or not np.isfinite(g["ratio"]) else f"{g['ratio']:.2f}", g["decision"]])
+    return rows
+
+
 def group_text(group) -> str:
-    """'a6 - 0.09112 x theta6': a group's combination (coefficients in SI ratios)."""
+    """'a6 - 0.09112 x theta6': a group's combination of the members that matter (coefficients in SI ratios)."""
     parts = []
-    for k, (name, c) in enumerate(group["coefficients"].items()):
-        if k == 0:
-            parts.append(name)
-        else:
-            parts.append(f"{'-' if c < 0 else '+'} {abs(c):.4g} x {name}")
+    for k, name in enumerate(group["parameters"]):
+        c = group["coefficients"][name]
+        parts.append(name if k == 0 else f"{'-' if c < 0 else '+'} {abs(c):.4g} x {name}")
     return " ".join(parts)

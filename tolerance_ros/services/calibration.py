@@ -46,6 +46,7 @@ from ..core.accuracy.io.contact_csv import is_contact_campaign, read_contact_cam
 from ..core.calibration.calibrate import MODELS, PRIOR, FitOptions, calibrate_measurements
 from ..core.calibration.envelope import Envelope
 from ..core.calibration.provenance import file_sha256, new_provenance
+from ..core.conformity import DEFAULT_RULE, DecisionRule, judged
 from ..core.calibration.calibration_file import SI, calibration_text
 from ..core.models.base import Mechanism
 from ..core.yamlio import loads_yaml
@@ -57,7 +58,8 @@ FIELDS = {"command": ((str,), False), "robot": ((str,), False), "log": ((str,), 
           "registration": ((str,), False), "parameters": ((str,), False), "prior": ((list, type(None)), False),
           "noise": ((int, float), False), "orientation_noise": ((int, float, type(None)), False),
           "folds": ((int,), False), "seed": ((int,), False), "robust": ((bool,), False),
-          "time_limit": ((int, float), False), "target": ((str, int), False), "targets": ((dict,), False)}
+          "time_limit": ((int, float), False), "target": ((str, int), False), "targets": ((dict,), False),
+          "decision_rule": ((str,), False)}
 PARAMETERS = ("auto",) + MODELS
 
 
@@ -80,6 +82,7 @@ class CalibrationJob:
     robust: bool = True
     time_limit_s: float = DEFAULT_TIME_LIMIT_S
     targets: dict | None = None     # contact logs: {target: (3,) m in the tool frame}, beside the logged ones
+    rule: DecisionRule = DEFAULT_RULE  # how each identified part is judged against the node's budget
 
 
 MAX_NAME_CHARS = 255     # characters of one part of a log's path (the file systems' own limit)
@@ -165,7 +168,14 @@ def parse_calibrate_request(text, robots, limits: Limits, current_log=None, max_
                           None if onoise is None else number(onoise, "orientation_noise", 1e-12, 1.0),
                           int(number(req.get("folds", 10), "folds", 2, 100, integer=True)),
                           int(number(req.get("seed", 0), "seed", 0, 2 ** 31, integer=True)),
-                          bool(req.get("robust", True)), time_limit, targets)
+                          bool(req.get("robust", True)), time_limit, targets, _rule(req.get("decision_rule", "guarded:2")))
+
+
+def _rule(text) -> DecisionRule:
+    try:
+        return DecisionRule.parse(text)
+    except ValueError as exc:
+        raise ContractError("invalid_request", f"decision_rule: {exc}") from None
 
 
 def run_calibration(job: CalibrationJob, progress=None, made_by="tolerance_ros calibrate service", snapshot=None):
@@ -248,8 +258,9 @@ class CalibrationService(JobService):
 
     def __init__(self, robots, emit, current_log=None, limits: Limits | None = None, max_queue: int = 2,
                  save_dir=None, max_time_limit_s: float = MAX_TIME_LIMIT_S, log_dir=None,
-                 made_by="tolerance_ros calibrate service", envelope: Envelope | None = None, signing_key=None):
-        self.robots, self.current_log, self.save_dir = robots, current_log, save_dir
+                 made_by="tolerance_ros calibrate service", envelope: Envelope | None = None, signing_key=None,
+                 budget=None):
+        self.robots, self.current_log, self.save_dir, self.budget = robots, current_log, save_dir, budget
         self.limits = limits or Limits(max_bytes=100_000)
         self.max_time_limit_s = max_time_limit_s
         self.log_dir, self.made_by, self.envelope, self.signing_key = log_dir, made_by, envelope, signing_key
@@ -275,6 +286,11 @@ class CalibrationService(JobService):
             raise ContractError("infeasible", f"the log cannot be calibrated: {exc}") from None
         except OSError as exc:
             raise ContractError("infeasible", f"the log cannot be read or copied: {exc}") from None
+        budget = self.budget() if self.budget else None
+        if budget is not None:
+            resp["budget"] = {"source": budget.source, **judged(cal.names, cal.kinds, cal.dx, cal.std, cal.held,
+                                                                 cal.aliases, budget.vector_for(job.mechanism),
+                                                                 job.rule)}
         if self.envelope is not None:
             resp["envelope"] = self.envelope.check(cal, job.mechanism)
             if not resp["envelope"]["ok"]:

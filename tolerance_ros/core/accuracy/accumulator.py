@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import criterion_bound
+from ..conformity import DEFAULT_RULE, DecisionRule
 from ..identification import base_jacobian, identify_from_normal_equations
 from .iso9283 import pose_characteristics
 from .registration import to_base_frame
@@ -202,7 +203,8 @@ class AccuracyAccumulator:
             out.update({self._key(n, k): T[i] for i, n in enumerate(self.campaign_names)})
         return out
 
-    def summary(self, sigma_position=1e-5) -> dict:
+    def summary(self, sigma_position=1e-5, rule: DecisionRule = DEFAULT_RULE) -> dict:
+        """The figures so far (SI); the linearised identification's parts decided by ``rule``."""
         out = {"measurements": self.n, "verdicts": dict(self.counts), "exceeded": dict(self.exceeded),
                "position_error_m": self.position.to_dict(),
                "orientation_error_rad": self.orientation_stats.to_dict() if self.orientation else None,
@@ -217,10 +219,10 @@ class AccuracyAccumulator:
                 entry.update(pose_characteristics(cmd[name], np.array(samples), self.orientation).to_dict())
             out["test_poses"][name] = entry
         if self.identify and self.rows:
-            out["identification"] = self.linear_identification(sigma_position).to_dict()
+            out["identification"] = self.linear_identification(sigma_position, rule).to_dict()
         return out
 
-    def linear_identification(self, sigma_position=1e-5):
+    def linear_identification(self, sigma_position=1e-5, rule: DecisionRule = DEFAULT_RULE):
         """Identification from the accumulated normal equations (see ``identification``)."""
         return identify_from_normal_equations(self.model, self.JtJ, self.Jtr, self.rtr, self.rows, self.delta,
-                                              sigma_position)
+                                              sigma_position, rule=rule)

@@ -7,6 +7,7 @@ import numpy as np
 
 from ..ingest import IngestError, JointOrder
 from . import checks
+from ..conformity import DEFAULT_RULE, DecisionRule, judged
 from .accumulator import AccuracyAccumulator
 from ..identification import FitOptions, Unknowns, identify
 from .io import MeasurementError, read_csv
@@ -18,7 +19,8 @@ IDENTIFY_MAX = 20000  # up to this many measurements the nonlinear identificatio
 
 
 def evaluate_file(model, meas, budget=None, campaign=None, registration="base", keep_rows=True,
-                  sigma_position=1e-5, sigma_orientation=None, robust=True, identification=True) -> dict:
+                  sigma_position=1e-5, sigma_orientation=None, robust=True, identification=True,
+                  rule: DecisionRule = DEFAULT_RULE) -> dict:
     """Evaluate measurements (see the module docstring), after the checks of ``checks``: a length unit that
     cannot be right, a joint column out of range, the wrong campaign or a registered residual no robot
     error explains are refused (``checks.CheckError``); rows beyond the joint limits are listed in
@@ -30,7 +32,8 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     Every error is taken at the measured target; measurements without orientation get no orientation
     figure. ``warnings`` names what the verdict should be read with (measurements in another frame than the
     one claimed, a target offset the registration does not fit, poses the campaign does not have).
-    ``identification`` False: none (a caller that needs only the registered rows).
+    ``identification`` False: none (a caller that needs only the registered rows). ``rule``: the decision rule
+    of the identified parts against the budget (``conformity``).
     """
     if len(meas) == 0:
         raise MeasurementError(f"{meas.source}: no measurements")
@@ -99,7 +102,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     out = {"source": meas.source, "robot": model.name, "measurements": len(q), "skipped_rows": meas.skipped,
            "orientation_measured": bool(meas.has_orientation), "targets": list(reg.targets.names),
            "registration": {"method": method, **reg.to_dict(), "left_out": not_registered},
-           "summary": acc.summary(sigma_position),
+           "summary": acc.summary(sigma_position, rule),
            "warnings": warnings, "notes": notes, "left_out": left_out}
     T_base = reg.to_base(meas.T)
     if campaign is not None:
@@ -110,11 +113,11 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     if identification and len(q) <= IDENTIFY_MAX:
         ori = sigma_orientation if meas.has_orientation else None
         ident = identify(model, q, T_base, delta, FitOptions(sigma_position=sigma_position, sigma_orientation=ori),
-                         Unknowns(targets=reg.targets, target_index=idx))
+                         Unknowns(targets=reg.targets, target_index=idx), rule=rule)
         out["identification"] = ident.to_dict()
         if delta is not None:
             out["identification"]["groups"] = aliased_groups(model, q, T_base, delta, sigma_position, ori, reg.targets,
-                                                             idx)
+                                                             idx, rule, _groups(q, labels))
     elif identification:
         out["identification"] = out["summary"].pop("identification", None)
     if keep_rows:
@@ -130,40 +133,28 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
 
 
 def aliased_groups(model, q, T_base, delta, sigma_position=1e-5, sigma_orientation=None, targets=None,
-                   target_index=None) -> dict:
-    """What the data can see of each parameter, against the budget: the fit without a prior that holds a minimal
-    set of dependent parameters at nominal; each estimated parameter j measures the combination
-    ``e_j + sum_h c_h e_h`` of itself and the held parameters it absorbs (``Identification.aliases``), whose
-    tolerance is ``delta_j + sum_h |c_h| delta_h`` (the worst case of the group; a held parameter whose
-    tolerance moves the group by less than 1 % of its own is left out of it). A fault in a held parameter
-    shows in its group, or is absorbed by the registration's base frame. SI.
+                   target_index=None, rule: DecisionRule = DEFAULT_RULE, visits=None) -> dict:
+    """What the data can see of each parameter, against the budget, and what it decides: the fit without a prior
+    that holds a minimal set of dependent parameters at nominal, its covariance scaled by the residual noise; each
+    estimated parameter measures the combination of itself and the held parameters it absorbs
+    (``conformity.parameter_groups``), decided within, out or undecided by ``rule`` from its estimate and
+    standard uncertainty (the noise the larger of the measurements' and of the means of the visits of each test
+    pose, ``visits`` (n,) their group: an error the model lacks repeats at every visit). A fault in a held
+    parameter shows in its group, or is absorbed by the registration's base frame. SI.
 
-    Keys: ``groups`` [{parameters: [names], coefficients {name: c}, error, std, tolerance, ratio, out}], largest
-    ratio first; ``out_of_tolerance``: the groups over their tolerance; ``absorbed_by_registration``: the held
+    Keys: those of ``conformity.judged`` (groups, rule, rule_words, counts, out_of_tolerance);
+    ``absorbed_by_registration``: the held
     parameters the base correction absorbs (a registration takes them: no campaign sees them); ``not_seen``: the
     held parameters these measurements do not see at all (no effect on what was measured).
     """
     ident = identify(model, q, T_base, None, FitOptions(sigma_position=sigma_position,
                                                         sigma_orientation=sigma_orientation),
-                     Unknowns(targets=targets, target_index=target_index), hold="dependent", noise_from_residuals=True)
-    names = list(model.param_names)
-    d = np.asarray(delta, float)
-    groups = []
-    for j, name in enumerate(names):
-        if name in ident.held:
-            continue
-        # a held parameter belongs to the group when its tolerance can move the group by 1 % of its own
-        coef = {name: 1.0, **{h: c for h, c in ident.aliases.get(name, {}).items()
-                              if abs(c) * d[names.index(h)] >= 0.01 * d[j]}}
-        tol = float(sum(abs(c) * d[names.index(h)] for h, c in coef.items()))
-        err, std = float(ident.dx[j]), float(ident.std[j])
-        groups.append({"parameters": list(coef), "coefficients": coef, "error": err, "std": std, "tolerance": tol,
-                       "ratio": abs(err) / tol if tol > 0 else float("inf"), "out": bool(abs(err) > tol)})
-    groups.sort(key=lambda g: -g["ratio"])
+                     Unknowns(targets=targets, target_index=target_index), hold="dependent", noise_from_residuals=True,
+                     clusters=visits)
+    out = judged(model.param_names, model.param_kinds, ident.dx, ident.std, ident.held, ident.aliases, delta, rule)
     base = {h for b, a in ident.aliases.items() if b.startswith("base.") for h, c in a.items() if abs(c) > 1e-6}
-    grouped = {h for g in groups for h in g["parameters"]}
-    return {"groups": groups, "out_of_tolerance": [g for g in groups if g["out"]],
-            "absorbed_by_registration": [h for h in ident.held if h in base],
+    grouped = {h for g in out["groups"] for h in g["parameters"]}
+    return {**out, "absorbed_by_registration": [h for h in ident.held if h in base],
             "not_seen": [h for h in ident.held if h not in base and h not in grouped]}
 
 
@@ -211,9 +202,11 @@ def frame_warnings(T_tool, meas, idx, names, reg) -> list:
     return []
 
 
-def stream_file(model, path, budget=None, campaign=None, chunk_rows=5000, registration="base") -> dict:
+def stream_file(model, path, budget=None, campaign=None, chunk_rows=5000, registration="base",
+                rule: DecisionRule = DEFAULT_RULE) -> dict:
     """Constant-memory evaluation of a large CSV file of one target: pass 1 registers the base (position
-    sums), pass 2 feeds the accumulator chunk by chunk. Identification is the linearised one."""
+    sums), pass 2 feeds the accumulator chunk by chunk. Identification is the linearised one, its parts decided
+    by ``rule``."""
     T_tb = np.eye(4)
     if registration == "base":
         kab = KabschAccumulator()
@@ -233,7 +226,7 @@ def stream_file(model, path, budget=None, campaign=None, chunk_rows=5000, regist
         acc.add(m.T, measurement_joints(model, m, campaign), labels)
         skipped += m.skipped
     return {"source": str(path), "robot": model.name, "measurements": acc.n, "skipped_rows": skipped,
-            "orientation_measured": acc.orientation, "T_tracker_base": T_tb, "summary": acc.summary()}
+            "orientation_measured": acc.orientation, "T_tracker_base": T_tb, "summary": acc.summary(rule=rule)}
 
 
 def _one_target(m):

@@ -1,0 +1,126 @@
+"""Decisions of conformity: is an estimated part error within its tolerance, out of it, or not decided by
+the data, given the estimate's standard uncertainty (in the manner of ISO 14253-1 and ILAC-G8).
+
+Rules (``DecisionRule.parse``):
+
+- ``guarded:K`` (default K = 2): *out* when ``|e| - K u > t`` (non-conformance proven: guarded rejection),
+  *within* when ``|e| + K u <= t`` (conformance proven: guarded acceptance), *undecided* otherwise. With a
+  normal estimate, a part exactly at its tolerance is wrongly called out (or within) with a probability of at
+  most ``P(z > K)`` (2.3 % for K = 2, one-sided), less the further it is from the limit.
+- ``simple``: *out* when ``|e| > t``, else *within* (shared risk: up to 50 % of wrong calls at the limit).
+
+A part the budget leaves free (infinite tolerance) is *free*: no decision. SI throughout.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+DECISIONS = ("within", "out", "undecided", "free")
+
+
+@dataclass(frozen=True)
+class DecisionRule:
+    """A decision rule: ``kind`` 'guarded' (with its guard ``k`` standard uncertainties) or 'simple'."""
+
+    kind: str = "guarded"
+    k: float = 2.0
+
+    @classmethod
+    def parse(cls, text: str) -> "DecisionRule":
+        """'guarded', 'guarded:K' (K > 0 a number of standard uncertainties) or 'simple'; ValueError else."""
+        t = str(text).strip().lower()
+        if t == "simple":
+            return cls("simple", 0.0)
+        kind, sep, k = t.partition(":")
+        if kind == "guarded":
+            try:
+                kv = float(k) if sep else 2.0
+            except ValueError:
+                kv = float("nan")
+            if not (math.isfinite(kv) and 0 < kv <= 10):
+                raise ValueError(f"decision rule: the guard of 'guarded:K' is a number of standard uncertainties "
+                                 f"from 0 to 10 (e.g. guarded:2), got {text!r}")
+            return cls("guarded", kv)
+        raise ValueError(f"decision rule: expected 'guarded:K' (e.g. guarded:2) or 'simple', got {text!r}")
+
+    def __str__(self) -> str:
+        return "simple" if self.kind == "simple" else f"guarded:{self.k:g}"
+
+    def risk(self) -> float:
+        """Largest probability of a wrong 'out' (or 'within') for one part, at its tolerance limit, with a normal
+        estimate: ``P(z > K)`` guarded, 0.5 simple."""
+        return 0.5 if self.kind == "simple" else 0.5 * math.erfc(self.k / math.sqrt(2.0))
+
+    def words(self) -> str:
+        """The rule and its risk in one sentence, for report headers."""
+        if self.kind == "simple":
+            return ("decision rule simple (shared risk): out when |error| > tolerance, else within; a part at its "
+                    "limit is called wrongly with a probability of up to 50 %")
+        return (f"decision rule guarded:{self.k:g} (ISO 14253-1 guarded acceptance and rejection, "
+                f"u the estimate's standard uncertainty): out when |error| - {self.k:g} u > tolerance, within when "
+                f"|error| + {self.k:g} u <= tolerance, undecided otherwise; a part at its limit is called out (or "
+                f"within) wrongly with a probability of at most {100 * self.risk():.2g} %")
+
+    def decide(self, error, std, tolerance):
+        """Decisions ('within', 'out', 'undecided', 'free') of estimates ``error`` with standard uncertainties
+        ``std`` against ``tolerance`` (>= 0, inf: free), element-wise; a str for scalars, else an object array.
+        A NaN estimate or uncertainty is 'undecided'."""
+        e, u, t = np.broadcast_arrays(np.abs(np.asarray(error, float)), np.asarray(std, float),
+                                      np.asarray(tolerance, float))
+        g = 0.0 if self.kind == "simple" else self.k
+        with np.errstate(invalid="ignore"):
+            out = e - g * u > t
+            within = (e + g * u <= t) if self.kind != "simple" else (e <= t)
+        res = np.where(np.isinf(t), "free", np.where(out, "out", np.where(within, "within", "undecided")))
+        res = np.where(~np.isinf(t) & ~(np.isfinite(e) & np.isfinite(u)), "undecided", res).astype(object)
+        return res.item() if res.ndim == 0 else res
+
+
+DEFAULT_RULE = DecisionRule()
+
+
+def counts(decisions) -> dict:
+    """{decision: count} over ``decisions``, every decision named (0 where none)."""
+    d = list(decisions)
+    return {k: sum(1 for x in d if x == k) for k in DECISIONS}
+
+
+def parameter_groups(names, kinds, dx, std, held, aliases, delta, rule: DecisionRule = DEFAULT_RULE) -> list:
+    """What estimates ``dx`` (p,) with standard uncertainties ``std`` (p,) say of each part against the budget
+    ``delta`` (p,), SI: each estimated parameter j (not in ``held``) measures the combination
+    ``e_j + sum_h c_h e_h`` of itself and the held parameters it absorbs (``aliases`` {j: {h: c}}), whose
+    tolerance is ``delta_j + sum_h |c_h| delta_h`` (the worst case of the group). ``parameters`` names the members
+    that matter (a held parameter whose tolerance moves the group by less than 1 % of its own is not named, though
+    it counts); ``kinds`` (p,) 'length' or 'angle' gives each group the unit of its first member ('m' or 'rad').
+
+    Returns [{parameters, coefficients {name: c} (every member), error, std, tolerance, ratio, unit, decision}],
+    the decisions by ``rule``; out first, then undecided, within and free, each by ratio, largest first.
+    """
+    names = list(names)
+    d = np.asarray(delta, float)
+    groups = []
+    for j, name in enumerate(names):
+        if name in held:
+            continue
+        coef = {name: 1.0, **aliases.get(name, {})}
+        shown = [h for h, c in coef.items() if h == name or abs(c) * d[names.index(h)] >= 0.01 * d[j]]
+        tol = float(sum(abs(c) * d[names.index(h)] for h, c in coef.items()))
+        err, u = float(dx[j]), float(std[j])
+        groups.append({"parameters": shown, "coefficients": coef, "error": err, "std": u, "tolerance": tol,
+                       "ratio": abs(err) / tol if tol > 0 else float("inf"),
+                       "unit": "m" if kinds[j] == "length" else "rad", "decision": rule.decide(err, u, tol)})
+    order = {"out": 0, "undecided": 1, "within": 2, "free": 3}
+    groups.sort(key=lambda g: (order[g["decision"]], -g["ratio"]))
+    return groups
+
+
+def judged(names, kinds, dx, std, held, aliases, delta, rule: DecisionRule = DEFAULT_RULE) -> dict:
+    """``parameter_groups`` with the rule said: {groups, rule, rule_words, counts {decision: n},
+    out_of_tolerance (the groups decided out)}."""
+    groups = parameter_groups(names, kinds, dx, std, held, aliases, delta, rule)
+    return {"groups": groups, "rule": str(rule), "rule_words": rule.words(),
+            "counts": counts(g["decision"] for g in groups),
+            "out_of_tolerance": [g for g in groups if g["decision"] == "out"]}
