@@ -267,3 +267,50 @@ def test_a_rosbag2_recording_streams_into_the_report_as_into_path_report(capsys,
                          tmp_path / "m.csv", "--stream", tmp_path / "bag", "--json"))
     path = json.loads(cli(capsys, "path-report", "--robot", ROBOT, "--measurements", tmp_path / "bag", "--json"))
     assert doc["path"]["overall"]["AT_p_m"] == path["overall"]["AT_p_m"] and doc["path"]["cycles"] == 2
+
+
+def test_every_report_says_where_its_base_frame_comes_from(capsys, tmp_path):
+    """The frame (issue 47): fitted on the test poses by default, said with the word 'lower bound' and the count of
+    coordinates absorbed; --registration-from a calibration of the same set-up gives AP within 10 % + 10 um of the
+    truth in the frame any measurement of the robot can find (here the simulated truth file itself: the mounting
+    frame, noise-free data); --registration-poses fits on other poses; tracker-frame data with --registration none
+    is refused; so is a registration measurement of the test poses themselves."""
+    from tolerance_ros.core.accuracy.io import read_measurements
+    from tolerance_ros.core.accuracy.iso9283 import pose_characteristics
+    from tolerance_ros.core.calibration.calibration_file import load_calibration
+    from tolerance_ros.core.campaign import load_campaign
+    from tolerance_ros.core.models import load_robot
+    model = load_robot(ROBOT)
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--iso9283", "--cycles", "5", "--out", tmp_path / "cube.yaml")
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--n", "20", "--out", tmp_path / "cal.yaml")
+    sim = ("simulate", "--robot", ROBOT, "--tolerances", "uniform:0.1mm,0.5mrad", "--seed", "3")
+    cli(capsys, *sim, "--campaign", tmp_path / "cube.yaml", "--noise", "0um", "--orientation-noise", "0rad",
+        "--out", tmp_path / "iso.csv")
+    cli(capsys, *sim, "--campaign", tmp_path / "cal.yaml", "--out", tmp_path / "cal.csv")
+    iso = ("iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--measurements", tmp_path / "iso.csv")
+    fitted = json.loads(cli(capsys, *iso, "--json", "--out", tmp_path / "rep"))
+    f = fitted["frame"]
+    assert f["source"] == "test poses" and f["lower_bound"] and (f["absorbed"], f["coordinates"]) == (6, 30)
+    md = (tmp_path / "rep" / "report.md").read_text()
+    assert "fitted on the test poses" in md and "lower bound" in md and "6 of the 30 coordinates" in md
+    assert "lower bound" in (tmp_path / "rep" / "report.html").read_text()
+    truth = load_calibration(tmp_path / "iso.truth.yaml", model)
+    given = json.loads(cli(capsys, *iso, "--registration-from", tmp_path / "iso.truth.yaml", "--json"))
+    assert given["frame"]["source"] == "calibration" and not given["frame"]["lower_bound"]
+    m = read_measurements(tmp_path / "iso.csv", joint_names=model.joint_names)
+    cube = load_campaign(tmp_path / "cube.yaml", model)
+    T = np.linalg.inv(truth.T_tracker_base) @ m.T
+    for p, qp in zip(cube.names, model.fk(cube.joints_for(model))):
+        expect = pose_characteristics(qp, T[m.pose == p], True).AP_p
+        assert abs(given["pose"][p]["AP_p"] - expect) <= 0.1 * expect + 1e-5
+    assert max(given["pose"][p]["AP_p"] - fitted["pose"][p]["AP_p"] for p in cube.names) > 0.1e-3  # flattered
+    printed = cli(capsys, *iso, "--registration-from", tmp_path / "iso.truth.yaml")
+    assert "base frame: the tracker placement and base correction of the calibration" in printed
+    other = json.loads(cli(capsys, *iso, "--registration-poses", tmp_path / "cal.csv", "--json"))
+    assert other["frame"]["source"] == "poses" and "apart from the test poses" in other["frame"]["words"]
+    code, _, err = run(capsys, *iso, "--registration-poses", tmp_path / "iso.csv")
+    assert code == 2 and "every pose of the registration measurement is a test pose" in err
+    code, _, err = run(capsys, *iso, "--registration", "none")
+    assert code == 2 and "not in the robot's base frame" in err
+    code, _, err = run(capsys, *iso, "--registration", "none", "--registration-from", tmp_path / "iso.truth.yaml")
+    assert code == 2 and "one source of the base frame" in err

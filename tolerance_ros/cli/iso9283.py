@@ -24,8 +24,16 @@ def add_arguments(p):
     p.add_argument("--drift-window", default="1h",
                    help="AP and RP are taken over windows this long for the drift dAP, dRP (default 1h)")
     p.add_argument("--registration", choices=["base", "none"], default="base",
-                   help="fit the tracker's placement (base, default) or take the measurements as base-frame (none: "
-                        "the measuring frame is the robots' common mounting, as exchangeability asks)")
+                   help="without --registration-from or --registration-poses: fit the tracker's placement on the test "
+                        "poses themselves (base, default: AP is then a lower bound, and the report says so) or take the "
+                        "measurements as base-frame (none: refused where they evidently are not)")
+    p.add_argument("--registration-from", metavar="CALIBRATION",
+                   help="the base frame of a calibration made with the same tracker set-up (its tracker placement, base "
+                        "correction and targets): AP and E in it, every --other robot in that one mounting frame")
+    p.add_argument("--registration-poses", metavar="MEASUREMENTS",
+                   help="the base frame fitted on a separate registration measurement (the standard's base-frame "
+                        "measurement, or any campaign measured apart from the test poses; joint columns, or rows named "
+                        "by the campaign's poses)")
     p.add_argument("--stream", metavar="POINTS",
                    help="the tracker's stream along a test path (as path-report's --measurements: a CSV of points, "
                         "or a rosbag2 recording with the joint states): the path characteristics AT, RT, CR, CO, "
@@ -50,8 +58,9 @@ def add_arguments(p):
     p.add_argument("--out", metavar="DIR", help="write report.md, report.html, iso9283.json and plots into DIR")
 
 
-def _path(args, model, latency):
-    """path_report's result for ``--stream`` (``latency`` s: given, or None), or None."""
+def _path(args, model, latency, frame=None):
+    """path_report's result for ``--stream`` (``latency`` s: given, or None), or None; in ``frame`` (a ``Frame``)
+    when given."""
     if not args.stream:
         if args.joint_states or args.trajectory:
             raise CLIError("--joint-states, --trajectory: go with --stream (the path's tracker points)")
@@ -63,7 +72,9 @@ def _path(args, model, latency):
                                                                     args.trajectory)
     return path_report(model, stamps, points, tj, qj, None,
                        PathOptions(registration=args.registration, trajectory=trajectory, latency=latency,
-                                   band=limit_option(model, args.band, "length", "--band")), source=source)
+                                   band=limit_option(model, args.band, "length", "--band"),
+                                   T_tracker_base=None if frame is None else frame.registration.T_tracker_base),
+                       source=source)
 
 
 def _reorientation(args, model, latency):
@@ -83,6 +94,28 @@ def _reorientation(args, model, latency):
                        f"reorientation needs a 6-DOF tracker's frames")
     tj, qj = read_joint_states(args.reorientation_joints, model.joint_names, model.joint_types)
     return m.stamps, m.T, tj, model.check_joints(qj, args.reorientation_joints), latency, str(args.reorientation)
+
+
+def _frame(args, model, campaign):
+    """The ``Frame`` of ``--registration-from`` or ``--registration-poses``, or None."""
+    from ..core.accuracy.iso9283_report import Frame, ISOReportError
+    given = [o for o, v in (("--registration-from", args.registration_from),
+                            ("--registration-poses", args.registration_poses)) if v]
+    if len(given) > 1 or (given and args.registration == "none"):
+        raise CLIError(f"{', '.join(given + (['--registration none'] if args.registration == 'none' else []))}: give one "
+                       f"source of the base frame")
+    if args.registration_from:
+        from ..core.calibration.calibration_file import load_calibration
+        cal = load_calibration(args.registration_from, model)
+        return Frame.from_calibration(cal.T_tracker_base, cal.base, cal.targets, args.registration_from)
+    if args.registration_poses:
+        from ..core.accuracy.io import read_measurements
+        try:
+            return Frame.from_poses(model, read_measurements(args.registration_poses, joint_names=model.joint_names),
+                                    campaign)
+        except ISOReportError as exc:
+            raise CLIError(f"--registration-poses: {exc}") from None
+    return None
 
 
 def _numeric(cell) -> bool:
@@ -117,11 +150,12 @@ def run(args):
     if args.latency and not (args.stream or args.reorientation):
         raise CLIError("--latency: goes with --stream or --reorientation")
     latency = quantity(args.latency, "time", "--latency", positive=False)
-    path = _path(args, model, latency)
+    frame = _frame(args, model, campaign)
+    path = _path(args, model, latency, frame)
     reorientation = _reorientation(args, model, latency)
     try:
-        doc = iso9283_report(model, meas, campaign, ISOOptions(pair, window, args.registration, conditions), others,
-                             path, reorientation)
+        doc = iso9283_report(model, meas, campaign, ISOOptions(pair, window, args.registration, conditions, frame),
+                             others, path, reorientation)
     except ISOReportError as exc:
         raise CLIError(str(exc)) from None
     files = write_iso9283_report(doc, args.out) if args.out else {}
@@ -129,6 +163,7 @@ def run(args):
         return dict(doc, files=files)
     print(f"robot {model.name}: ISO 9283 from {doc['measurements']} measurements of campaign {campaign.name} "
           f"({doc['source']})" + (f" and {len(others)} other robot(s)" if others else ""))
+    print(f"base frame: {doc['frame']['words']}")
     for w in doc["warnings"]:
         print(f"WARNING: {w}")
     for title, note, heads, rows in sections(doc):

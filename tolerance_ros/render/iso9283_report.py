@@ -29,7 +29,9 @@ def sections(doc) -> list:
         if ori:
             heads += ["AP_a mrad", "AP_b mrad", "AP_c mrad", "RP_a mrad", "RP_b mrad", "RP_c mrad"]
             keys += ["AP_a", "AP_b", "AP_c", "RP_a", "RP_b", "RP_c"]
-        out.append(("Pose accuracy and repeatability (AP, RP)", "per test pose", heads,
+        fitted = doc["frame"]["lower_bound"]
+        out.append(("Pose accuracy and repeatability (AP, RP)", "per test pose" + (
+            "; AP fitted on the test poses, a lower bound (see the base frame)" if fitted else ""), heads,
                     [[p, v["n"]] + [_mm(v[k]) for k in keys] for p, v in doc["pose"].items()]))
     mdv = {p: v for p, v in doc["multidirectional"].items() if "vAP_p" in v}
     if mdv:
@@ -142,7 +144,7 @@ def write_iso9283_report(doc, out_dir) -> dict:
     if any("vAP_p" in v for v in doc["multidirectional"].values()):
         plots.append(plot_vap(doc, out / "vap.png"))
     secs = sections(doc)
-    md = [f"# {_title(doc)}", ""]
+    md = [f"# {_title(doc)}", "", f"Base frame: {doc['frame']['words']}.", ""]
     md += [f"WARNING: {w}" for w in doc["warnings"]] + ([""] if doc["warnings"] else [])
     for title, note, heads, rows in secs:
         md += [f"## {title}", "", f"{note}.", ""] + _md_table(heads, rows) + [""]
@@ -150,7 +152,8 @@ def write_iso9283_report(doc, out_dir) -> dict:
     h = ["<!DOCTYPE html>", "<html><head><meta charset='utf-8'>", f"<title>{html.escape(_title(doc))}</title>",
          "<style>body{font-family:sans-serif;max-width:70em;margin:2em auto}table{border-collapse:collapse}"
          "td,th{border:1px solid #999;padding:2px 8px;text-align:right}td:first-child{text-align:left}</style>",
-         "</head><body>", f"<h1>{html.escape(_title(doc))}</h1>"]
+         "</head><body>", f"<h1>{html.escape(_title(doc))}</h1>",
+         f"<p><b>Base frame:</b> {html.escape(doc['frame']['words'])}.</p>"]
     h += [f"<p><b>WARNING:</b> {html.escape(w)}</p>" for w in doc["warnings"]]
     for title, note, heads, rows in secs:
         h += [f"<h2>{html.escape(title)}</h2>", f"<p>{html.escape(note)}.</p>", "<table>",

@@ -16,6 +16,7 @@ from .registration import KabschAccumulator, Registration, register
 from ..targets import Targets
 
 IDENTIFY_MAX = 20000  # up to this many measurements the nonlinear identification runs on all of them
+NOT_BASE_FRAME = "the measurements are not in the robot's base frame"   # the warning of ``frame_warnings``
 
 
 def evaluate_file(model, meas, budget=None, campaign=None, registration="base", keep_rows=True,
@@ -53,8 +54,11 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
                      f"its static compliance and the unloaded ones as the pose characteristics)")
     T_tool_all = model.fk(q)
     if isinstance(registration, Registration):
-        reg = registration
-        idx_all = meas.target_index(reg.targets.names)
+        idx_all = meas.target_index(registration.targets.names)
+        residuals = np.linalg.norm(registration.to_base(meas.T)[:, :3, 3]
+                                   - registration.targets.poses(T_tool_all, idx_all)[:, :3, 3], axis=1)
+        reg = Registration(registration.T_tracker_base, registration.targets, residuals, len(meas),
+                           registration.estimated)
     else:
         idx_all = meas.target_index(names)
         keep = screened.keep.copy()
@@ -197,7 +201,7 @@ def frame_warnings(T_tool, meas, idx, names, reg) -> list:
     except ValueError:
         return []
     if reg.rms > 10 * best.rms and reg.rms > 1e-3:
-        return [f"the measurements are not in the robot's base frame: their RMS error is {reg.rms * 1e3:.4g} mm as "
+        return [f"{NOT_BASE_FRAME}: their RMS error is {reg.rms * 1e3:.4g} mm as "
                 f"given and {best.rms * 1e3:.4g} mm after a registration; use registration 'base' (or 'base+tool')"]
     return []
 

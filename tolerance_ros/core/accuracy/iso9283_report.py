@@ -13,6 +13,11 @@
   characteristics take the unloaded visits only);
 - the path characteristics and the pose stabilisation time and overshoot at each stop of a stream (``path``);
 - the path accuracy on reorientation from a 6-DOF tracker's stream (``reorientation.reorientation_report``).
+
+Every report says where its base frame comes from (``frame``): a calibration of the same tracker set-up or a
+separate registration measurement (``Frame``), the measuring frame itself ('none', refused where the data are
+evidently not in the base frame), or else a fit on the test poses themselves, which makes AP a lower bound and
+says so with the count of coordinates the fit absorbed.
 """
 from __future__ import annotations
 
@@ -20,8 +25,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .evaluation import evaluate_file
+from ..identification import base_matrix
+from .evaluation import NOT_BASE_FRAME, evaluate_file, measurement_joints, register_measurements
 from .iso9283 import distance_characteristics, drift, exchangeability, multidirectional, static_compliance
+from .registration import Registration
 
 COMMANDED_TOLERANCE = 1e-6  # m: the approaches of one test pose must command the same position within this
 CONDITIONS = ("load", "speed", "temperature", "measuring_system", "notes")
@@ -32,15 +39,69 @@ class ISOReportError(ValueError):
 
 
 @dataclass
+class Frame:
+    """A base frame found apart from the test poses: ``source`` 'calibration' (``from_calibration``) or 'poses'
+    (``from_poses``), its ``registration`` (tracker placement and targets), and ``words`` saying where it comes
+    from, for the report."""
+
+    source: str
+    registration: Registration
+    words: str
+
+    @classmethod
+    def from_calibration(cls, T_tracker_base, base, targets, name) -> "Frame":
+        """The frame of a calibration made with the same tracker set-up: its placement ``T_tracker_base`` (4x4) and
+        base correction ``base`` (6,) (the robot's base frame as the calibration found it), its ``targets``."""
+        T = np.asarray(T_tracker_base, float) @ base_matrix(np.asarray(base, float))
+        return cls("calibration", Registration(T, targets, np.zeros(1), 0),
+                   f"the tracker placement and base correction of the calibration {name} (the same tracker set-up): the "
+                   f"robot's base frame as that calibration found it, joint 1's axis and zero position; an offset of "
+                   f"the mounting along or about joint 1's axis, which no kinematic calibration can tell from the "
+                   f"robot's own errors, is not in AP")
+
+    @classmethod
+    def from_poses(cls, model, meas, campaign=None) -> "Frame":
+        """The frame fitted on a separate registration measurement ``meas`` (the standard's base-frame measurement, or
+        another campaign: joint columns, or rows named by ``campaign``'s poses); ISOReportError where it is the test
+        poses themselves (every pose it measures is one of ``campaign``'s)."""
+        if len(meas) < 3:
+            raise ISOReportError(f"{meas.source}: {len(meas)} measurement(s); a registration needs 3 or more poses")
+        try:
+            q = measurement_joints(model, meas, campaign)
+        except ValueError as exc:
+            raise ISOReportError(f"registration poses: {exc}") from None
+        if campaign is not None:
+            tests = campaign.joints_for(model)
+            apart = np.min(np.abs(q[:, None, :] - tests[None]).max(axis=2), axis=1) > 1e-6
+            if not apart.any():
+                raise ISOReportError(f"{meas.source}: every pose of the registration measurement is a test pose of "
+                                     f"campaign {campaign.name!r}; a frame fitted on the test poses absorbs AP (measure "
+                                     f"other poses, or give --registration-from a calibration)")
+        names = meas.target_names
+        reg = register_measurements(model.fk(q), meas, meas.target_index(names), names,
+                                    "base" if len(names) == 1 else "base+tool")
+        poses = len(np.unique(np.round(q, 6), axis=0))
+        return cls("poses", reg, f"fitted on {len(meas)} measurement(s) of {poses} pose(s) apart from the test poses "
+                                 f"({meas.source}; residual RMS {reg.rms * 1e3:.4g} mm)")
+
+
+@dataclass
 class ISOOptions:
     """What the report computes: ``distance`` the two test poses of AD/RD (None: P2 and P4 where the campaign
-    has them), ``drift_window`` (s), ``registration`` ('base' or 'none'), ``conditions`` the test conditions the
-    standard asks to state (free text by key of ``CONDITIONS``)."""
+    has them), ``drift_window`` (s), ``registration`` ('base': fitted on the test poses, or 'none': the data in the
+    base frame already), unless ``frame`` (a ``Frame`` found apart from them) is given, ``conditions`` the test
+    conditions the standard asks to state (free text by key of ``CONDITIONS``)."""
 
     distance: tuple | None = None
     drift_window: float = 3600.0
     registration: str = "base"
     conditions: dict = field(default_factory=dict)
+    frame: Frame | None = None
+
+    @property
+    def registering(self):
+        """What ``evaluate_file`` registers with: the frame's Registration, or 'base' / 'none'."""
+        return self.frame.registration if self.frame is not None else self.registration
 
 
 def _pose_data(model, meas, campaign, registration) -> tuple:
@@ -53,6 +114,10 @@ def _pose_data(model, meas, campaign, registration) -> tuple:
         raise ISOReportError(f"{meas.source}: no pose column; the ISO 9283 characteristics need each row named by its "
                              f"test pose")
     res = evaluate_file(model, meas, None, campaign, registration=registration, identification=False)
+    if isinstance(registration, str) and registration == "none":
+        wrong = [w for w in res.get("warnings", []) if w.startswith(NOT_BASE_FRAME)]
+        if wrong:
+            raise ISOReportError(f"{meas.source}: --registration none: {wrong[0]}")
     rows = res["rows"]
     names = np.array([str(p) for p in rows["pose"]], dtype=object)
     cyc = rows["visit_cycle"] if rows["visit_cycle"] is not None else np.full(len(names), -1)
@@ -87,11 +152,12 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     if loaded.all():
         raise ISOReportError(f"{meas.source}: every row is under load; the pose characteristics and the compliance "
                              f"need the unloaded visits too")
-    res, T, names, stamps, cycles, commanded = _pose_data(model, meas.select(~loaded), campaign, options.registration)
+    res, T, names, stamps, cycles, commanded = _pose_data(model, meas.select(~loaded), campaign, options.registering)
     ori = bool(res["orientation_measured"])
     missing, warnings = [], list(res.get("warnings", []))
+    frame = _frame(options, res, names, ori)
     out = {"robot": model.name, "source": meas.source, "campaign": campaign.name, "measurements": len(meas),
-           "under_load": int(loaded.sum()),
+           "under_load": int(loaded.sum()), "frame": frame,
            "orientation_measured": ori, "registration": {k: res["registration"][k] for k in ("method", "residual_rms_m")
                                                          if k in res["registration"]},
            "conditions": _conditions(options, campaign, names, stamps),
@@ -130,6 +196,29 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     out["missing"] = missing
     out["warnings"] = warnings
     return out
+
+
+def _frame(options, res, names, ori) -> dict:
+    """Where the base frame comes from: {source, words, lower_bound, absorbed, coordinates, T_tracker_base,
+    residual_rms_m}. Fitted on the test poses, the registration absorbs 6 of the coordinates of their mean poses
+    (3 per test pose, 6 with orientations), so AP and E (each robot registered on its own) are lower bounds; RP,
+    vAP, AD_p, RD and the drift do not depend on a fixed frame."""
+    reg = res["registration"]
+    out = {"T_tracker_base": reg["T_tracker_base"], "residual_rms_m": reg["residual_rms_m"], "lower_bound": False,
+           "absorbed": None, "coordinates": None}
+    if options.frame is not None:
+        return {**out, "source": options.frame.source, "words": options.frame.words}
+    if options.registration == "none":
+        return {**out, "source": "none", "words": "the measuring frame itself (--registration none): the measurements "
+                                                  "are taken as base-frame poses"}
+    poses = len({str(n) for n in names})
+    coords = poses * (6 if ori else 3)
+    words = (f"fitted on the test poses themselves, a lower bound of AP: the fit absorbed 6 of the {coords} "
+             f"coordinates of the {poses} test poses' mean {'poses' if ori else 'positions'}, so every AP (and E) here is "
+             f"a lower bound of the robot's; RP, vAP, AD_p, RD and the drift do not depend on it. Give "
+             f"--registration-from a calibration of the same set-up, or --registration-poses a separate registration "
+             f"measurement")
+    return {**out, "source": "test poses", "words": words, "lower_bound": True, "absorbed": 6, "coordinates": coords}
 
 
 def _conditions(options, campaign, names, stamps) -> dict:
@@ -237,7 +326,7 @@ def _exchangeability(model, campaign, options, T, names, others, missing, warnin
     robots = [(T, names)]
     for m in others:
         m = m.select(~m.loaded)                                 # the unloaded visits, as for the first robot
-        res, To, no, *_ = _pose_data(model, m, campaign, options.registration)
+        res, To, no, *_ = _pose_data(model, m, campaign, options.registering)
         warnings += [f"{m.source}: {w}" for w in res.get("warnings", [])]
         robots.append((To, no))
     out = {}
