@@ -59,6 +59,9 @@ def add_arguments(p):
                    help="with --path: the joints (each with its unit) whose tool pose is the cube's centre (default: "
                         "the centre of the ISO cube the planner finds)")
     p.add_argument("--dwell", default="0.5s", help="with --path: the rest before each cycle (default 0.5s)")
+    p.add_argument("--profile", choices=["trapezoid", "raised-cosine", "minimum-jerk"], default="trapezoid",
+                   help="with --path: each move's speed profile within --speed and --accel (default trapezoid; "
+                        "raised-cosine and minimum-jerk as jerk-limited controllers move)")
     p.add_argument("--budget", help="scale each parameter by its tolerance (default 1 mm / 1 mrad)")
     p.add_argument("--noise", default="10um", help="tracker position noise (default 10um)")
     p.add_argument("--orientation-noise",
@@ -114,7 +117,7 @@ def run_path(args, model):
                            pitch=quantity(args.pitch, "length", "--pitch"),
                            angle=quantity(args.angle, "angle", "--angle"),
                            distances=[quantity(x, "length", "--distances") for x in args.distances.split(",")]
-                           if args.distances else None)
+                           if args.distances else None, profile=args.profile)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     test = tp.moves[tp.test]

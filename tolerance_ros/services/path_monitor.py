@@ -37,7 +37,7 @@ from ..core.accuracy.repeats import split_runs
 from ..core.accuracy.streams import LiveOrder
 from ..core.accuracy.path_report import LATENCY_SHARE, command_points
 from ..core.accuracy.registration import KabschAccumulator, kabsch
-from ..core.accuracy.settling import judge_stop, motion, summary
+from ..core.accuracy.settling import at_rest, judge_stop, motion, summary
 from .monitor import MIN_GAP_S
 
 OK, WARN, ERROR = 0, 1, 2
@@ -356,6 +356,8 @@ class PathMonitor:
         mv, self.pending = self.pending, None
         if mv is None or self.A is None or self.latency is None:
             return
+        k = int(np.searchsorted(self.tj, t_end, side="right"))   # the buffer starts at the motion's last sample
+        mv = at_rest(mv, self.tj[:k], self.pc[:k])
         ta = self.tm - self.latency
         j0, j1 = np.searchsorted(ta, [mv["stop_s"], t_end], side="left")
         R, t = self.A[:3, :3], self.A[:3, 3]
@@ -388,7 +390,7 @@ class PathMonitor:
             report = self._judge(i0, i1, j0, j1, ta)
         else:                                          # interpolated across lost messages: not judged
             report = self._not_judged(hole, j1 - j0, float(self.tj[i0]), float(self.tj[i1]))
-        self.pending = motion(self.tj, self.pc, i0, i1) if hole is None else None
+        self.pending = motion(self.tj, self.pc, i0, i1, 0) if hole is None else None
         self.tm, self.pm = self.tm[j1:], self.pm[j1:]
         self.tj, self.qj, self.pc = self.tj[i1:], self.qj[i1:], self.pc[i1:]
         return report

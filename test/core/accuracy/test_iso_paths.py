@@ -52,3 +52,24 @@ def test_joint_trajectory_follows_the_planned_tool_path(gao, tmp_path):
 def test_a_path_out_of_reach_is_refused(gao):
     with pytest.raises(ValueError, match="carries the circle path"):
         plan_path(gao, "circle", side=5.0, q_center=np.radians([0, 45, 0, 60, 0, 30, 0]))
+
+
+@pytest.mark.parametrize("profile", ["trapezoid", "raised-cosine", "minimum-jerk"])
+@pytest.mark.parametrize("L", [0.002, 0.3])
+def test_each_speed_profile_keeps_its_speed_and_acceleration_and_inverts_to_times(profile, L):
+    """profile_distance from rest to rest within the speed and acceleration asked (one of them reached), and
+    profile_times its inverse at arc lengths (the knots' times of a planned path)."""
+    from tolerance_ros.core.accuracy.iso_paths import profile_distance, profile_duration, profile_times
+    v, a = 0.5, 5.0
+    T = profile_duration(L, v, a, profile)
+    t = np.linspace(0.0, T, 200001)
+    s = profile_distance(t, L, v, a, profile)
+    assert s[0] == 0.0 and s[-1] == pytest.approx(L, abs=1e-15)
+    speed = np.gradient(s, t)
+    accel = np.gradient(speed, t)
+    assert speed.min() > -1e-9 and speed.max() <= v * (1 + 1e-6) and np.abs(accel[5:-5]).max() <= a * (1 + 1e-3)
+    assert speed.max() >= v * (1 - 1e-3) or np.abs(accel[5:-5]).max() >= a * (1 - 1e-2)
+    assert abs(speed[-1]) < 1e-3 * v and abs(speed[0]) < 1e-3 * v
+    knots = np.linspace(0.0, L, 101)
+    back = profile_distance(profile_times(knots, v, a, profile), L, v, a, profile)
+    assert np.abs(back - knots).max() < 1e-6 * L

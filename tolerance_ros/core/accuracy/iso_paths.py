@@ -19,8 +19,8 @@ plane is the diagonal plane through the corners (-,-,-), (+,+,-), (+,+,+), (-,-,
   from ``-angle`` to ``+angle`` (ISO 9283 path accuracy on reorientation), then back (another motion); its
   moves are timed by the angle turned (``speed`` rad/s, ``accel`` rad/s^2).
 
-The tool keeps the orientation of the centre pose. Each move starts and ends at rest with a trapezoidal
-speed profile (``speed`` m/s, ``accel`` m/s^2); a cycle is a dwell at the start, then the move(s). Joints
+The tool keeps the orientation of the centre pose. Each move starts and ends at rest with a speed profile
+(``PROFILES``: trapezoidal by default, a raised cosine or minimum jerk; ``speed`` m/s, ``accel`` m/s^2); a cycle is a dwell at the start, then the move(s). Joints
 come from the nominal model's inverse kinematics (``models.ik.nominal_solution``) at knots
 every ``spacing`` along the path, continued from knot to knot, and are linear in time between knots.
 SI throughout.
@@ -127,6 +127,59 @@ def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, s
     return ToolPath(kind, [c + r * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * w)], 0, R, c, side)
 
 
+PROFILES = ("trapezoid", "raised-cosine", "minimum-jerk")
+MINJERK_SPEED, MINJERK_ACCEL = 1.875, 10.0 / np.sqrt(3.0)   # peak speed and acceleration of 10t^3-15t^4+6t^5
+
+
+def profile_duration(L: float, speed: float, accel: float, profile: str = "trapezoid") -> float:
+    """(s) the duration of a move of ``L`` m (or rad) from rest to rest whose speed stays within ``speed`` and whose
+    acceleration stays within ``accel``: a trapezoid (constant acceleration, cruise, constant deceleration), a
+    raised cosine (the speed rising and falling as half a cosine: the acceleration smooth, its jerk bounded) or a
+    minimum-jerk move (``L (10 tau^3 - 15 tau^4 + 6 tau^5)``)."""
+    if not (speed > 0 and accel > 0):
+        raise ValueError("speed and accel must be > 0")
+    if profile not in PROFILES:
+        raise ValueError(f"profile: expected one of {', '.join(PROFILES)}, got {profile!r}")
+    if profile == "minimum-jerk":
+        return max(MINJERK_SPEED * L / speed, float(np.sqrt(MINJERK_ACCEL * L / accel)))
+    k = 1.0 if profile == "trapezoid" else np.pi / 2     # the acceleration phase lasts k v / accel
+    v = min(speed, float(np.sqrt(accel * L / k)))
+    return 2 * k * v / accel + (L - k * v * v / accel) / v
+
+
+def profile_distance(t, L: float, speed: float, accel: float, profile: str = "trapezoid") -> np.ndarray:
+    """(n,) m (or rad) covered at times ``t`` (n,) s of the move of ``profile_duration``, 0 before it, L after."""
+    T = profile_duration(L, speed, accel, profile)
+    t = np.clip(np.asarray(t, float), 0.0, T)
+    if profile == "minimum-jerk":
+        x = t / T
+        return L * x ** 3 * (10 - 15 * x + 6 * x * x)
+    k = 1.0 if profile == "trapezoid" else np.pi / 2
+    v = min(speed, float(np.sqrt(accel * L / k)))
+    ta = k * v / accel
+
+    def ramp(u):                       # the distance u s into an acceleration from rest
+        if profile == "trapezoid":
+            return 0.5 * accel * u * u
+        return 0.5 * v * (u - ta / np.pi * np.sin(np.pi * u / ta))
+    return np.where(t < ta, ramp(t), np.where(t <= T - ta, ramp(ta) + v * (t - ta),
+                                               L - ramp(np.maximum(T - t, 0.0))))
+
+
+def profile_times(s, speed: float, accel: float, profile: str = "trapezoid") -> np.ndarray:
+    """(k,) time (s) at arc lengths ``s`` (k,) m of a move from rest to rest of length ``s[-1]`` by ``profile``
+    (``profile_distance`` inverted)."""
+    if profile == "trapezoid":
+        return trapezoid_times(s, speed, accel)
+    s = np.asarray(s, float)
+    L = float(s[-1])
+    T = profile_duration(L, speed, accel, profile)
+    grid = np.linspace(0.0, T, 20001)
+    t = np.interp(s, profile_distance(grid, L, speed, accel, profile), grid)
+    t[-1] = T
+    return np.maximum.accumulate(t)
+
+
 def trapezoid_times(s, speed: float, accel: float) -> np.ndarray:
     """(k,) time (s) at arc lengths ``s`` (k,) m of a move from rest to rest of length ``s[-1]``: accelerate
     at ``accel``, cruise at ``speed`` (or less when the move is too short), decelerate."""
@@ -179,9 +232,10 @@ class JointPath:
 
 
 def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: float = 0.5,
-               cycles: int = 1) -> JointPath:
+               cycles: int = 1, profile: str = "trapezoid") -> JointPath:
     """The joint trajectory of ``tp`` for ``model``: IK at every knot (position and orientation ``tp.R``),
-    continued from ``q_seed`` (dof,); ValueError when a knot is out of reach or the joints jump."""
+    continued from ``q_seed`` (dof,), each move timed by ``profile`` (``PROFILES``); ValueError when a knot is
+    out of reach or the joints jump."""
     from ..models.ik import solve
     times, qs, t0 = [], [], 0.0
     q_prev = np.asarray(q_seed, float)
@@ -210,7 +264,7 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
             from ..geometry import rotation_error
             R = tp.turns[k]
             s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(rotation_error(R[1:], R[:-1]), axis=1))])
-        tm = trapezoid_times(s, speed, accel)
+        tm = profile_times(s, speed, accel, profile)
         if k == 0:                          # the cycle starts at rest at the first knot
             times.append(t0)
             qs.append(q[0])
@@ -226,11 +280,11 @@ def joint_path(model, tp: ToolPath, q_seed, speed: float, accel: float, dwell: f
 def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: float = 0.5, cycles: int = 10,
               side: float | None = None, q_center=None, spacing: float = 0.5e-3, seed: int = 0,
               stroke: float | None = None, pitch: float | None = None, angle: float | None = None,
-              distances=None):
+              distances=None, profile: str = "trapezoid"):
     """(JointPath, ToolPath) of the test path ``kind`` in an ISO cube the model reaches: centred at the tool
     pose of ``q_center`` (dof,) rad or m, or else at the cube of ``iso9283.iso_cube_joints``;
     of edge ``side`` m, or else the largest of 0.4 m halved until the whole path is reached within the joint
-    limits without a jump. ValueError when none is."""
+    limits without a jump; each move timed by ``profile``. ValueError when none is."""
     from ..models.ik import solve
     if q_center is None:
         from .iso9283 import iso_cube_joints
@@ -250,7 +304,7 @@ def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: f
             T0[:3, :3] = tp.turns[0][0]
         q0 = solve(model, T0[None], q_center[None])[0][0]
         try:
-            return joint_path(model, tp, q0, speed, accel, dwell, cycles), tp
+            return joint_path(model, tp, q0, speed, accel, dwell, cycles, profile), tp
         except ValueError as exc:
             why = str(exc)
     raise ValueError(f"{model.name}: no ISO cube{'' if side else ' of edge 12.5 mm to 400 mm'} centred at "

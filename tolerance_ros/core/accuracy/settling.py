@@ -1,14 +1,15 @@
 """ISO 9283 pose stabilisation time and pose overshoot at each stop of a tracker's stream (m, s).
 
-At a stop (the command comes to rest at ``t_stop`` after a motion and stays until the next motion; ``rest_instants``
-finds that instant between the joint states' samples), the attained
+At a stop (the command comes to rest at ``t_stop`` after a motion and stays until the next motion; ``rest_instant``
+finds that instant between the joint states' samples, whatever the profile's end: a ramp, a constant deceleration,
+a jerk-limited stop), the attained
 pose is the mean of the points in the last ``FINAL_FRACTION`` of the rest. With the points smoothed by a
 cubic Savitzky-Golay filter over ``smooth`` s (the tracker's noise, not the robot's motion) and ``d(t)`` their
 distance from the attained pose:
 
-- **stabilisation time**: from ``t_stop`` to the first point after the last one outside the band
-  ``d > band`` (0 when none is outside); a stop whose last point outside the band falls within the last
-  fraction of its rest did not settle, and is reported so (no time);
+- **stabilisation time**: from ``t_stop`` to the instant the distance enters the band ``d <= band`` for good,
+  interpolated between the last point outside it and the next (0 when none is outside); a stop whose last point
+  outside the band falls within the last fraction of its rest did not settle, and is reported so (no time);
 - **positioning time**: from the instant the command leaves its rest to the stop's stabilisation (the motion's
   duration and the stabilisation time); the minimum positioning time is the least over the moves of one
   distance;
@@ -84,7 +85,12 @@ def stop_figures(t, p, t_stop: float, t_end: float, approach, band: float, smoot
         return out
     out["settled"] = True
     settle = 0 if not outside.size else outside[-1] + 1
-    out["stabilisation_time_s"] = float(ts[settle] - t_stop) if outside.size else 0.0
+    if outside.size:                                 # the band entered for good between two points
+        k = outside[-1]
+        frac = (d[k] - band) / (d[k] - d[k + 1])
+        out["stabilisation_time_s"] = float(ts[k] + frac * (ts[k + 1] - ts[k]) - t_stop)
+    else:
+        out["stabilisation_time_s"] = 0.0
     noise = float(np.sqrt(np.mean((ps[tail] - smoothed[tail]) ** 2)))
     after = d[settle:]
     clear = np.flatnonzero(after < band - NOISE_MARGIN * noise)   # the later swings: once clear of the band
@@ -110,22 +116,52 @@ def stop_figures(t, p, t_stop: float, t_end: float, approach, band: float, smoot
     return out
 
 
-def rest_instants(t, p) -> tuple:
+REST_FLOOR = 1e-9        # m (and that share of the move): a command nearer its rest than this is at rest
+EDGE_SAMPLES = 6         # the samples next to a rest fitted to find the instant the command reaches it
+POWERS = np.arange(1.0, 4.0001, 0.05)   # d ~ (t_s - t)^m: 1 a ramp's end, 2 constant deceleration, 3 jerk-limited
+
+
+def rest_instant(t, d) -> float:
+    """(s) the instant a motion reaches its rest, from samples at ``t`` (k,) s (ascending, up to or past the rest)
+    at distances ``d`` (k,) m from the rest position: the last ``EDGE_SAMPLES`` samples still moving (farther than
+    ``REST_FLOOR``) are fitted by ``d = c (t_s - t)^m`` (the power m in 1..4 that fits best: 1 the end of a
+    ramp, 2 a constant deceleration, 3 a jerk-limited or minimum-jerk stop), extrapolated to d = 0 after the last
+    sample moving, at most one interval past the first at rest (which may still creep below the floor). A fraction of a sample, where a speed threshold is tens of
+    milliseconds early on a smooth profile."""
+    t, d = np.asarray(t, float), np.asarray(d, float)
+    moving = np.flatnonzero(d > REST_FLOOR * max(1.0, float(d.max()) if len(d) else 1.0))
+    if not moving.size:
+        return float(t[0])
+    last = int(moving[-1])
+    lo = last
+    while lo > 0 and last - lo + 1 < EDGE_SAMPLES and d[lo - 1] > d[lo]:   # the stretch still closing in
+        lo -= 1
+    # the first sample at rest may still creep below the floor: the rest is reached within one more interval
+    hi_t = float(2 * t[last + 1] - t[last]) if last + 1 < len(t) else np.inf
+    if last - lo + 1 < 2:
+        return float(t[last]) if not np.isfinite(hi_t) else hi_t
+    ts, ds = t[lo:last + 1], d[lo:last + 1]
+    tc = ts - ts[-1]
+    Y = ds[None, :] ** (1.0 / POWERS[:, None])                 # (m, k): linear in t for the right power
+    A = np.c_[np.ones_like(tc), tc]
+    coef, *_ = np.linalg.lstsq(A, Y.T, rcond=None)             # (2, m)
+    resid = Y - (A @ coef).T
+    spread = np.ptp(Y, axis=1)
+    score = np.sqrt(np.mean(resid ** 2, axis=1)) / np.where(spread > 0, spread, 1.0)
+    a, b = coef[:, int(np.argmin(score))]
+    at = float(ts[-1] - a / b) if b < 0 else float(ts[-1])
+    return float(min(max(at, float(ts[-1])), hi_t))
+
+
+def rest_instants(t, p, p_from=None, p_to=None) -> tuple:
     """(s, s) the instants a motion sampled at t (k,) leaves its first rest and reaches its last, its samples p
-    (k, 3) m running from the last sample at rest to the first at rest again: the square root of the distance from
-    a rest grows linearly in time under a constant acceleration, so it is extrapolated to zero from the two
-    samples next to the rest (the rest sample itself where they do not rise)."""
-    def edge(tt, d):
-        r = np.sqrt(d)
-        moved = np.flatnonzero(r > 1e-6 * max(r.max(), 1e-300))
-        j = int(moved[0]) if moved.size else 0
-        if j < 1 or j + 1 >= len(r) or not r[j + 1] > r[j]:
-            return float(tt[max(j - 1, 0)])
-        at = tt[j] - (tt[j + 1] - tt[j]) * r[j] / (r[j + 1] - r[j])
-        lo, hi = sorted((tt[j - 1], tt[j]))                 # between the last sample at rest and the first moved
-        return float(min(max(at, lo), hi))
-    start = edge(t, np.linalg.norm(p - p[0], axis=1))
-    stop = edge(t[::-1], np.linalg.norm(p[::-1] - p[-1], axis=1))
+    (k, 3) m running from (at least) the last sample at rest to the first at rest again; ``p_from``, ``p_to`` (3,)
+    the rest positions (default the first and the last sample): ``rest_instant`` at each end."""
+    t, p = np.asarray(t, float), np.asarray(p, float)
+    p_from = p[0] if p_from is None else np.asarray(p_from, float)
+    p_to = p[-1] if p_to is None else np.asarray(p_to, float)
+    stop = rest_instant(t, np.linalg.norm(p - p_to, axis=1))
+    start = -rest_instant(-t[::-1], np.linalg.norm(p[::-1] - p_from, axis=1))
     return max(start, float(t[0])), min(stop, float(t[-1]))
 
 
@@ -152,16 +188,40 @@ def stops(t, p, tj, p_c, runs, band: float, smooth: float = 0.04) -> dict:
     per = []
     for k, (i0, i1) in enumerate(runs):
         t_end = float(tj[runs[k + 1][0]]) if k + 1 < len(runs) else t_last
-        per.append(judge_stop(t, p, motion(tj, p_c, i0, i1), t_end, band, smooth))
+        lo = runs[k - 1][1] if k else 0
+        hi = runs[k + 1][0] if k + 1 < len(runs) else len(tj) - 1
+        mv = motion(tj, p_c, i0, i1, lo)
+        per.append(judge_stop(t, p, at_rest(mv, tj[i1:hi + 1], p_c[i1:hi + 1]), t_end, band, smooth))
     return summary(per, band, smooth)
 
 
-def motion(tj, p_c, i0: int, i1: int) -> dict:
-    """What a stop needs of the motion [i0, i1] of the command before it: start_s and stop_s (``rest_instants``),
-    approach (``approach_direction``), move_m (the command's distance from its start)."""
-    t0, t1 = rest_instants(tj[i0:i1 + 1], p_c[i0:i1 + 1])
+TAIL = 400   # the motion's last samples a stop keeps until its rest is seen (``at_rest``)
+
+
+def motion(tj, p_c, i0: int, i1: int, lo: int | None = None) -> dict:
+    """What a stop needs of the motion [i0, i1] of the command before it: start_s (``rest_instants``, the rest
+    before it at the middle of [lo, i0]), a provisional stop_s (at p_c[i1]: ``at_rest`` finds it once the rest
+    is seen), approach (``approach_direction``), move_m (the command's distance from its start), and the motion's
+    last samples (``tail``)."""
+    lo = i0 if lo is None else lo
+    a = (lo + i0) // 2
+    t0, t1 = rest_instants(tj[a:i1 + 1], p_c[a:i1 + 1], p_from=p_c[a])
+    k = max(i0, i1 - TAIL)
     return {"start_s": t0, "stop_s": t1, "approach": approach_direction(p_c, i0, i1),
-            "move_m": float(np.linalg.norm(p_c[i1] - p_c[i0]))}
+            "move_m": float(np.linalg.norm(p_c[i1] - p_c[i0])), "tail": (tj[k:i1 + 1].copy(), p_c[k:i1 + 1].copy())}
+
+
+def at_rest(mv: dict, t_rest, p_rest) -> dict:
+    """``mv`` (``motion``) with the instant the command reached its rest: the rest's samples ``t_rest`` (r,) s and
+    ``p_rest`` (r, 3) m, from the motion's last sample to the next motion (or the streams' end), its position the
+    middle sample's (where a smooth profile has stopped creeping in and not yet begun to creep out)."""
+    if len(t_rest) < 2:
+        return mv
+    mid = len(t_rest) // 2
+    tt, pp = mv["tail"]
+    t = np.concatenate([tt, np.asarray(t_rest, float)[1:mid + 1]])
+    d = np.linalg.norm(np.concatenate([pp, np.asarray(p_rest, float)[1:mid + 1]]) - p_rest[mid], axis=1)
+    return {**mv, "stop_s": rest_instant(t, d)}
 
 
 def judge_stop(t, p, mv: dict, t_end: float, band: float, smooth: float = 0.04) -> dict:
