@@ -35,7 +35,7 @@ from ..core.ingest import IngestError, JointOrder, StampGaps, stamp_seconds
 from ..core.accuracy.latency import FINE_WINDOW_S, coarse_offset, estimate_latency
 from ..core.accuracy.repeats import split_runs
 from ..core.accuracy.streams import LiveOrder
-from ..core.accuracy.path_report import LATENCY_SHARE, command_points
+from ..core.accuracy.path_report import LATENCY_SHARE, command_points, error_columns
 from ..core.accuracy.registration import KabschAccumulator, kabsch
 from ..core.accuracy.settling import at_rest, judge_stop, motion, summary
 from .monitor import MIN_GAP_S
@@ -331,7 +331,8 @@ class PathMonitor:
                 tm, pm = self.tm[sel], self.pm[sel]
                 groups = [np.arange(*np.searchsorted(tm - center, [tj[a], tj[b]])) for a, b in runs]
                 lat = estimate_latency(tm, pm, tj, pc, window, center, True, groups if len(groups) >= 3 else None,
-                                       np.array_split(np.concatenate(groups), 4))
+                                       np.array_split(np.concatenate(groups), 4),
+                                       geometry=error_columns(self.model, tj, self.qj[keep], self.offset))
                 tau, lat_doc = lat.latency_s, lat.to_dict()
             else:
                 self._tried = end

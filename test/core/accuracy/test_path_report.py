@@ -72,9 +72,35 @@ def test_budget_tube_verdict_and_refusal_of_an_uncertain_latency(rect_run):
     b = doc["budget"]
     assert b["bound_max_m"] > doc["overall"]["AT_p_m"] and doc["refused"] is None
     assert len(doc["segments"][0]["along"]["bound_m"]) == doc["stations_per_segment"]
-    budget.limit_position = 1e-5      # 10 um: the latency's uncertainty alone moves the path more than 1 um
+    budget.limit_position = 1e-6      # 1 um: the latency's uncertainty moves the path by more than a share of it,
     doc = path_report(model, st.stamps, st.points, st.joint_stamps, st.joints, budget=budget)
-    assert doc["refused"] and "too uncertain" in doc["refused"] and doc["missed"] == [doc["refused"]]
+    ends = doc["budget"]["AT_p_at_latency_interval_m"]     # but the path misses it wherever the latency lies
+    assert doc["refused"] is None and min(ends) > 1e-6 and "exceeds the design limit" in doc["missed"][0]
+
+
+@pytest.mark.parametrize("ends, refused", [((0.9, 1.1), True), ((0.5, 0.8), False), ((1.2, 1.5), False)])
+def test_an_uncertain_latency_refuses_only_a_verdict_it_could_change(rect_run, ends, refused):
+    """The latency's interval (+-2 uncertainties) moves AT_p between ``ends`` (times the limit): the verdict is
+    refused only where the limit lies between them."""
+    from tolerance_ros.core.accuracy.path_report import _judge
+    model, st = rect_run
+    doc = path_report(model, st.stamps, st.points, st.joint_stamps, st.joints)
+    limit = doc["overall"]["AT_p_m"] / (0.95 if refused else np.mean(ends))
+    budget = load_budget("gao2023_delta2", model)
+    budget.limit_position = limit
+    doc["latency_std_s"] = 1.0           # whatever the speed: a shift over a share of the limit
+    at = {doc["latency_s"] - 2.0: ends[0] * limit, doc["latency_s"] + 2.0: ends[1] * limit}
+    _judge(doc, model, budget, _ref(model, st, doc), st.joint_stamps, st.joints, 0.1, None, lambda tau: at[tau])
+    assert (doc["refused"] is not None) == refused
+    if refused:
+        assert "too uncertain" in doc["refused"] and doc["missed"] == [doc["refused"]]
+
+
+def _ref(model, st, doc):
+    """The first cycle's arc lengths and times, as path_report keeps them for the bound tube."""
+    from types import SimpleNamespace
+    s = np.asarray(doc["segments"][0]["along"]["s_m"])
+    return SimpleNamespace(s=np.r_[0.0, s[-1] * 10], t=np.r_[st.joint_stamps[0], st.joint_stamps[-1]])
 
 
 def test_a_given_latency_is_used_as_given(rect_run):

@@ -185,26 +185,36 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, option
             parts[j].append(np.arange(*np.searchsorted(tm_c, [t_b[j], t_b[j + 1]])))
     parts = [np.concatenate(p) for p in parts]
     if latency is None:
-        lat = estimate_latency(tm, pm, tj, p_c, window, center, reg, groups, parts, line.covered)
+        lat = estimate_latency(tm, pm, tj, p_c, window, center, reg, groups, parts, line.covered,
+                               geometry=error_columns(model, tj, qj, offset))
         tau, lat_doc = lat.latency_s, dict(lat.to_dict(), center_s=center, coarse=o.window is None)
     else:
         tau, lat_doc = float(latency), {"latency_s": float(latency), "std_s": 0.0, "given": True}
-    ta = tm - tau
-    inside = line.covered(ta)
-    if not inside.any():
-        raise ValueError("no tracker point lies within the joint states' time span: the two streams do not overlap")
-    pc_a = P.interp_columns(ta[inside], tj, p_c)
-    registration = o.registration
-    if o.T_tracker_base is not None:
-        R, t = np.asarray(o.T_tracker_base, float)[:3, :3], np.asarray(o.T_tracker_base, float)[:3, 3]
-        registration = "given"
-    elif reg:
-        R, t, _ = kabsch(pc_a, pm[inside])
-    else:
-        R, t = np.eye(3), np.zeros(3)
-    a = (pm - t) @ R                      # base frame
-    resid = np.linalg.norm(pc_a - a[inside], axis=1)
-    rms = float(np.sqrt(np.mean(resid ** 2)))
+    registration = "given" if o.T_tracker_base is not None else o.registration
+
+    def aligned(tau):
+        """(stamps on the command's clock, covered, R, t, points in the base frame, residual RMS) at ``tau``."""
+        ta = tm - tau
+        inside = line.covered(ta)
+        if not inside.any():
+            raise ValueError("no tracker point lies within the joint states' time span: the two streams do not "
+                             "overlap")
+        pc_a = P.interp_columns(ta[inside], tj, p_c)
+        if o.T_tracker_base is not None:
+            R, t = np.asarray(o.T_tracker_base, float)[:3, :3], np.asarray(o.T_tracker_base, float)[:3, 3]
+        elif reg:
+            R, t, _ = kabsch(pc_a, pm[inside])
+        else:
+            R, t = np.eye(3), np.zeros(3)
+        a = (pm - t) @ R                  # base frame
+        return ta, inside, R, t, a, float(np.sqrt(np.mean(np.sum((pc_a - a[inside]) ** 2, axis=1))))
+
+    def at_p(tau) -> float:
+        """The overall AT_p (m) were the latency ``tau``."""
+        ta, _, _, _, a, _ = aligned(tau)
+        return P.overall(P.path_characteristics(_cycles(tj, p_c, ta, a, runs, picked), bounds, o.stations,
+                                                o.speed_window))["AT_p_m"]
+    ta, inside, R, t, a, rms = aligned(tau)
     reach = model.reach()
     if rms > PLAUSIBLE_RESIDUAL * reach:
         raise ValueError(f"the registered residual RMS is {rms * 1e3:.4g} mm, {rms / reach * 100:.3g} % of the robot's "
@@ -242,8 +252,18 @@ def path_report(model, stamps, points, joint_stamps, joints, budget=None, option
            "stream_gaps": {name: g.summary() for name, g in gaps.items()}, "not_judged": list(holes.values()),
            "stops": stops(ta, a, tj, p_c, runs, o.band, o.smooth), "weaving": weaving(cycles)}
     if budget is not None:
-        _judge(doc, model, budget, ref, tj, qj, v_max, offset)
+        _judge(doc, model, budget, ref, tj, qj, v_max, offset, None if latency is not None else at_p)
     return doc
+
+
+def error_columns(model, tj, qj, offset=None):
+    """times (n,) s -> (n, 3, p): the position error of the tool point (or the target ``offset``) per parameter of
+    ``model`` at the joints commanded then (interpolated in the joint states ``tj``, ``qj``)."""
+    target = at_point(model, offset)
+
+    def columns(t):
+        return target.fk_and_jacobian(P.interp_columns(np.asarray(t, float), tj, qj))[1].position
+    return columns
 
 
 def _within_epochs(runs, slices) -> list:
@@ -307,9 +327,11 @@ def _check(model, tm, pm, tj, qj, covered, sample: int = 2000):
             raise ValueError(problem)
 
 
-def _judge(doc, model, budget, ref, tj, qj, v_max, offset=None):
+def _judge(doc, model, budget, ref, tj, qj, v_max, offset=None, at_p=None):
     """The bound tube along the first cycle's stations (at the target) and the verdicts against the budget
-    (into ``doc``)."""
+    (into ``doc``). A latency too uncertain for the limit (2 x its uncertainty x the speed over ``LATENCY_SHARE``
+    of it) refuses the verdict, unless ``at_p`` (the overall AT_p at another latency) gives the same verdict at
+    both ends of its interval (+-2 uncertainties)."""
     from ..errors import criterion_bound
     delta = budget.vector_for(model)
     target = at_point(model, offset)
@@ -329,12 +351,18 @@ def _judge(doc, model, budget, ref, tj, qj, v_max, offset=None):
         return
     shift = 2.0 * doc["latency_std_s"] * v_max
     doc["budget"]["latency_shift_m"] = shift
+    at = doc["overall"]["AT_p_m"]
+    if shift > LATENCY_SHARE * limit and at_p is not None:
+        u = doc["latency_std_s"]
+        ends = [at_p(doc["latency_s"] - 2 * u), at_p(doc["latency_s"] + 2 * u)]
+        doc["budget"]["AT_p_at_latency_interval_m"] = ends
+        if len({x > limit for x in ends + [at]}) == 1:       # the same verdict wherever the latency lies in it
+            shift = 0.0
     if shift > LATENCY_SHARE * limit:
         doc["refused"] = (f"the latency {doc['latency_s'] * 1e3:.2f} ms is too uncertain for the budget: 2 x its "
                           f"uncertainty {doc['latency_std_s'] * 1e3:.3f} ms x the speed {v_max:.3f} m/s moves the path "
                           f"by {shift * 1e3:.3f} mm, more than {LATENCY_SHARE:.0%} of the {limit * 1e3:.3f} mm limit")
         doc["missed"].append(doc["refused"])
         return
-    at = doc["overall"]["AT_p_m"]
     if at > limit:
         doc["missed"].append(f"path accuracy AT_p {at * 1e3:.4f} mm exceeds the design limit {limit * 1e3:.4f} mm")
