@@ -314,3 +314,59 @@ def test_every_report_says_where_its_base_frame_comes_from(capsys, tmp_path):
     assert code == 2 and "not in the robot's base frame" in err
     code, _, err = run(capsys, *iso, "--registration", "none", "--registration-from", tmp_path / "iso.truth.yaml")
     assert code == 2 and "one source of the base frame" in err
+
+
+def test_the_path_figures_of_a_stream_alone(capsys, tmp_path):
+    """iso9283 --stream without a campaign (issue 47): the path figures and the stops, every pose characteristic
+    named missing with what it needs; the campaign without its measurements, or --other without them, refused."""
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--path", "line", "--cycles", "3", "--out", tmp_path / "line.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--trajectory", tmp_path / "line.yaml", "--tolerances", TOL, "--out",
+        tmp_path / "s.csv")
+    argv = ("iso9283", "--robot", ROBOT, "--stream", tmp_path / "s.csv", "--joint-states", tmp_path / "s.joints.csv")
+    doc = json.loads(cli(capsys, *argv, "--json", "--out", tmp_path / "rep"))
+    path = json.loads(cli(capsys, "path-report", "--robot", ROBOT, "--measurements", tmp_path / "s.csv",
+                          "--joint-states", tmp_path / "s.joints.csv", "--json"))
+    assert doc["campaign"] is None and doc["pose"] == {} and doc["frame"]["source"] == "stream"
+    assert doc["path"]["overall"]["AT_p_m"] == path["overall"]["AT_p_m"]
+    missing = {m["characteristic"]: m["needs"] for m in doc["missing"]}
+    assert "--campaign, --measurements" in missing["AP, RP (pose accuracy and repeatability)"]
+    assert "the stream" in (tmp_path / "rep" / "report.md").read_text().splitlines()[0]
+    for extra, message in ((["--campaign", tmp_path / "line.yaml"], "give both"),
+                           (["--other", tmp_path / "s.csv"], "--other: goes with the campaign")):
+        code, _, err = run(capsys, *argv, *extra)
+        assert code == 2 and message in err
+    code, _, err = run(capsys, "iso9283", "--robot", ROBOT)
+    assert code == 2 and "nothing to report" in err
+
+
+def test_every_iso_input_is_checked_like_reports(capsys, tmp_path):
+    """Issue 47: loads in N labelled kN, the robot's own file as --other, the joint states of another path as a
+    reorientation's, and an output named like an input are each refused (exit 2) naming the cause."""
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--iso9283", "--cycles", "2", "--out", tmp_path / "cube.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances", TOL, "--load",
+        "200N", "--out", tmp_path / "loaded.csv")
+    text = (tmp_path / "loaded.csv").read_text()
+    assert "load:fx[N]" in text
+    (tmp_path / "kn.csv").write_text(text.replace("load:fx[N]", "load:fx[kN]").replace("load:fy[N]", "load:fy[kN]")
+                                     .replace("load:fz[N]", "load:fz[kN]"))
+    iso = ("iso9283", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml")
+    code, _, err = run(capsys, *iso, "--measurements", tmp_path / "kn.csv")
+    assert code == 2 and "beyond any robot's payload" in err and "N labelled kN?" in err
+    code, _, err = run(capsys, *iso, "--measurements", tmp_path / "loaded.csv", "--other", tmp_path / "loaded.csv")
+    assert code == 2 and "the same measurements as" in err
+    (tmp_path / "copy.csv").write_text(text)
+    code, _, err = run(capsys, *iso, "--measurements", tmp_path / "loaded.csv", "--other", tmp_path / "copy.csv")
+    assert code == 2 and "--other" in err and "the same measurements" in err
+    for kind in ("line", "reorient"):
+        cli(capsys, "plan-campaign", "--robot", ROBOT, "--path", kind, "--cycles", "2", "--out", tmp_path / "p.yaml")
+        cli(capsys, "simulate", "--robot", ROBOT, "--trajectory", tmp_path / "p.yaml", "--tolerances", TOL, "--out",
+            tmp_path / f"{kind}.csv")
+    code, _, err = run(capsys, *iso, "--measurements", tmp_path / "loaded.csv", "--reorientation",
+                       tmp_path / "reorient.csv", "--reorientation-joints", tmp_path / "line.joints.csv", "--latency",
+                       "8ms")
+    assert code == 2 and "the joint states of another path?" in err, err
+    (tmp_path / "rep").mkdir()
+    (tmp_path / "rep" / "report.html").write_text(text)
+    code, _, err = run(capsys, *iso, "--measurements", tmp_path / "rep" / "report.html", "--out", tmp_path / "rep")
+    assert code == 2 and "would write report.html over the input --measurements" in err
+    assert (tmp_path / "rep" / "report.html").read_text() == text

@@ -178,6 +178,21 @@ def check_outputs(args):
             raise CLIError(f"{option} {value}: cannot write into {existing} (permission denied)")
 
 
+def refuse_overwrite(out_dir, names, args, options):
+    """CLIError when a file the command would write into ``out_dir`` (its ``names``) is one of its inputs (the
+    values of ``options``, dests of ``args``; each a path or a list of them): nothing a user measured is written
+    over."""
+    if not out_dir:
+        return
+    written = {(Path(out_dir) / n).resolve(): n for n in names}
+    for dest in options:
+        values = getattr(args, dest, None)
+        for v in (values if isinstance(values, list) else [values]):
+            if v and Path(v).resolve() in written:
+                raise CLIError(f"--out {out_dir}: would write {written[Path(v).resolve()]} over the input "
+                               f"--{dest.replace('_', '-')} {v}; give another folder")
+
+
 def os_error_message(exc: OSError) -> str:
     """An operating-system error in words, naming its file: ``out/x.yaml: no space left on device``."""
     what = (exc.strerror or str(exc)).lower()

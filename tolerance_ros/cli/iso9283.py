@@ -4,7 +4,7 @@ a stream), the test conditions, and what the others need; as Markdown, HTML and 
 from __future__ import annotations
 
 from ..render.text import table
-from .common import CLIError, load_model, quantity
+from .common import CLIError, load_model, quantity, refuse_overwrite
 
 NAME = "iso9283"
 HELP = "ISO 9283 test report: every characteristic the data allow, in one report (Markdown, HTML, JSON)"
@@ -13,8 +13,9 @@ MAX_OTHERS = 100
 
 
 def add_arguments(p):
-    p.add_argument("--campaign", required=True, help="the campaign measured (test poses, approaches, cycles)")
-    p.add_argument("--measurements", required=True,
+    p.add_argument("--campaign", help="the campaign measured (test poses, approaches, cycles); without it and "
+                                      "--measurements, the report of a --stream alone")
+    p.add_argument("--measurements",
                    help="the tracker's measurements of the campaign (CSV, campaign log or rosbag2), rows named by "
                         "test pose")
     p.add_argument("--other", action="append", default=[], metavar="MEASUREMENTS",
@@ -131,8 +132,19 @@ def run(args):
     from ..core.accuracy.iso9283_report import ISOOptions, ISOReportError, iso9283_report
     from ..core.campaign import load_campaign
     from ..render.iso9283_report import sections, write_iso9283_report
+    refuse_overwrite(args.out, ("report.md", "report.html", "iso9283.json", "drift.png", "vap.png"), args,
+                     ("campaign", "measurements", "other", "stream", "joint_states", "trajectory", "reorientation",
+                      "reorientation_joints", "registration_from", "registration_poses"))
     model = load_model(args)
-    campaign = load_campaign(args.campaign, model)
+    if bool(args.campaign) != bool(args.measurements):
+        raise CLIError("--campaign, --measurements: give both (the test poses and their measurements), or neither for "
+                       "the report of a --stream alone")
+    if not args.campaign and not args.stream:
+        raise CLIError("--campaign and --measurements, or --stream: nothing to report")
+    if not args.campaign and (args.other or args.distance or args.registration_poses):
+        raise CLIError(f"{'--other' if args.other else '--distance' if args.distance else '--registration-poses'}: "
+                       f"goes with the campaign and its measurements (--campaign, --measurements)")
+    campaign = load_campaign(args.campaign, model) if args.campaign else None
     if len(args.other) > MAX_OTHERS:
         raise CLIError(f"--other: {len(args.other)} robots; at most {MAX_OTHERS}")
     pair = None
@@ -145,7 +157,7 @@ def run(args):
         raise CLIError(f"--drift-window: expected 1s to 720h, got {args.drift_window!r}")
     conditions = {"load": args.load, "speed": args.speed, "temperature": args.temperature,
                   "measuring_system": args.measuring_system}
-    meas = read_measurements(args.measurements, joint_names=model.joint_names)
+    meas = read_measurements(args.measurements, joint_names=model.joint_names) if args.measurements else None
     others = [read_measurements(f, joint_names=model.joint_names) for f in args.other]
     if args.latency and not (args.stream or args.reorientation):
         raise CLIError("--latency: goes with --stream or --reorientation")
@@ -161,8 +173,9 @@ def run(args):
     files = write_iso9283_report(doc, args.out) if args.out else {}
     if args.json:
         return dict(doc, files=files)
-    print(f"robot {model.name}: ISO 9283 from {doc['measurements']} measurements of campaign {campaign.name} "
-          f"({doc['source']})" + (f" and {len(others)} other robot(s)" if others else ""))
+    print(f"robot {model.name}: ISO 9283 from " + (f"{doc['measurements']} measurements of campaign {campaign.name} "
+          f"({doc['source']})" if campaign is not None else f"the stream {doc['source']} alone")
+          + (f" and {len(others)} other robot(s)" if others else ""))
     print(f"base frame: {doc['frame']['words']}")
     for w in doc["warnings"]:
         print(f"WARNING: {w}")

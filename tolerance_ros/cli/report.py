@@ -4,7 +4,7 @@ from __future__ import annotations
 from ..core.accuracy.verdicts import describe
 from ..core.budget import load_budget
 from ..render.text import table
-from .common import CLIError, load_model, missed
+from .common import CLIError, load_model, missed, refuse_overwrite
 
 NAME = "report"
 HELP = "accuracy report of measured poses (ISO 9283, budget, identification)"
@@ -39,6 +39,9 @@ def run(args):
     from ..core.campaign import load_campaign
     from ..render.accuracy_report import write_report
     from ..core.conformity import DecisionRule
+    refuse_overwrite(args.out, ("report.md", "report.json", "measurements.csv", "per_pose.csv", "identification.csv",
+                                "error_per_pose.png", "error_vs_bound.png", "identified_vs_tolerance.png"), args,
+                     ("measurements", "campaign", "budget"))
     model = load_model(args)
     try:
         rule = DecisionRule.parse(args.decision_rule)

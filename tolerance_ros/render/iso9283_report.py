@@ -22,7 +22,8 @@ def sections(doc) -> list:
     cond = doc["conditions"]
     out.append(("Test conditions", "as stated with the command (load, speed, temperature, measuring system) and as "
                 "the data show", ["condition", "value"],
-                [[k.replace("_", " "), str(v) if not isinstance(v, float) else f"{v:g}"] for k, v in cond.items()]))
+                [[k.replace("_", " "), str(v) if not isinstance(v, float) else f"{v:g}"] for k, v in cond.items()]
+                or [["stated", "none (--load, --speed, --temperature, --measuring-system)"]]))
     if doc["pose"]:
         heads = ["pose", "n", "AP_p mm", "AP_x mm", "AP_y mm", "AP_z mm", "RP_l mm"]
         keys = ["AP_p", "AP_x", "AP_y", "AP_z", "RP_l"]
@@ -130,6 +131,8 @@ def _md_table(heads, rows) -> list:
 
 
 def _title(doc) -> str:
+    if doc["campaign"] is None:
+        return f"ISO 9283 test report: {doc['robot']}, the stream {doc['source']} alone"
     return (f"ISO 9283 test report: {doc['robot']}, campaign {doc['campaign']}, {doc['measurements']} measurements "
             + (f"({doc['under_load']} under load) " if doc.get("under_load") else "") + f"from {doc['source']}")
 

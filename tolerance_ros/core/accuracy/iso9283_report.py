@@ -31,6 +31,8 @@ from .iso9283 import distance_characteristics, drift, exchangeability, multidire
 from .registration import Registration
 
 COMMANDED_TOLERANCE = 1e-6  # m: the approaches of one test pose must command the same position within this
+MAX_FORCE = 5e4             # N: beyond any robot's payload (the largest carry about 23 kN): a unit slip
+MAX_TORQUE = 5e4            # N m: likewise
 CONDITIONS = ("load", "speed", "temperature", "measuring_system", "notes")
 
 
@@ -142,10 +144,13 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     """The ISO 9283 figures of ``meas`` (see the module docstring); ``others``: measurements of the same campaign
     on other robots of the type (exchangeability); ``path``: a ``path_report`` result to include;
     ``reorientation``: (stamps, frames (n, 4, 4) tracker frame, joint stamps, joints, latency s, source) of a 6-DOF
-    tracker's stream along a reorientation, judged in the campaign's registration. Keys: robot,
+    tracker's stream along a reorientation, judged in the campaign's registration. ``meas`` None: a stream alone,
+    the path figures and every pose characteristic named missing. Keys: robot,
     source, campaign, orientation_measured, conditions, pose (AP/RP per test pose), multidirectional, distance,
     drift, exchangeability, compliance, path, missing [{characteristic, needs}], warnings."""
     options = options or ISOOptions()
+    if meas is None:
+        return _stream_only(model, options, path, reorientation)
     if campaign is None:
         raise ISOReportError("an ISO 9283 report needs the campaign (its test poses and approaches)")
     loaded = meas.loaded
@@ -166,7 +171,7 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
     out["multidirectional"] = _multidirectional(campaign, commanded, T, names, ori, missing)
     out["distance"] = _distance(options, campaign, commanded, T, names, cycles, ori, missing)
     out["drift"] = _drift(options, campaign, commanded, T, names, stamps, ori, missing)
-    out["exchangeability"] = _exchangeability(model, campaign, options, T, names, others, missing, warnings)
+    out["exchangeability"] = _exchangeability(model, campaign, options, T, names, others, missing, warnings, meas)
     out["compliance"] = _compliance(meas, res, campaign, missing)
     out["path"] = path
     out["reorientation"] = None
@@ -182,6 +187,45 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
             out["reorientation"] = reorientation_report(model, t, Tr, tj, qj, T_tb, latency, source=source)
         except ValueError as exc:
             raise ISOReportError(f"{source}: {exc}") from None
+    _path_missing(path, missing)
+    out["missing"] = missing
+    out["warnings"] = warnings
+    return out
+
+
+POSE_NEEDS = "the campaign and its measurements (--campaign, --measurements: the test poses visited in cycles)"
+
+
+def _stream_only(model, options, path, reorientation) -> dict:
+    """The report of a stream alone (no campaign measured): the path figures; every pose characteristic missing."""
+    if path is None:
+        raise ISOReportError("nothing to report: give the campaign and its measurements (--campaign, --measurements), "
+                             "or a stream (--stream)")
+    if reorientation is not None:
+        raise ISOReportError("--reorientation: judged in the campaign's registration, so it needs the campaign and its "
+                             "measurements (--campaign, --measurements)")
+    reg = path["registration"]
+    source, words = ("stream", "fitted on the path stream itself (path-report's registration); no campaign measured"
+                     if reg["method"] == "base" else "the measuring frame itself (--registration none)")
+    if options.frame is not None:
+        source, words = options.frame.source, options.frame.words
+    frame = {"source": source, "words": words, "lower_bound": False, "absorbed": None, "coordinates": None,
+             "T_tracker_base": reg["T_tracker_base"], "residual_rms_m": reg["residual_rms_m"]}
+    missing = [{"characteristic": c, "needs": POSE_NEEDS} for c in (
+        "AP, RP (pose accuracy and repeatability)", "vAP (multi-directional pose accuracy variation)",
+        "AD, RD (distance accuracy and repeatability)", "dAP, dRP (drift of pose characteristics)",
+        "E (exchangeability)", "static compliance", "path accuracy on reorientation")]
+    _path_missing(path, missing)
+    return {"robot": model.name, "source": path["source"], "campaign": None, "measurements": 0, "under_load": 0,
+            "frame": frame, "orientation_measured": False, "registration": {k: reg[k] for k in ("method",
+                                                                                               "residual_rms_m")},
+            "conditions": _conditions(options, None, np.zeros(0, dtype=object), np.zeros(0)), "pose": {},
+            "left_out": [], "multidirectional": {}, "distance": {}, "drift": {}, "exchangeability": {},
+            "compliance": {}, "path": path, "reorientation": None, "missing": missing, "warnings": []}
+
+
+def _path_missing(path, missing):
+    """What the path characteristics need that ``path`` (a ``path_report`` result, or None) does not give."""
     if path is None:
         missing.append({"characteristic": "AT, RT, CR, CO, AV, RV, FV (path)",
                         "needs": "the tracker's stream along a test path and the command (--stream with --joint-states "
@@ -193,9 +237,6 @@ def iso9283_report(model, meas, campaign, options: ISOOptions | None = None, oth
         missing.append({"characteristic": "pose stabilisation time, pose overshoot, minimum positioning time",
                         "needs": "the tracker's stream with the robot coming to rest after its motions (--stream; "
                                  "rests of 0.1 s or more; the moves over the distances to time, at full speed)"})
-    out["missing"] = missing
-    out["warnings"] = warnings
-    return out
 
 
 def _frame(options, res, names, ori) -> dict:
@@ -226,6 +267,8 @@ def _conditions(options, campaign, names, stamps) -> dict:
     if bad:
         raise ISOReportError(f"conditions: unknown {bad}; expected {list(CONDITIONS)}")
     out = {k: str(v) for k, v in options.conditions.items() if v}
+    if campaign is None:
+        return out
     visits = max((int((names == p).sum()) for p in campaign.names), default=0)
     out.update(cycles=visits, dwell_s=campaign.dwell_s, test_poses=len(campaign.names),
                duration_s=float(stamps.max() - stamps.min()) if len(stamps) else 0.0)
@@ -299,6 +342,8 @@ def _compliance(meas, res, campaign, missing) -> dict:
     """Static compliance per test pose: every visit (loaded or not) in the base frame of the unloaded ones'
     registration."""
     loaded = meas.loaded
+    if loaded.any():
+        _check_loads(meas)
     if not loaded.any():
         missing.append({"characteristic": "static compliance",
                         "needs": "visits measured under known loads at the tool (load:fx, load:fy, load:fz columns, "
@@ -318,13 +363,36 @@ def _compliance(meas, res, campaign, missing) -> dict:
     return out
 
 
-def _exchangeability(model, campaign, options, T, names, others, missing, warnings) -> dict:
+def _check_loads(meas):
+    """ISOReportError naming a load no robot test can apply (a unit slip: N labelled kN, N m labelled kN m)."""
+    L = np.asarray(meas.load, float)
+    for cols, cap, what, unit in ((slice(0, 3), MAX_FORCE, "force", "N"), (slice(3, 6), MAX_TORQUE, "torque", "N m")):
+        if L.shape[1] <= cols.start:
+            continue
+        big = np.linalg.norm(L[:, cols], axis=1)
+        if big.max() > cap:
+            i = int(np.argmax(big))
+            raise ISOReportError(f"{meas.source}: a {what} of {big[i]:.4g} {unit} at the tool ({meas.where(i)}), beyond "
+                                 f"any robot's payload ({cap:.0f} {unit}): the load columns' unit cannot be right "
+                                 f"({unit} labelled k{unit}?)")
+
+
+def _same_data(a, b) -> bool:
+    """Whether two measurement sets hold the same readings (another copy of one file)."""
+    return len(a) == len(b) and np.array_equal(a.T, b.T)
+
+
+def _exchangeability(model, campaign, options, T, names, others, missing, warnings, first) -> dict:
     if not others:
         missing.append({"characteristic": "E (exchangeability)",
                         "needs": "the same campaign measured on other robots of the type (--other)"})
         return {}
     robots = [(T, names)]
-    for m in others:
+    for k, m in enumerate(others):
+        same = [o.source for o in others[:k] if _same_data(o, m)]
+        if same or _same_data(m, first):
+            raise ISOReportError(f"--other {m.source}: the same measurements as {same[0] if same else first.source}; "
+                                 f"exchangeability compares other robots of the type")
         m = m.select(~m.loaded)                                 # the unloaded visits, as for the first robot
         res, To, no, *_ = _pose_data(model, m, campaign, options.registering)
         warnings += [f"{m.source}: {w}" for w in res.get("warnings", [])]

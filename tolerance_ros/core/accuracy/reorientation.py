@@ -24,6 +24,26 @@ from ..geometry import rotation_error, rpy_from_matrix
 REST_SPEED = 1e-3      # rad/s (or m/s) of the fastest joint: the command at rest below this
 
 
+HELD_POINT = 2e-3        # m: a reorientation's commanded tool point stays within this of its mean (1 mm of IK slack)
+MIN_TURN = np.radians(1.0)   # rad: a reorientation turns its tool by more than this
+
+
+def _check_command(model, qj):
+    """ValueError when the joint states cannot be a reorientation's: the tool point they command moves (joint
+    states of another path), or the tool does not turn."""
+    T = model.fk(qj[np.linspace(0, len(qj) - 1, min(len(qj), 2000)).astype(int)])
+    moved = float(np.linalg.norm(T[:, :3, 3] - T[:, :3, 3].mean(axis=0), axis=1).max())
+    if moved > HELD_POINT:
+        raise ValueError(f"reorientation: along these joint states the commanded tool point moves by up to "
+                         f"{moved * 1e3:.4g} mm from its mean, where a reorientation holds it (within "
+                         f"{HELD_POINT * 1e3:g} mm): the joint states of another path?")
+    turn = float(np.linalg.norm(rotation_error(T[:, :3, :3], np.broadcast_to(T[0, :3, :3], T[:, :3, :3].shape)),
+                                axis=1).max())
+    if turn < MIN_TURN:
+        raise ValueError(f"reorientation: along these joint states the tool turns by {np.degrees(turn):.3g} deg at "
+                         f"most; a reorientation turns it (more than {np.degrees(MIN_TURN):g} deg)")
+
+
 def reorientation_report(model, stamps, T_tracker, joint_stamps, joints, T_tracker_base=None, latency: float = 0.0,
                          stations: int = 100, source: str = "") -> dict:
     """The figures of the module docstring (SI). ``T_tracker`` (n, 4, 4) frames in the tracker frame stamped
@@ -47,6 +67,14 @@ def reorientation_report(model, stamps, T_tracker, joint_stamps, joints, T_track
     picked, others = P.cycles_of(qj, runs)
     if not picked:
         raise ValueError("reorientation: the command never moves (joint states at rest)")
+    _check_command(model, qj)
+    inside = (t >= tj[0]) & (t <= tj[-1])
+    if inside.sum() >= 3:
+        from .checks import orientation_problem
+        sub = np.flatnonzero(inside)[:: max(1, int(inside.sum()) // 500)]
+        problem = orientation_problem(model, P.interp_columns(t[sub], tj, qj), T[sub, :3, :3])
+        if problem:
+            raise ValueError(f"reorientation: {problem}")
     turned = []
     dev_p, dev_a = [], []
     f = (np.arange(stations) + 0.5) / stations
