@@ -221,7 +221,8 @@ def _rewrite(src, dst, fix_row=None, fix_header=None):
 
 
 def test_calibrate_and_validate_refuse_what_report_refuses_with_exit_2(capsys, gao_cal, tmp_path):
-    """Radians labelled degrees in the orientation columns, the points in metres labelled millimetres, x and y
+    """Radians labelled degrees in the orientation columns, or degrees labelled radians (issue 49: they turn as far
+    as the tool on the whole, but by unrelated angles), the points in metres labelled millimetres, x and y
     swapped, another campaign with the same pose names: report, calibrate and validate all refuse them as bad
     input (exit 2) with the cause, before any fit."""
     m = gao_cal / "m.csv"
@@ -234,6 +235,8 @@ def test_calibrate_and_validate_refuse_what_report_refuses_with_exit_2(capsys, g
         return [{"x[mm]": "y[mm]", "y[mm]": "x[mm]"}.get(h, h) for h in header]
     cases = {
         "radians labelled degrees": _rewrite(m, tmp_path / "rad.csv", fix_row=radians),
+        "degrees labelled radians": _rewrite(m, tmp_path / "deg.csv", fix_header=lambda header: [
+            h.replace("[deg]", "[rad]") if h.split("[")[0] in ori else h for h in header]),
         "metres labelled millimetres": _rewrite(m, tmp_path / "m_mm.csv", fix_row=lambda h, r: [
             f"{float(v) / 1000:.9f}" if h[k] in ("x[mm]", "y[mm]", "z[mm]") else v for k, v in enumerate(r)]),
         "cannot be judged against gao2023_7dof": _rewrite(m, tmp_path / "swapped.csv", fix_header=swap_xy),

@@ -79,24 +79,50 @@ def _turns(R) -> np.ndarray:
     return np.arccos(np.clip((np.trace(rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
 
 
-def orientation_problem(model, q, R) -> str | None:
+ORIENTATION_MISMATCH = 0.1   # rad: a turn seen this far from the tool's (median over the pairs) is no robot error
+
+
+def orientation_problem(model, q, R, T_meas=None) -> str | None:
     """Why measured orientations (n, 3, 3) cannot be in the angle unit claimed, or None: from one measurement to
-    the next they must turn as the robot's tool turns at the same joints (an angle no frame changes), within
-    ``PLAUSIBLE_SPREAD`` (the median over the pairs where the tool turns ``ORIENTATION_MIN_TURN`` or more:
-    radians labelled degrees turn 57 times too little). None also where the tool hardly turns."""
-    tool = _turns(model.fk(np.asarray(q, float))[:, :3, :3])
+    the next they must turn as the robot's tool turns at the same joints (an angle no fixed frame on either side
+    changes), over the pairs where the tool turns ``ORIENTATION_MIN_TURN`` or more. Their medians must agree within
+    ``PLAUSIBLE_SPREAD`` (radians labelled degrees turn 57 times too little), and each pair's turn must match the
+    tool's within ``ORIENTATION_MISMATCH`` at the median (degrees labelled radians turn at random, as far as the
+    tool on average over widely spread poses). None also where the tool hardly turns, and where the measured
+    points of ``T_meas`` (n, 4, 4), registered with the targets' offsets, fit no better than the orientations
+    (another robot's data: ``diagnose`` names it)."""
+    T_tool = model.fk(np.asarray(q, float))
+    tool = _turns(T_tool[:, :3, :3])
     seen = _turns(np.asarray(R, float))
     moving = tool >= ORIENTATION_MIN_TURN
     if np.count_nonzero(moving) < 3:
         return None
     ratio = float(np.median(seen[moving]) / np.median(tool[moving]))
+    mismatch = float(np.median(np.abs(seen[moving] - tool[moving])))
     lo, hi = PLAUSIBLE_SPREAD
-    if lo <= ratio <= hi:
+    if lo <= ratio <= hi and mismatch <= ORIENTATION_MISMATCH:
         return None
+    if lo <= ratio <= hi:
+        if T_meas is not None and not _points_fit(model, T_tool, T_meas):
+            return None
+        return (f"units: from one measurement to the next the measured orientations turn by angles unrelated to the "
+                f"robot's tool's (median difference {mismatch:.3g} rad over {np.count_nonzero(moving)} pairs, "
+                f"although about as far on the whole); the orientation columns cannot be right (degrees labelled "
+                f"radians, or another angle convention?)")
     hint = (" (radians labelled degrees?)" if ratio < 0.1 else
             " (milliradians labelled radians, or degrees labelled radians?)" if ratio > 5 else "")
     return (f"units: from one measurement to the next the measured orientations turn {ratio:.4g} times as far as the "
             f"robot's tool does; the angle unit of the orientation columns cannot be right{hint}")
+
+
+def _points_fit(model, T_tool, T_meas) -> bool:
+    """Whether the measured points fit the tool's, registered with one target's offset (orientations ignored),
+    within ``PLAUSIBLE_RESIDUAL`` of the reach."""
+    try:
+        reg = register(T_tool, T_meas, tool=True)
+    except (ValueError, np.linalg.LinAlgError):
+        return True
+    return _rms(reg.residuals) <= PLAUSIBLE_RESIDUAL * model.reach()
 
 
 def refuse_implausible(model, q, T_meas, idx, names, registration="base", frames=False, robust=True) -> list:
@@ -106,7 +132,7 @@ def refuse_implausible(model, q, T_meas, idx, names, registration="base", frames
     else the hints (a target offset). What ``calibrate`` and ``validate`` ask before any fit."""
     q = np.asarray(q, float)
     if frames:
-        problem = orientation_problem(model, q, np.asarray(T_meas)[:, :3, :3])
+        problem = orientation_problem(model, q, np.asarray(T_meas)[:, :3, :3], np.asarray(T_meas))
         if problem:
             raise CheckError(problem)
     if len(q) < 3:

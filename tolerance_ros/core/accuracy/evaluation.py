@@ -38,7 +38,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     names = meas.target_names
     not_registered = []
     problem = checks.units_problem(model, q, meas.T[:, :3, 3]) or \
-        (checks.orientation_problem(model, q, meas.T[:, :3, :3]) if meas.has_orientation else None)
+        (checks.orientation_problem(model, q, meas.T[:, :3, :3], meas.T) if meas.has_orientation else None)
     if problem:
         raise checks.CheckError(f"{meas.source}: {problem}")
     labels = _labels(meas)
