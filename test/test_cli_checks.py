@@ -281,3 +281,18 @@ def test_a_pose_name_is_bounded(capsys, gao_cal, tmp_path):
     code, _, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", tmp_path / "long.csv",
                        "--out", tmp_path / "c")
     assert code == 2 and f"line {head + 2}: pose: a name of 200,000 characters" in err and len(err) < 1000, err
+
+
+def test_calibrate_names_measured_poses_its_campaign_does_not_have_as_report_does(capsys, gao_cal, tmp_path):
+    """Issue 49: C1-C20 measured, the ISO cube's P1-P5 given: both commands warn naming the poses and the
+    likely cause; calibrate fits them at their own joint columns (nothing dropped)."""
+    m = gao_cal / "m.csv"
+    code, out, _ = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", m, "--campaign",
+                       "gao2023_iso_cube", "--folds", "3", "--out", tmp_path / "c", "--json", "--quiet")
+    doc = json.loads(out)
+    said = [w for w in doc["warnings"] if "is in campaign 'gao2023_iso_cube': the wrong campaign?" in w]
+    assert code == 0 and len(said) == 1 and "none of the 20 poses measured (C1, C10" in said[0]
+    assert doc["fit"]["measurements"] == sum(1 for line in m.read_text().splitlines() if not line.startswith("#")) - 1
+    code, out, _ = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", m, "--campaign",
+                       "gao2023_iso_cube", "--json", "--quiet")
+    assert any("none of the 20 poses measured" in w for w in json.loads(out)["warnings"])

@@ -148,11 +148,13 @@ def refuse_implausible(model, q, T_meas, idx, names, registration="base", frames
 @dataclass
 class Screened:
     """Rows of a campaign that can be judged: ``keep`` (n,) mask; ``left_out`` [{row, where, reason}];
-    ``notes`` what the user should know that leaves nothing out (poses the campaign does not have)."""
+    ``notes`` what the user should know that leaves nothing out (poses the campaign does not have,
+    ``unknown_poses``)."""
 
     keep: np.ndarray
     left_out: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    unknown_poses: list = field(default_factory=list)
 
     def leave_out(self, rows, reason_of, where):
         for i in np.flatnonzero(rows & self.keep):
@@ -194,14 +196,24 @@ def _where(meas, i):
     return meas.where(i) if meas is not None else f"row {int(i)}"
 
 
+def unknown_poses_text(unknown, campaign_name, labels) -> str:
+    """'pose(s) C1, C2 are not in campaign X' (the first ten), or, when none of the measured poses is in it,
+    that the campaign is not the one measured."""
+    shown = ", ".join(unknown[:10]) + (f" and {len(unknown) - 10} more" if len(unknown) > 10 else "")
+    if len(unknown) == len({str(p) for p in labels}):
+        return (f"none of the {len(unknown)} poses measured ({shown}) is in campaign {campaign_name!r}: the wrong "
+                f"campaign?")
+    return f"pose(s) {shown} are not in campaign {campaign_name!r}"
+
+
 def _check_campaign(model, q, labels, campaign, out, meas):
     table = dict(zip(campaign.names, campaign.joints_for(model)))
     named = np.array([bool(str(p)) for p in labels])
     unknown = sorted({str(p) for p in labels[named] if str(p) not in table})
     if unknown:
-        shown = ", ".join(unknown[:10]) + (f" and {len(unknown) - 10} more" if len(unknown) > 10 else "")
-        out.notes.append(f"pose(s) {shown} are not in campaign {campaign.name!r}: their measurements are judged "
-                         f"without a test pose (no ISO 9283 figures)")
+        out.unknown_poses = unknown
+        out.notes.append(f"{unknown_poses_text(unknown, campaign.name, labels[named])}: their measurements are "
+                         f"judged without a test pose (no ISO 9283 figures)")
     bad = []
     for name in table:
         sel = np.flatnonzero((labels == name) & out.keep)

@@ -242,6 +242,11 @@ def calibrate_measurements(model, meas, campaign=None, options: FitOptions | Non
                     target_names=meas.target_names, stamps=meas.stamps, progress=progress,
                     where=[meas.where(i) for i in range(len(meas))])
     cal.warnings = [f"left out before the fit: {r['where']}: {r['reason']}" for r in screened.left_out] + cal.warnings
+    if screened.unknown_poses:
+        named = [p for p in meas.pose if str(p)]
+        cal.warnings.insert(0, f"{checks.unknown_poses_text(screened.unknown_poses, campaign.name, named)}: the "
+                               f"campaign gives their measurements nothing; they are fitted at their own joint "
+                               f"columns")
     return cal
 
 
