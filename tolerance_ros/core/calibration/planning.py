@@ -250,7 +250,7 @@ def plan(model: Mechanism, n: int, criterion="observability", candidates=2000, s
                 [model.param_names[j] for j in np.flatnonzero(held)], chosen, rand, iso, note, spectra, report)
 
 
-def _file_joints(q, prismatic) -> list:
+def file_joints(q, prismatic) -> list:
     """Joints (dof,) SI as a campaign file of ``campaign_dict`` writes them: degrees, prismatic joints in m."""
     return [float(v) if pr else float(np.degrees(v)) for v, pr in zip(q, prismatic)]
 
@@ -262,7 +262,7 @@ def campaign_dict(model: Mechanism, q, name, cycles=3, dwell=2.0, description=""
     prismatic = [t == "prismatic" for t in model.joint_types]
     poses = []
     for i, row in enumerate(np.asarray(q, float)):
-        entry = {"name": f"C{i + 1}", "joints": _file_joints(row, prismatic)}
+        entry = {"name": f"C{i + 1}", "joints": file_joints(row, prismatic)}
         if any(prismatic):
             entry["joint_units"] = ["length" if pr else "angle" for pr in prismatic]
         poses.append(entry)
@@ -314,7 +314,7 @@ def iso9283_campaign(model: Mechanism, q_poses, approach=None, directions=("+x",
                 raise ValueError(f"{name}: its pre-pose {approach * 1e3:g} mm before it along {d} is out of reach "
                                  f"(or of the joint limits, or of the restrictions); shorten --approach")
             entry = dict(doc["poses"][k], joints=list(doc["poses"][k]["joints"]), name=f"{name}{d}", of=name,
-                         approach=d, via=_file_joints(q[0], prismatic))
+                         approach=d, via=file_joints(q[0], prismatic))
             extra.append(entry)
     doc["poses"] += extra
     return doc
