@@ -306,3 +306,23 @@ def test_a_trajectory_with_a_latency_window_is_still_placed_on_the_trackers_cloc
                          "--trajectory", streams / "rect.yaml", "--latency-window", "30ms", "--json")
     assert code == 0, err
     assert json.loads(out)["command"]["start_s"] == pytest.approx(1000.008, abs=5e-4)
+
+
+def test_one_stamp_of_1e308_is_one_point_left_out_and_every_cycle_is_judged(capsys, streams, tmp_path):
+    """Issue 49: the stray stamp had cut the tracker's stream into two epochs, and a whole cycle went unjudged."""
+    lines = (streams / "path.csv").read_text().splitlines()
+    rows = [i for i, line in enumerate(lines) if line[:1].isdigit()]
+    k = rows[len(rows) // 3]
+    lines[k] = "1e308," + lines[k].split(",", 1)[1]
+    (tmp_path / "stray.csv").write_text("\n".join(lines) + "\n")
+    docs = []
+    for f in (streams / "path.csv", tmp_path / "stray.csv"):
+        code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", f,
+                             "--joint-states", streams / "path.joints.csv", "--json", "--quiet")
+        assert code == 0, err
+        docs.append(json.loads(out))
+    clean, stray = docs
+    assert stray["cycles"] == clean["cycles"] == 4 and stray["not_judged"] == []
+    points = stray["streams"]["points"]
+    assert points["stray"] == 1 and points["epochs"] == 1 and points["jump_count"] == 0
+    assert stray["outside"]["left_out"] == 1 and stray["outside"]["outside_joint_states"] == 0
