@@ -6,6 +6,7 @@ import argparse
 import os
 import re
 import sys
+import warnings
 
 from ..core.jsonio import dumps
 from ..core.resources import ConfigNotFound
@@ -154,14 +155,17 @@ def main(argv=None) -> int:
         return _fail(parser.prog, "invalid_request", str(exc), as_json)
     prog = f"{parser.prog} {args.command}"
     args.missed = []
+    said = []
     try:
         own = getattr(sys.modules.get(args.func.__module__), "OWN_CAPS", ())  # the caps the command checks itself
         for name in CAPS:  # a count above its cap is refused before any work
             if name not in CHECKED_BY_COMMAND and name not in own and isinstance(getattr(args, name, None), int):
                 check_cap(getattr(args, name), name)
         check_outputs(args)
-        with limited(1):
+        with limited(1), warnings.catch_warnings(record=True) as said:
             out = args.func(args)
+        for w in said:   # said once the command has answered: a refusal is one line, not numpy's warnings first
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
         if as_json and out is not None:
             doc = {"ok": not args.missed, **out} if isinstance(out, dict) else out
             if args.missed and isinstance(doc, dict):
@@ -172,6 +176,9 @@ def main(argv=None) -> int:
         return EXIT_OK
     except Exception as exc:  # every error is one line (and a JSON document with --json)
         code = error_code(exc)
+        if code == "internal":   # a bug: what numpy said on the way may tell where
+            for w in said:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
         message = _message(exc) if code != "internal" else f"internal error (a bug): {type(exc).__name__}: {exc}"
         return _fail(prog, code, message, as_json)
     for what in args.missed:

@@ -145,6 +145,40 @@ def refuse_implausible(model, q, T_meas, idx, names, registration="base", frames
     return hints
 
 
+def unused_joint_columns(model, names, joints) -> tuple:
+    """(warning or None, note or None) on the joint columns ``names`` of a file (``joints`` (n, k) beside) that
+    are not joints of the model's chain, so unused: a warning for those whose joints move links past the tip
+    link and move over the file (the measured point moves with joints the chain does not have: a tip link
+    short of the measured point), a note for the others."""
+    extra = [str(n) for n in names if str(n) not in model.joint_names]
+    if not extra:
+        return None, None
+    beyond = set(model.beyond_tip(extra)) if hasattr(model, "beyond_tip") else set()
+    J = np.asarray(joints, float) if joints is not None else np.zeros((0, len(names)))
+    col = {str(n): k for k, n in enumerate(names)}
+    span = {n: float(np.ptp(J[:, col[n]])) if len(J) else 0.0 for n in extra}
+    moving = [n for n in extra if n in beyond and span[n] > LIMIT_MARGIN * 0.1]
+    chain = f"{model.name}" + (f" (from {model.base_link!r} to {model.tip_link!r})" if hasattr(model, "tip_link")
+                               else "")
+    warning = note = None
+    if moving:
+        warning = (f"joint column(s) {', '.join(moving)} move links past the tip link {model.tip_link!r} and vary "
+                   f"over the file (by up to {max(span[n] for n in moving):.4g} rad or m), but are not in the chain "
+                   f"of {chain}: unused, although the measured point moves with them; is --tip-link right?")
+    rest = [n for n in extra if n not in moving]
+    if rest:
+        note = (f"joint column(s) {', '.join(rest[:10])}" + (f" and {len(rest) - 10} more" if len(rest) > 10 else "")
+                + f" are not joints of the chain of {chain}: unused")
+    return warning, note
+
+
+def likely(problem: str, beyond: str | None) -> str:
+    """A refusal's text, led by the unused joint columns past the tip (``unused_joint_columns``' warning) when
+    there are any: a tip link short of the measured point explains points and orientations that do not follow
+    the chain's tip."""
+    return f"{beyond} ({problem})" if beyond else problem
+
+
 @dataclass
 class Screened:
     """Rows of a campaign that can be judged: ``keep`` (n,) mask; ``left_out`` [{row, where, reason}];

@@ -37,13 +37,15 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     q = measurement_joints(model, meas, campaign)
     names = meas.target_names
     not_registered = []
+    beyond, unused = checks.unused_joint_columns(model, meas.joint_names, meas.joints)
     problem = checks.units_problem(model, q, meas.T[:, :3, 3]) or \
         (checks.orientation_problem(model, q, meas.T[:, :3, :3], meas.T) if meas.has_orientation else None)
     if problem:
-        raise checks.CheckError(f"{meas.source}: {problem}")
+        raise checks.CheckError(f"{meas.source}: {checks.likely(problem, beyond)}")
     labels = _labels(meas)
     screened = checks.screen(model, q, meas, campaign, labels)
     warnings, notes = list(screened.notes), []
+    notes += [n for n in (beyond, unused) if n]
     if meas.loaded.any():
         notes.append(f"{int(meas.loaded.sum())} measurement(s) were taken under a load at the "
                      f"tool (load columns): their errors include the robot's deflection (iso9283 judges them as "
@@ -72,7 +74,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
             refused, hints = checks.diagnose(model, q[keep], meas.T[keep], idx_all[keep], names, registration,
                                              meas.has_orientation, reg, sel, scatter)
             if refused:
-                raise checks.CheckError(f"{meas.source}: {refused}")
+                raise checks.CheckError(f"{meas.source}: {checks.likely(refused, beyond)}")
             warnings += hints
             if not_registered:
                 notes.append(f"{len(not_registered)} measurement(s) far off the others were not used by the "

@@ -223,9 +223,10 @@ def calibrate_measurements(model, meas, campaign=None, options: FitOptions | Non
     their place in the file (``Measurements.where``)."""
     from ..accuracy.evaluation import measurement_joints
     q = measurement_joints(model, meas, campaign)
+    beyond, unused = checks.unused_joint_columns(model, meas.joint_names, meas.joints)
     problem = checks.units_problem(model, q, meas.T[:, :3, 3])
     if problem:
-        raise checks.CheckError(f"{meas.source}: {problem}")
+        raise checks.CheckError(f"{meas.source}: {checks.likely(problem, beyond)}")
     labels = meas.pose if meas.pose is not None and any(str(p) for p in meas.pose) else None
     screened = checks.screen(model, q, meas, campaign, labels)   # beyond the limits: left out, said; wrong campaign
     if not screened.keep.all():
@@ -236,12 +237,13 @@ def calibrate_measurements(model, meas, campaign=None, options: FitOptions | Non
         checks.refuse_implausible(model, q, meas.T, meas.target_index(), meas.target_names, opts.registration,
                                   meas.has_orientation)
     except checks.CheckError as exc:
-        raise checks.CheckError(f"{meas.source}: {exc}") from None
+        raise checks.CheckError(f"{meas.source}: {checks.likely(str(exc), beyond)}") from None
     cal = calibrate(model, q, meas.T, labels, opts, parameters=parameters, has_orientation=meas.has_orientation,
                     sources={"measurements": meas.source}, target_index=meas.target_index(),
                     target_names=meas.target_names, stamps=meas.stamps, progress=progress,
                     where=[meas.where(i) for i in range(len(meas))])
     cal.warnings = [f"left out before the fit: {r['where']}: {r['reason']}" for r in screened.left_out] + cal.warnings
+    cal.warnings[:0] = [n for n in (beyond, unused) if n]
     if screened.unknown_poses:
         named = [p for p in meas.pose if str(p)]
         cal.warnings.insert(0, f"{checks.unknown_poses_text(screened.unknown_poses, campaign.name, named)}: the "
