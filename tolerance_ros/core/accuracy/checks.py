@@ -305,6 +305,62 @@ def robust_register(T_tool, T_meas, idx, names, tool=False, frames=False, robust
     return reg, out, float(threshold)
 
 
+REGISTRATION_PARSIMONY = 0.01  # base+tool is chosen when its held-out RMS is lower than base's by more than this share
+REGISTRATION_FOLDS = 10
+
+
+def choose_registration(T_tool, T_meas, idx, names, groups, frames=False, folds=REGISTRATION_FOLDS, seed=0,
+                        robust=True) -> dict:
+    """The registration the data choose, cross-validated by test pose as the calibration's parameters are: the
+    nominal tool frames ``T_tool`` (n, 4, 4) registered onto the readings ``T_meas`` (n, 4, 4) by ``base`` (the
+    tracker alone: each target at the tool frame) and by ``base+tool`` (and each target's offset on the tool),
+    each fold's poses (``groups`` (n,), seeded) predicted by a robust registration without them; ``base+tool``
+    when its held-out position RMS is lower than ``base``'s by more than ``REGISTRATION_PARSIMONY``, or when
+    there are several targets (``base`` cannot place them). {"chosen", "how", "candidates": [{"registration",
+    "cv_position_rms_m"} or {"registration", "error"}], "folds"}. Every RMS is of the 3-D position error."""
+    from .folds import folds_of
+    idx = np.asarray(idx, int)
+    out = {"chosen": "base", "candidates": [], "folds": 0}
+    if len(names) > 1:
+        out.update(chosen="base+tool", how=f"{len(names)} targets: only base+tool places them")
+        return out
+    groups = np.asarray(groups, int)
+    if len(np.unique(groups)) < 3:
+        out["how"] = "fewer than 3 test poses: nothing to cross-validate, the tracker alone (base)"
+        return out
+    fold, k = folds_of(groups, folds, seed)
+    out["folds"] = k
+    for method in ("base", "base+tool"):
+        sq, count = 0.0, 0
+        try:
+            for f in range(k):
+                train, test = fold != f, fold == f
+                reg, _, _ = robust_register(T_tool[train], T_meas[train], idx[train], names, method == "base+tool",
+                                            frames, robust)
+                r = _residuals(reg, T_tool[test], T_meas[test], idx[test])
+                sq, count = sq + float(np.sum(r ** 2)), count + int(r.size)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            out["candidates"].append({"registration": method, "error": str(exc)})
+            continue
+        out["candidates"].append({"registration": method, "cv_position_rms_m": float(np.sqrt(sq / count))})
+    rms = {c["registration"]: c.get("cv_position_rms_m") for c in out["candidates"]}
+    if rms.get("base") is None and rms.get("base+tool") is not None:
+        out["chosen"] = "base+tool"
+    elif rms.get("base+tool") is not None and rms["base+tool"] < (1 - REGISTRATION_PARSIMONY) * rms["base"]:
+        out["chosen"] = "base+tool"
+    out["how"] = (f"chosen by the lower held-out position RMS of the nominal robot's registration ({k}-fold by test "
+                  f"pose; base unless base+tool is lower by more than {REGISTRATION_PARSIMONY * 100:g} %)")
+    return out
+
+
+def registration_words(choice: dict) -> str:
+    """'registration base+tool chosen (held-out RMS 0.052 mm against base 41.3 mm)' for a person."""
+    cands = [c for c in choice.get("candidates", []) if "cv_position_rms_m" in c]
+    figures = ", ".join(f"{c['registration']} {c['cv_position_rms_m'] * 1e3:.4g} mm" for c in cands)
+    return (f"registration '{choice['chosen']}' chosen from the data" +
+            (f" (held-out position RMS of the nominal robot: {figures})" if figures else f" ({choice['how']})"))
+
+
 def _residuals(reg, T_tool, T_meas, idx) -> np.ndarray:
     """(n,) distance of each measured point from the registered model's, m."""
     P = reg.targets.poses(T_tool, idx)[:, :3, 3]

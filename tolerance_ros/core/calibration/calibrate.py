@@ -32,7 +32,8 @@ import numpy as np
 
 from ..accuracy import checks
 from ..models.base import Mechanism
-from .crossval import Folds, kept_figures, pose_groups, score, validate
+from ..accuracy.folds import pose_groups
+from .crossval import Folds, kept_figures, score, validate
 from .elastic import Load
 from .mechanism import calibrated_mechanism, corrected_origins
 from .result import Calibration, nominal_fingerprint
@@ -215,12 +216,13 @@ def _warnings(cal, final, validation) -> list:
 
 
 def calibrate_measurements(model, meas, campaign=None, options: FitOptions | None = None, *, parameters="auto",
-                           progress=None, **changes) -> Calibration:
+                           progress=None, registration=None, **changes) -> Calibration:
     """``calibrate`` for a ``Measurements`` (joints from its columns or from the campaign's test poses), after the
     checks ``report`` makes (``checks``: the units of the points and of the orientations, the joint limits, the
     campaign of labelled poses, the nominal robot registered onto them): CheckError (bad input, exit 2) for
     measurements that cannot be this robot's, before any fit; the rows it leaves out and rejects are named by
-    their place in the file (``Measurements.where``)."""
+    their place in the file (``Measurements.where``). ``registration`` 'auto': base or base+tool chosen from the
+    data (``checks.choose_registration``, cross-validated by test pose; ``model["registration"]`` says how)."""
     from ..accuracy.evaluation import measurement_joints
     q = measurement_joints(model, meas, campaign)
     beyond, unused = checks.unused_joint_columns(model, meas.joint_names, meas.joints)
@@ -233,6 +235,14 @@ def calibrate_measurements(model, meas, campaign=None, options: FitOptions | Non
         meas, q = meas.select(screened.keep), q[screened.keep]
     labels = meas.pose if meas.pose is not None and any(str(p) for p in meas.pose) else None
     opts = (options or FitOptions()).updated(**changes)
+    choice = None
+    if registration == "auto":
+        choice = checks.choose_registration(model.fk(q), meas.T, meas.target_index(), meas.target_names,
+                                            pose_groups(q, labels)[0], meas.has_orientation, opts.folds, opts.seed,
+                                            opts.robust)
+        opts = opts.updated(registration=choice["chosen"])
+    elif registration is not None:
+        opts = opts.updated(registration=registration)
     try:
         checks.refuse_implausible(model, q, meas.T, meas.target_index(), meas.target_names, opts.registration,
                                   meas.has_orientation)
@@ -243,6 +253,7 @@ def calibrate_measurements(model, meas, campaign=None, options: FitOptions | Non
                     target_names=meas.target_names, stamps=meas.stamps, progress=progress,
                     where=[meas.where(i) for i in range(len(meas))])
     cal.warnings = [f"left out before the fit: {r['where']}: {r['reason']}" for r in screened.left_out] + cal.warnings
+    cal.model["registration"] = choice or {"chosen": opts.registration, "how": "given"}
     cal.warnings[:0] = [n for n in (beyond, unused) if n]
     if screened.unknown_poses:
         named = [p for p in meas.pose if str(p)]
