@@ -26,7 +26,9 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     registration only (``registration.left_out``: one bad row moves nothing else) and judged as measured.
 
     registration : 'base' (estimate base -> tracker), 'base+tool' (and each target's offset on the
-    tool), 'none' (measurements already in the base frame) or a Registration (its targets are used).
+    tool), 'auto' (the one of the two the data choose: ``checks.choose_registration``, said in
+    ``registration.choice``), 'none' (measurements already in the base frame) or a Registration (its
+    targets are used).
     Every error is taken at the measured target; measurements without orientation get no orientation
     figure. ``warnings`` names what the verdict should be read with (measurements in another frame than the
     one claimed, a target offset the registration does not fit, poses the campaign does not have).
@@ -51,6 +53,12 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
                      f"tool (load columns): their errors include the robot's deflection (iso9283 judges them as "
                      f"its static compliance and the unloaded ones as the pose characteristics)")
     T_tool_all = model.fk(q)
+    choice = None
+    if isinstance(registration, str) and registration == "auto":
+        keep = screened.keep
+        choice = checks.choose_registration(T_tool_all[keep], meas.T[keep], meas.target_index(names)[keep], names,
+                                            _groups(q, labels)[keep], meas.has_orientation, robust=robust)
+        registration = choice["chosen"]
     if isinstance(registration, Registration):
         reg = registration
         idx_all = meas.target_index(reg.targets.names)
@@ -100,7 +108,8 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     method = registration if isinstance(registration, str) else "given"
     out = {"source": meas.source, "robot": model.name, "measurements": len(q), "skipped_rows": meas.skipped,
            "orientation_measured": bool(meas.has_orientation), "targets": list(reg.targets.names),
-           "registration": {"method": method, **reg.to_dict(), "left_out": not_registered},
+           "registration": {"method": method, **reg.to_dict(), "left_out": not_registered,
+                            **({"choice": choice} if choice else {})},
            "summary": acc.summary(sigma_position),
            "warnings": warnings, "notes": notes, "left_out": left_out}
     T_base = reg.to_base(meas.T)
