@@ -296,3 +296,40 @@ def test_calibrate_names_measured_poses_its_campaign_does_not_have_as_report_doe
     code, out, _ = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", m, "--campaign",
                        "gao2023_iso_cube", "--json", "--quiet")
     assert any("none of the 20 poses measured" in w for w in json.loads(out)["warnings"])
+
+
+def test_the_registration_is_chosen_from_the_data_by_calibrate_and_report(capsys, gao_cal, tmp_path):
+    """Issue 49: a reflector 30, -20, 80 mm off the flange: --registration auto (the default) chooses base+tool by
+    its held-out RMS and says so (base alone is refused); on the flange, base is kept."""
+    off = tmp_path / "off.csv"
+    assert main(["simulate", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--campaign",
+                 str(gao_cal / "plan.yaml"), "--target-offset", "A=30mm,-20mm,80mm", "--out", str(off),
+                 "--quiet"]) == 0
+    capsys.readouterr()
+    for path, chosen in ((off, "base+tool"), (gao_cal / "m.csv", "base")):
+        code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", path, "--campaign",
+                             gao_cal / "plan.yaml", "--folds", "3", "--out", tmp_path / f"c_{chosen}", "--json",
+                             "--quiet")
+        assert code == 0, err
+        doc = json.loads(out)
+        choice = doc["model"]["registration"]
+        rms = {c["registration"]: c["cv_position_rms_m"] for c in choice["candidates"]}
+        assert doc["registration"] == choice["chosen"] == chosen and set(rms) == {"base", "base+tool"}
+        assert (rms["base+tool"] < 0.01 * rms["base"]) if chosen == "base+tool" else (rms["base"] < 1.2 * rms[
+            "base+tool"])
+        code, out, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", path, "--json", "--quiet")
+        reg = json.loads(out)["registration"]
+        assert code == 0 and reg["method"] == chosen == reg["choice"]["chosen"], err
+        code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", path, "--campaign",
+                             gao_cal / "plan.yaml", "--folds", "3", "--out", tmp_path / f"t_{chosen}", "--quiet")
+        assert f"registration '{chosen}' chosen from the data (held-out position RMS of the nominal robot: base" in out
+    np.testing.assert_allclose(doc_targets(tmp_path / "c_base+tool" / "calibration.json"), [0.03, -0.02, 0.08],
+                               atol=2e-3)
+    code, _, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", off, "--registration", "base")
+    assert code == 2 and "with --registration base+tool" in err
+
+
+def doc_targets(path):
+    """The first target's offset (m, tool frame) of a calibration.json."""
+    doc = json.loads(path.read_text())
+    return doc["targets"][0]["xyz_m"]
