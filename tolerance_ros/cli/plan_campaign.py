@@ -35,6 +35,10 @@ def add_arguments(p):
     p.add_argument("--iso9283", action="store_true",
                    help="write the ISO 9283 pose campaign instead: the cube's test poses P1-P5 (30 cycles unless "
                         "--cycles), and with --approach each also approached along +x, +y and +z (docs/iso9283.md)")
+    p.add_argument("--configuration", metavar="Q1,Q2,...",
+                   help="with --iso9283: the arm configuration to keep (each joint with its unit), its tool pose the "
+                        "cube's centre when it fits there (default: the configuration nearest the reference "
+                        "posture, each joint at zero, or mid-range where zero is beyond its limits)")
     p.add_argument("--approach", metavar="LENGTH",
                    help="with --iso9283: the pre-poses this far before each test pose, one per direction (e.g. "
                         "100mm), for the multi-directional pose accuracy variation vAP")
@@ -217,15 +221,19 @@ def run_iso9283(args, model, ws):
     from ..core.accuracy.iso9283 import iso_cube_joints
     from ..core.calibration.planning import iso9283_campaign
     approach = quantity(args.approach, "length", "--approach") if args.approach else None
+    reference = joints_option(model, args.configuration, "--configuration") if args.configuration else None
+    if reference is not None:
+        v = ws.check(np.array([reference]))
+        if not v.ok[0]:
+            raise CLIError(f"--configuration: {v.reason[0]}" + (f" ({v.detail[0]})" if v.detail[0] else ""))
     qc, _ = ws.sample(int(args.candidates), np.random.default_rng(args.seed), 10 * int(args.candidates))
-    q, note = iso_cube_joints(model, qc, args.seed, allowed=lambda x: ws.check(x).ok)
+    q, note = iso_cube_joints(model, qc, args.seed, allowed=lambda x: ws.check(x).ok, reference=reference)
     if q is None:
         raise CLIError(f"{note}; widen the restrictions or give more --candidates")
     desc = (f"ISO 9283 pose campaign by tolerance-ros plan-campaign: {note}"
             + (f"; each pose also approached along +x, +y, +z from {approach * 1e3:g} mm before it" if approach else ""))
     try:
-        doc = iso9283_campaign(model, q, approach, cycles=args.cycles, description=desc,
-                               allowed=lambda x: ws.check(x).ok)
+        doc = iso9283_campaign(model, q, approach, cycles=args.cycles, description=desc, allowed=ws.check)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     if args.out:
@@ -250,6 +258,8 @@ def run(args):
         raise CLIError("--angle: goes with --path reorient")
     if args.distances and args.path != "positioning":
         raise CLIError("--distances: goes with --path positioning")
+    if args.configuration and not args.iso9283:
+        raise CLIError("--configuration: goes with --iso9283 (a test path's centre: --center-joints)")
     modes = [o for o, on in (("--path", args.path), ("--iso9283", args.iso9283),
                              ("--contact", args.contact or args.target)) if on]
     if len(modes) > 1:
