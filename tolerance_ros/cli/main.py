@@ -12,14 +12,14 @@ from ..core.jsonio import dumps
 from ..core.resources import ConfigNotFound
 from ..core.synthesis.problem import InfeasibleError
 from ..core.threads import limited
-from . import (allocate, calibrate, compensate, import_table, iso9283, jacobian, keystore, paper, path_report,
+from . import (allocate, calibrate, compensate, data, import_table, iso9283, jacobian, keystore, paper, path_report,
                plan_campaign, report, robots, sensitivity, signing_key, simulate, validate, verify)
 from .common import (CAPS, CHECKED_BY_COMMAND, EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError,
                      Parser, UsageError, check_cap, check_outputs, common_arguments, os_error_message,
                      output_kinds)
 
 COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, path_report, iso9283, calibrate, validate,
-            compensate, plan_campaign, simulate, import_table, paper, keystore, signing_key)
+            compensate, plan_campaign, simulate, import_table, data, paper, keystore, signing_key)
 
 
 def build_parser() -> argparse.ArgumentParser:
