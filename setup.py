@@ -41,7 +41,8 @@ setup(
                       "rosbags>=0.10.10", "orjson>=3.10.0", "threadpoolctl>=3.1.0", "numba>=0.59.0",
                       "llvmlite>=0.42.0", "pybase64>=1.3.1", "cryptography>=3.1"],
     extras_require={"test": ["pytest>=7.0.1", "pytest-xdist>=3.0.2", "hypothesis>=6.11.0", "jsonschema>=4.0.1",
-                             "example-robot-data>=4.0.5"]},
+                             "example-robot-data>=4.0.5", "pooch>=1.7.0"],
+                    "data": ["pooch>=1.7.0"]},   # tolerance-ros data fetch: the public measurement sets
     zip_safe=False,
     maintainer="tolerance_ros maintainers",
     maintainer_email="maintainers@tolerance-ros.dev",

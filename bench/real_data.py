@@ -1,4 +1,4 @@
-"""Real data: the TIAGo motion-capture campaigns (test/data/tiago_mocap), upstream's published models and
+"""Real data: the TIAGo motion-capture campaigns (the public set tiago_mocap), upstream's published models and
 ours side by side, by posture group of the validation day; prints a Markdown table and a verdict.
 
 Protocol (upstream's held-out protocol v1): point 1 of the hand's rigid body, fitted on the training day
@@ -8,7 +8,10 @@ point, nothing refitted. Ours: ``tolerance-ros import``, ``calibrate --registrat
 use a given parameter set (``--parameters``) are printed beside the chosen one to show what each part
 does, the elastostatic term among them (measured, whether it helps or not).
 
-    python bench/real_data.py [--markdown] [--four-markers]
+    python bench/real_data.py [--markdown] [--four-markers] [--data FOLDER]
+
+The files are read from ``--data`` (a folder that ``tolerance-ros data fetch tiago_mocap --out DIR`` filled, or
+``../shared/data/tiago_mocap`` from the repository root by default), each file's sha256 checked first.
 
 Target: the chosen calibration predicts the validation day at or under 3.6 mm RMS (upstream's best, full
 parameters, reaches 3.68 mm); exits 1 when it does not.
@@ -32,10 +35,24 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 from tolerance_ros.cli import main as cli  # noqa: E402
 
-DATA = ROOT / "test" / "data" / "tiago_mocap"
+DATA = ROOT.parent / "shared" / "data" / "tiago_mocap"
 URDF = DATA / "tiago_48_schunk.urdf"
 DAYS = {"train": DATA / "qualisys_2021-11-30_static_postures.csv",
         "validation": DATA / "qualisys_2021-11-26_static_postures.csv"}
+
+
+def use_data(folder):
+    """Read the set from ``folder`` (its files' sha256 checked: ``core.datasets``); exits 2 naming what is wrong."""
+    global URDF, DAYS
+    from tolerance_ros.core.datasets import DataError, fetch
+    try:
+        fetch("tiago_mocap", data=folder)
+    except DataError as exc:
+        sys.exit(f"real_data: {exc} (tolerance-ros data fetch tiago_mocap --out DIR, then --data DIR/tiago_mocap)")
+    folder = Path(folder)
+    URDF = folder / "tiago_48_schunk.urdf"
+    DAYS = {"train": folder / "qualisys_2021-11-30_static_postures.csv",
+            "validation": folder / "qualisys_2021-11-26_static_postures.csv"}
 JOINTS = ["--joint", "torso_lift_joint[m]"] + [a for i in range(1, 8) for a in ("--joint", f"arm_{i}_joint[rad]")]
 GROUPS = ("repeated training posture", "new, inside the training ranges", "new, outside the training ranges")
 PUBLISHED = [  # upstream, point 1: (model, training RMS, validation RMS, by group)
@@ -100,7 +117,10 @@ def main():
     ap.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     ap.add_argument("--four-markers", action="store_true",
                     help="fit all four markers of the rigid body (four targets), predict point 1")
+    ap.add_argument("--data", default=str(DATA), metavar="FOLDER",
+                    help="the tiago_mocap files (default ../shared/data/tiago_mocap from the repository root)")
     args = ap.parse_args()
+    use_data(args.data)
     load = os.getloadavg()
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average "
           f"{load[0]:.2f}; python {platform.python_version()}")

@@ -5,7 +5,7 @@ motion at its own rate and latency, and the accuracy monitor publishes the path 
 
     tolerance-ros plan-campaign --robot gao2023_7dof --path rectangle --cycles 3 --out rectangle.yaml
     ros2 launch tolerance_ros path_accuracy.launch.py trajectory:=$PWD/rectangle.yaml [rate:=250.0] \\
-        [latency:=0.008] [namespace:=arm] [keystore:=<dir>]
+        [latency:=0.008] [namespace:=arm] [keystore:=<dir>] [robot:=/path/my_robot.urdf] [tip_link:=tool0]
     ros2 topic echo tolerance/path_report std_msgs/msg/String
 
 ``rate`` is the tracker's rate (Hz), ``latency`` how late it stamps its readings (s); the monitor estimates
@@ -15,11 +15,12 @@ import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 
+from tolerance_ros.nodes.launch_robot import robot_arguments, robot_parameters
 from tolerance_ros.nodes.launch_security import enclave_env, keystore_argument, security_actions
 
 TRACKER_TO_BASE = [1.5, 0.2, 0.0, 0.0, 0.0, 0.5]
@@ -31,9 +32,21 @@ def generate_launch_description():
     rate = ParameterValue(LaunchConfiguration("rate"), value_type=float)
     latency = ParameterValue(LaunchConfiguration("latency"), value_type=float)
 
-    def node(exe, name, **overrides):
-        return Node(package="tolerance_ros", executable=exe, name=name, namespace=ns, output="screen",
-                    parameters=[params, overrides], additional_env=enclave_env(ns, name))
+    def nodes(context):
+        robot = robot_parameters(context)
+
+        def node(exe, name, **overrides):
+            return Node(package="tolerance_ros", executable=exe, name=name, namespace=ns, output="screen",
+                        parameters=[params] + ([robot[name]] if name in robot else []) + [overrides],
+                        additional_env=enclave_env(ns, name))
+        return [
+            node("joint_state_source", "tolerance_joint_state_source", mode="trajectory",
+                 trajectory=LaunchConfiguration("trajectory"), campaign="", rate=250.0, loop=False),
+            node("simulated_tracker", "tolerance_simulated_tracker", tracker_to_base=TRACKER_TO_BASE, measure_every=1,
+                 rate=rate, latency=latency),
+            node("accuracy_monitor", "tolerance_accuracy_monitor", tracker_to_base=TRACKER_TO_BASE, budget="",
+                 campaign=""),
+        ]
 
     return LaunchDescription([
         DeclareLaunchArgument("namespace", default_value="", description="namespace of the suite (one robot)"),
@@ -41,11 +54,4 @@ def generate_launch_description():
         DeclareLaunchArgument("rate", default_value="250.0", description="the simulated tracker's rate, Hz"),
         DeclareLaunchArgument("latency", default_value="0.008",
                               description="how late the simulated tracker stamps its readings, s"),
-        keystore_argument(), *security_actions(ns),
-        node("joint_state_source", "tolerance_joint_state_source", mode="trajectory",
-             trajectory=LaunchConfiguration("trajectory"), campaign="", rate=250.0, loop=False),
-        node("simulated_tracker", "tolerance_simulated_tracker", tracker_to_base=TRACKER_TO_BASE, measure_every=1,
-             rate=rate, latency=latency),
-        node("accuracy_monitor", "tolerance_accuracy_monitor", tracker_to_base=TRACKER_TO_BASE, budget="",
-             campaign=""),
-    ])
+        *robot_arguments(), keystore_argument(), *security_actions(ns), OpaqueFunction(function=nodes)])

@@ -39,6 +39,23 @@ def run_cli(capsys, *argv):
     return code, out.out, out.err
 
 
+SHARED_DATA = Path(os.environ.get("TOLERANCE_ROS_SHARED_DATA") or
+                   Path(__file__).resolve().parents[1].parent / "shared" / "data")
+"""The public measurement sets: ``../shared/data`` from the repository root (where CI lays them), or the folder
+that ``TOLERANCE_ROS_SHARED_DATA`` names (a checkout elsewhere, e.g. a git worktree)."""
+
+
+def shared_data(name: str) -> Path:
+    """The folder of the public data set ``name`` in ``SHARED_DATA``; the test skips, saying where it looked,
+    where it is absent."""
+    import pytest
+    folder = SHARED_DATA / name
+    if not folder.is_dir():
+        pytest.skip(f"public data set {name!r} not found at {folder} (tolerance-ros data fetch {name}, or set "
+                    f"TOLERANCE_ROS_SHARED_DATA)")
+    return folder
+
+
 XARM7_URDF = Path(__file__).parent / "data" / "xarm7" / "xarm7.urdf"  # vendored: example-robot-data < 4.4 lacks it
 
 

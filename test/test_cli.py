@@ -574,8 +574,9 @@ def test_version_and_an_unknown_option_before_a_missing_one(capsys):
 
 
 def test_compensate_writes_a_flagged_target_with_its_nominal_joints_unless_accepted(capsys, tmp_path, gao):
-    """The arm stretched out (all joints 0) is near a singularity, where the correction reaches 15 degrees:
-    --out writes its nominal joints and names it in the notes; --accept-flagged writes the correction."""
+    """The arm stretched out (all joints 0) is near a singularity, where the correction reaches 15 degrees, beyond
+    the 20 mrad envelope: --out writes its nominal joints and names it in the notes; --accept-flagged writes the
+    correction."""
     import yaml
     from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
     from tolerance_ros.core.budget import load_budget
@@ -588,7 +589,7 @@ def test_compensate_writes_a_flagged_target_with_its_nominal_joints_unless_accep
     cal = save_calibration(calibrate(gao, q, measure(gao, q, dx, 1e-5, 0.0, None, seed=2), folds=3),
                            tmp_path / "calibration.yaml")
     targets = tmp_path / "targets.yaml"
-    targets.write_text(yaml.safe_dump(campaign_dict(gao, [[0.0] * 7, [0, 0.5, 0, 0, 0, 0, 0]], "t")))
+    targets.write_text(yaml.safe_dump(campaign_dict(gao, [[0.0] * 7, [0.3, 0.5, 0.4, 1.0, 0.6, 0.8, 0.2]], "t")))
     for accept in (False, True):
         out_file = tmp_path / f"out_{accept}.yaml"
         code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration", str(cal), "--poses",
@@ -606,7 +607,11 @@ def test_compensate_writes_a_flagged_target_with_its_nominal_joints_unless_accep
         else:
             np.testing.assert_allclose(written[0], home["nominal_joints"], atol=1e-12)
             assert home["written"] == "nominal" and bent["written"] == "compensated"
-            assert "C1 (near singularity)" in yaml.safe_load(out_file.read_text())["notes"]
+            # the envelope held per pose, as the trajectory node holds every point (issue 49)
+            assert "C1 (near singularity, beyond the envelope: joint change" in yaml.safe_load(
+                out_file.read_text())["notes"]
+            assert any(f.startswith("beyond the envelope") and "max_joint_correction 0.02 rad" in f
+                       for f in home["flags"]) and bent["flags"] == []
             assert "written with their nominal joints" in err
 
 
@@ -864,3 +869,39 @@ def test_calibrate_judges_the_parts_it_identifies_against_a_budget(capsys, tmp_p
     assert [g["parameters"][0] for g in doc["budget"]["out_of_tolerance"]] == ["d3"]
     assert (tmp_path / "cal" / "calibration.yaml").exists()
     assert "## Against the budget gao2023_delta2" in (tmp_path / "cal" / "calibration.md").read_text()
+
+
+def test_compensate_keeps_an_iso_campaigns_approaches_and_corrects_their_pre_poses(capsys, tmp_path, gao):
+    """Issue 49: an --iso9283 --approach campaign compensated keeps each approach's of, approach and via; the
+    pre-pose is corrected with its pose, so that the calibrated robot reaches the nominal pre-pose's tool pose."""
+    import yaml
+    from tolerance_ros.core.accuracy.simulate import as_built_errors, measure
+    from tolerance_ros.core.budget import load_budget
+    from tolerance_ros.core.calibration.calibrate import calibrate
+    from tolerance_ros.core.calibration.calibration_file import load_calibration, save_calibration
+    from tolerance_ros.core.campaign import load_campaign
+    q = gao.sample_joints(30, 5)
+    dx = as_built_errors(load_budget("gao2023_delta2", gao).vector_for(gao), 1)
+    cal_file = save_calibration(calibrate(gao, q, measure(gao, q, dx, 1e-5, 0.0, None, seed=2), folds=3),
+                                tmp_path / "calibration.yaml")
+    iso, out_file = tmp_path / "iso.yaml", tmp_path / "iso_compensated.yaml"
+    assert main(["plan-campaign", "--robot", "gao2023_7dof", "--iso9283", "--approach", "100mm", "--out", str(iso),
+                 "--quiet"]) == 0
+    capsys.readouterr()
+    code, out, err = run(capsys, "compensate", "--robot", "gao2023_7dof", "--calibration", cal_file, "--poses", iso,
+                         "--out", out_file, "--json", "--accept-flagged")
+    assert code == 0, err
+    given, written = load_campaign(iso, gao), load_campaign(out_file, gao)
+    assert written.names == given.names and written.order == given.order
+    approached = [k for k, tp in enumerate(given.poses) if tp.of is not None]
+    assert len(approached) == 15
+    cal = load_calibration(cal_file, gao)
+    calibrated, nominal = cal.mechanism(gao), cal.nominal_at_tool_point(gao)
+    for k in approached:
+        g, w = given.poses[k], written.poses[k]
+        assert (w.of, w.approach) == (g.of, g.approach)
+        assert np.abs(w.via - g.via).max() > 1e-5                      # corrected, not copied
+        np.testing.assert_allclose(calibrated.fk(w.via[None])[0], nominal.fk(g.via[None])[0], atol=1e-8)
+        np.testing.assert_allclose(calibrated.fk(w.joints[None])[0], nominal.fk(g.joints[None])[0], atol=1e-8)
+    assert json.loads(out)["poses"][approached[0]]["via"]["reached"]
+    assert "via" in yaml.safe_load(out_file.read_text())["poses"][approached[0]]

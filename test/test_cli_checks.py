@@ -221,7 +221,8 @@ def _rewrite(src, dst, fix_row=None, fix_header=None):
 
 
 def test_calibrate_and_validate_refuse_what_report_refuses_with_exit_2(capsys, gao_cal, tmp_path):
-    """Radians labelled degrees in the orientation columns, the points in metres labelled millimetres, x and y
+    """Radians labelled degrees in the orientation columns, or degrees labelled radians (issue 49: they turn as far
+    as the tool on the whole, but by unrelated angles), the points in metres labelled millimetres, x and y
     swapped, another campaign with the same pose names: report, calibrate and validate all refuse them as bad
     input (exit 2) with the cause, before any fit."""
     m = gao_cal / "m.csv"
@@ -234,6 +235,8 @@ def test_calibrate_and_validate_refuse_what_report_refuses_with_exit_2(capsys, g
         return [{"x[mm]": "y[mm]", "y[mm]": "x[mm]"}.get(h, h) for h in header]
     cases = {
         "radians labelled degrees": _rewrite(m, tmp_path / "rad.csv", fix_row=radians),
+        "degrees labelled radians": _rewrite(m, tmp_path / "deg.csv", fix_header=lambda header: [
+            h.replace("[deg]", "[rad]") if h.split("[")[0] in ori else h for h in header]),
         "metres labelled millimetres": _rewrite(m, tmp_path / "m_mm.csv", fix_row=lambda h, r: [
             f"{float(v) / 1000:.9f}" if h[k] in ("x[mm]", "y[mm]", "z[mm]") else v for k, v in enumerate(r)]),
         "cannot be judged against gao2023_7dof": _rewrite(m, tmp_path / "swapped.csv", fix_header=swap_xy),
@@ -278,3 +281,55 @@ def test_a_pose_name_is_bounded(capsys, gao_cal, tmp_path):
     code, _, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", tmp_path / "long.csv",
                        "--out", tmp_path / "c")
     assert code == 2 and f"line {head + 2}: pose: a name of 200,000 characters" in err and len(err) < 1000, err
+
+
+def test_calibrate_names_measured_poses_its_campaign_does_not_have_as_report_does(capsys, gao_cal, tmp_path):
+    """Issue 49: C1-C20 measured, the ISO cube's P1-P5 given: both commands warn naming the poses and the
+    likely cause; calibrate fits them at their own joint columns (nothing dropped)."""
+    m = gao_cal / "m.csv"
+    code, out, _ = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", m, "--campaign",
+                       "gao2023_iso_cube", "--folds", "3", "--out", tmp_path / "c", "--json", "--quiet")
+    doc = json.loads(out)
+    said = [w for w in doc["warnings"] if "is in campaign 'gao2023_iso_cube': the wrong campaign?" in w]
+    assert code == 0 and len(said) == 1 and "none of the 20 poses measured (C1, C10" in said[0]
+    assert doc["fit"]["measurements"] == sum(1 for line in m.read_text().splitlines() if not line.startswith("#")) - 1
+    code, out, _ = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", m, "--campaign",
+                       "gao2023_iso_cube", "--json", "--quiet")
+    assert any("none of the 20 poses measured" in w for w in json.loads(out)["warnings"])
+
+
+def test_the_registration_is_chosen_from_the_data_by_calibrate_and_report(capsys, gao_cal, tmp_path):
+    """Issue 49: a reflector 30, -20, 80 mm off the flange: --registration auto (the default) chooses base+tool by
+    its held-out RMS and says so (base alone is refused); on the flange, base is kept."""
+    off = tmp_path / "off.csv"
+    assert main(["simulate", "--robot", "gao2023_7dof", "--tolerances", "gao2023_delta2", "--campaign",
+                 str(gao_cal / "plan.yaml"), "--target-offset", "A=30mm,-20mm,80mm", "--out", str(off),
+                 "--quiet"]) == 0
+    capsys.readouterr()
+    for path, chosen in ((off, "base+tool"), (gao_cal / "m.csv", "base")):
+        code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", path, "--campaign",
+                             gao_cal / "plan.yaml", "--folds", "3", "--out", tmp_path / f"c_{chosen}", "--json",
+                             "--quiet")
+        assert code == 0, err
+        doc = json.loads(out)
+        choice = doc["model"]["registration"]
+        rms = {c["registration"]: c["cv_position_rms_m"] for c in choice["candidates"]}
+        assert doc["registration"] == choice["chosen"] == chosen and set(rms) == {"base", "base+tool"}
+        assert (rms["base+tool"] < 0.01 * rms["base"]) if chosen == "base+tool" else (rms["base"] < 1.2 * rms[
+            "base+tool"])
+        code, out, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", path, "--json", "--quiet")
+        reg = json.loads(out)["registration"]
+        assert code == 0 and reg["method"] == chosen == reg["choice"]["chosen"], err
+        code, out, err = run(capsys, "calibrate", "--robot", "gao2023_7dof", "--measurements", path, "--campaign",
+                             gao_cal / "plan.yaml", "--folds", "3", "--out", tmp_path / f"t_{chosen}", "--quiet")
+        assert f"registration '{chosen}' chosen from the data (held-out position RMS of the nominal robot: base" in out
+    np.testing.assert_allclose(doc_targets(tmp_path / "c_base+tool" / "calibration.json"), [0.03, -0.02, 0.08],
+                               atol=2e-3)
+    code, _, err = run(capsys, "report", "--robot", "gao2023_7dof", "--measurements", off, "--registration", "base")
+    assert code == 2 and "with --registration base+tool" in err
+
+
+def doc_targets(path):
+    """The first target's offset (m, tool frame) of a calibration.json."""
+    doc = json.loads(path.read_text())
+    return doc["targets"][0]["xyz_m"]

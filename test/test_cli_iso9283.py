@@ -47,7 +47,8 @@ def test_the_report_from_a_robot_with_backlash(capsys, tmp_path, campaign):
         "--out", tmp_path / "m.csv")
     doc = json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", campaign, "--measurements",
                          tmp_path / "m.csv", "--temperature", "20.5 C", "--out", tmp_path / "rep", "--json"))
-    assert all(doc["multidirectional"][f"P{k}"]["vAP_p"] > 0.02e-3 for k in range(1, 6))
+    # backlash shows where an approach reverses a joint: at four of the five poses of the cube's configuration
+    assert sum(doc["multidirectional"][f"P{k}"]["vAP_p"] > 0.02e-3 for k in range(1, 6)) >= 4
     assert doc["distance"]["between"] == ["P2", "P4"] and doc["distance"]["n"] == 10
     assert doc["conditions"]["temperature"] == "20.5 C" and doc["conditions"]["cycles"] == 10
     for f in ("report.md", "report.html", "iso9283.json", "vap.png"):

@@ -76,6 +76,50 @@ def test_a_limit_missed_wherever_the_latency_lies_fails_on_the_path_not_on_the_l
 
 
 @pytest.mark.parametrize("extra, message", [
+    (["--path", "weave", "--pitch", "1e-6mm"], "beyond the cap of 100,000"),     # had been a 1 TiB MemoryError
+    (["--path", "weave", "--pitch", "0.01mm"], "1.39e+07 knots 0.5 mm apart"),   # had grown past 2.5 GB
+    (["--path", "weave", "--pitch", "1mm", "--stroke", "0.2mm"], "a pitch of at least 3.95 mm"),
+    (["--path", "weave", "--stroke", "1e-9mm"], "--stroke: 1e-9mm is out of range: expected at least 0.0001 m"),
+    (["--path", "line", "--dwell", "-1s"], "--dwell: -1s is out of range: expected from 0 to 600 s"),
+    (["--path", "line", "--dwell", "1e6s"], "--dwell: 1e6s is out of range"),
+    (["--path", "line", "--side", "1e-6mm"], "--side: 1e-6mm is out of range: expected from 0.01 to 2.008 m"),
+    (["--path", "line", "--speed", "1e9m/s"], "--speed: 1e9m/s is out of range: expected at most 10 m/s"),
+    (["--path", "line", "--speed", "1e-9m/s"], "a cycle would last 2.771e+08 s, beyond 3600 s"),
+    (["--path", "line", "--accel", "1e9m/s^2"], "--accel: 1e9m/s^2 is out of range: expected at most 100 m/s^2"),
+    (["--path", "reorient", "--angular-speed", "100rad/s"], "--angular-speed: 100rad/s is out of range"),
+    (["--path", "weave", "--iso9283"], "--path, --iso9283: one kind of campaign at a time"),
+    (["--path", "weave", "--contact", "plane:a=0,0,1@0m", "--target", "A=0mm,0mm,0mm"],
+     "--path, --contact: one kind of campaign at a time"),
+    (["--iso9283", "--contact", "plane:a=0,0,1@0m", "--target", "A=0mm,0mm,0mm"],
+     "--iso9283, --contact: one kind of campaign at a time"),
+])
+def test_plan_campaign_refuses_degenerate_paths_and_a_second_mode(capsys, tmp_path, extra, message):
+    """Issue 49: each exits 2 with one line naming the option and the bound, and writes nothing."""
+    code, out, err = run(capsys, "plan-campaign", "--robot", "gao2023_7dof", *extra, "--out", tmp_path / "p.yaml")
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "p.yaml").exists()
+
+
+def test_a_reorientation_stores_its_angular_speed_under_its_own_key_and_old_files_still_read(capsys, tmp_path):
+    import yaml
+    from tolerance_ros.core.accuracy.iso_paths import read_trajectory
+    from tolerance_ros.core.models import load_robot
+    gao = load_robot("gao2023_7dof")
+    code, _, err = run(capsys, "plan-campaign", "--robot", "gao2023_7dof", "--path", "reorient", "--angular-speed",
+                       "0.4rad/s", "--cycles", "2", "--out", tmp_path / "r.yaml", "--quiet")
+    doc = yaml.safe_load((tmp_path / "r.yaml").read_text())
+    assert code == 0 and doc["speed_rad_s"] == 0.4 and "speed_m_s" not in doc, err
+    assert read_trajectory(tmp_path / "r.yaml", gao).speed == 0.4
+    doc["speed_m_s"] = doc.pop("speed_rad_s")                      # as written before issue 49
+    (tmp_path / "old.yaml").write_text(yaml.safe_dump(doc))
+    assert read_trajectory(tmp_path / "old.yaml", gao).speed == 0.4
+    assert main(["plan-campaign", "--robot", "gao2023_7dof", "--path", "line", "--dwell", "0s", "--speed", "0.3m/s",
+                 "--out", str(tmp_path / "l.yaml"), "--quiet"]) == 0
+    line = yaml.safe_load((tmp_path / "l.yaml").read_text())
+    assert line["speed_m_s"] == 0.3 and "speed_rad_s" not in line
+
+
+@pytest.mark.parametrize("extra, message", [
     (["--latency", "8"], "--latency: '8' has no unit"),
     (["--stations", "1"], "--stations: expected 2"),
     (["--trajectory", "x.yaml"], "give one of them"),
@@ -267,3 +311,23 @@ def test_a_trajectory_with_a_latency_window_is_still_placed_on_the_trackers_cloc
                          "--trajectory", streams / "rect.yaml", "--latency-window", "30ms", "--json")
     assert code == 0, err
     assert json.loads(out)["command"]["start_s"] == pytest.approx(1000.008, abs=5e-4)
+
+
+def test_one_stamp_of_1e308_is_one_point_left_out_and_every_cycle_is_judged(capsys, streams, tmp_path):
+    """Issue 49: the stray stamp had cut the tracker's stream into two epochs, and a whole cycle went unjudged."""
+    lines = (streams / "path.csv").read_text().splitlines()
+    rows = [i for i, line in enumerate(lines) if line[:1].isdigit()]
+    k = rows[len(rows) // 3]
+    lines[k] = "1e308," + lines[k].split(",", 1)[1]
+    (tmp_path / "stray.csv").write_text("\n".join(lines) + "\n")
+    docs = []
+    for f in (streams / "path.csv", tmp_path / "stray.csv"):
+        code, out, err = run(capsys, "path-report", "--robot", "gao2023_7dof", "--measurements", f,
+                             "--joint-states", streams / "path.joints.csv", "--json", "--quiet")
+        assert code == 0, err
+        docs.append(json.loads(out))
+    clean, stray = docs
+    assert stray["cycles"] == clean["cycles"] == 4 and stray["not_judged"] == []
+    points = stray["streams"]["points"]
+    assert points["stray"] == 1 and points["epochs"] == 1 and points["jump_count"] == 0
+    assert stray["outside"]["left_out"] == 1 and stray["outside"]["outside_joint_states"] == 0

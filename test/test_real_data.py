@@ -1,5 +1,5 @@
-"""Real data: the TIAGo motion-capture campaigns (test/data/tiago_mocap), through the command line as a
-user runs them: import each day's file, calibrate on the training day, predict the validation day.
+"""Real data: the TIAGo motion-capture campaigns (the public set tiago_mocap, read from ../shared/data; skipped
+where absent), through the command line as a user runs them: import each day's file, calibrate on the training day, predict the validation day.
 
 Published (upstream, point 1, fitted on training, validation predicted without refit): registration only
 3.37 / 4.87 mm, joint offsets 2.88 / 4.23 mm, full parameters 1.75 / 3.68 mm; by posture group on the
@@ -7,15 +7,16 @@ validation day, full parameters 2.43 / 3.24 / 7.10 mm."""
 import contextlib
 import io
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from helpers import run_cli as run
+from helpers import SHARED_DATA, run_cli as run
 from tolerance_ros.cli import main
 
-DATA = Path(__file__).resolve().parent / "data" / "tiago_mocap"
+DATA = SHARED_DATA / "tiago_mocap"
+pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason=f"public data set tiago_mocap not found at {DATA} "
+                                                          f"(tolerance-ros data fetch tiago_mocap)")
 URDF = DATA / "tiago_48_schunk.urdf"
 TRAIN, VALIDATION = DATA / "qualisys_2021-11-30_static_postures.csv", DATA / "qualisys_2021-11-26_static_postures.csv"
 JOINTS = ["--joint", "torso_lift_joint[m]"] + [a for i in range(1, 8) for a in ("--joint", f"arm_{i}_joint[rad]")]

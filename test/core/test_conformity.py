@@ -64,3 +64,18 @@ def test_a_group_takes_the_worst_case_of_every_member_and_names_those_that_matte
     d = next(x for x in g if x["parameters"][0] == "d")
     assert d["decision"] == "free" and [x["decision"] for x in g] == ["out", "free"]
     assert counts(x["decision"] for x in g) == {"within": 0, "out": 1, "undecided": 0, "free": 1}
+
+
+def test_a_part_the_data_do_not_determine_is_never_decided():
+    """A near-copy of another parameter, or an estimate beyond any build error (a fit that wandered), is undecided
+    whatever it reads, with why; the rest is decided as usual."""
+    from tolerance_ros.core.conformity import judged
+    names, kinds = ["a", "b", "c"], ["length", "angle", "angle"]
+    dx, std = np.array([3e-4, -1.24, 5e-4]), np.array([1e-5, 1e-2, 1e-5])
+    delta = np.array([1e-4, 0.0, 1e-4])
+    g = {x["parameters"][0]: x for x in judged(names, kinds, dx, std, [], {}, delta, reach=1.0,
+                                               undetermined={"a": "a near-copy of c"})["groups"]}
+    assert g["a"]["decision"] == "undecided" and g["a"]["note"] == "a near-copy of c"
+    assert g["b"]["decision"] == "undecided" and "beyond any build error" in g["b"]["note"]
+    assert g["c"]["decision"] == "out" and g["c"]["note"] is None
+    assert judged(names, kinds, dx, std, [], {}, delta)["groups"][0]["decision"] == "out"   # b, without the reach

@@ -53,3 +53,16 @@ def test_every_launch_file_takes_a_keystore_and_starts_each_node_in_its_enclave(
             assert "security_actions(" in text, path.name
         else:
             assert '"keystore": keystore' in text, path.name              # passed on to the suites it includes
+
+
+def test_every_launch_file_takes_the_robot_and_its_tool_link_as_arguments():
+    """Issue 49: robot:=, tip_link:=, base_link:=, budget:=, campaign:= in every launch file, each node's
+    parameters laid over by the overrides of services/launch_robot.py (read at launch time)."""
+    for path in sorted((ROOT / "launch").glob("*.launch.py")):
+        text = path.read_text()
+        assert "robot_arguments()" in text, path.name
+        if "Node(" in text:
+            assert "robot_parameters(context" in text and "OpaqueFunction(function=nodes)" in text, path.name
+            assert "([robot[name]] if name in robot else [])" in text, path.name
+        else:
+            assert "**robot}" in text, path.name                           # passed on to the suites it includes

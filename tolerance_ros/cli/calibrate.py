@@ -20,8 +20,9 @@ def add_arguments(p):
     p.add_argument("--target", action="append", default=[], metavar="NAME=X,Y,Z|NAME=link:LINK",
                    help="contact campaigns: the nominal place of a target of the tool in the tool frame (a unit on "
                         "each, e.g. A=0mm,0mm,120mm) or a URDF link fixed to the tip; one per target of the file")
-    p.add_argument("--registration", choices=["base", "base+tool"], default="base",
-                   help="estimate the tracker-to-base transform (and each target's offset on the tool)")
+    p.add_argument("--registration", choices=["auto", "base", "base+tool"], default="auto",
+                   help="estimate the tracker-to-base transform (base), and each target's offset on the tool "
+                        "(base+tool); auto (default): the one that predicts held-out poses better, said in the output")
     p.add_argument("--parameters", choices=PARAMETERS, default="auto",
                    help="what to identify: auto (default: the candidate that predicts held-out poses best), the "
                         "registration alone, the joint offsets, every parameter, or every parameter and a joint "
@@ -101,7 +102,7 @@ def run(args):
             Load("point-mass", *payload)
     except ValueError as exc:
         raise CLIError(f"--payload: {exc}") from None
-    opts = FitOptions(registration=args.registration, sigma_position=quantity(args.noise, "length", "--noise"),
+    opts = FitOptions(registration="base" if args.registration == "auto" else args.registration, sigma_position=quantity(args.noise, "length", "--noise"),
                       sigma_orientation=quantity(args.orientation_noise, "angle", "--orientation-noise"),
                       robust=not args.no_robust, prior=prior_option(args.prior),
                       registration_prior=prior_option(args.registration_prior, "--registration-prior"),
@@ -116,7 +117,8 @@ def run(args):
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     log_sha256 = file_sha256(args.measurements)
     prog = Progress("calibrate (cross-validating the candidates)", not args.quiet)
-    cal = calibrate_measurements(model, meas, campaign, opts, parameters=args.parameters, progress=prog)
+    cal = calibrate_measurements(model, meas, campaign, opts, parameters=args.parameters, progress=prog,
+                                 registration=args.registration)
     out = Path(args.out)
     source = getattr(model, "config_path", None) or getattr(model, "source", None)
     cal.sources.update({"robot": relative(source, out) if source else model.name,
@@ -182,7 +184,8 @@ def against_budget(args, model, cal, report):
     except ValueError as exc:
         raise CLIError(f"--decision-rule: {exc}") from None
     budget = load_budget(args.budget, model)
-    res = judged(cal.names, cal.kinds, cal.dx, cal.std, cal.held, cal.aliases, budget.vector_for(model), rule)
+    res = judged(cal.names, cal.kinds, cal.dx, cal.std, cal.held, cal.aliases, budget.vector_for(model), rule,
+                 cal.undetermined, model.reach())
     res["budget"] = args.budget
     if "prior" in str(cal.model.get("label", "")):
         res["note"] = ("the chosen fit is regularised: its prior pulls each estimate toward nominal, so a part out "
@@ -214,7 +217,7 @@ def run_contacts(args, model, opts, key):
     from ..core.calibration.contact_campaign import calibrate_campaign
     from ..core.calibration.provenance import file_sha256, new_provenance
     from ..render.contact_report import summary_lines, write_contact_report
-    if args.campaign or args.registration != "base" or args.orientation_noise or args.payload:
+    if args.campaign or args.registration not in ("auto", "base") or args.orientation_noise or args.payload:
         raise CLIError("contact campaigns: --campaign, --registration, --orientation-noise and --payload do not apply "
                        "(the rig is fitted with the parameters; contacts have no orientation)")
     if args.parameters not in ("auto", "joint-offsets", "full"):
@@ -252,11 +255,15 @@ def run_contacts(args, model, opts, key):
 
 def print_calibration(cal, source):
     """The calibration's figures as a person reads them (mm, mrad; every RMS of the 3-D error)."""
+    from ..core.accuracy.checks import registration_words
     from ..render.calibration_report import (candidate_rows, fit_summary, parameter_rows, row_lines, summary_rows,
                                              target_rows)
     v = cal.validation
+    choice = cal.model.get("registration") or {}
+    said = (registration_words(choice) if choice.get("how", "given") != "given" else
+            f"registration '{cal.registration}'")
     print(f"robot {cal.robot}: {cal.measurements} measurements at {cal.poses} test poses from {source}; "
-          f"registration '{cal.registration}'; " + ("frames (their orientation fitted with --orientation-noise)"
+          f"{said}; " + ("frames (their orientation fitted with --orientation-noise)"
                                                     if cal.has_orientation else "points (no orientation)"))
     print(f"\nwhat to identify ({cal.model.get('how', '')}, compared on {cal.model.get('compared_on', '')}; "
           f"{v['method']}):")

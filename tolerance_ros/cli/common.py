@@ -8,6 +8,7 @@ import re
 import sys
 from pathlib import Path
 
+from ..core.ingest import MAX_POSITION_M
 from ..core.models import load_robot
 from ..core.units import UnitError, parse_quantity
 
@@ -131,20 +132,27 @@ def point_option(text, option):
     parts = text.split(",")
     if len(parts) != 3:
         return None
-    return [quantity(c, "length", option, positive=False) for c in parts]
+    out = [quantity(c, "length", option, positive=False) for c in parts]
+    far = next((c for c, v in zip(parts, out) if not abs(v) <= MAX_POSITION_M), None)
+    if far is not None:
+        raise CLIError(f"{option}: {far.strip()} lies beyond {MAX_POSITION_M:g} m: no point of a robot's cell")
+    return out
 
 
 def load_model(args):
     """The model of ``--robot`` (with ``--tip-link`` / ``--base-link``); says which tip it took when the
-    choice was made for the user (a URDF whose only moving leaf link is the tip)."""
+    choice was made for the user among other leaf links (a URDF whose only moving leaf link is the tip, beside
+    links fixed to the base); says nothing where the tip is the URDF's only leaf."""
     sensor = getattr(args, "sensor_link", None)
     if sensor:
         model = sensor_chain(args, sensor)
     else:
         model = load_robot(args.robot, getattr(args, "tip_link", None), getattr(args, "base_link", None))
-    if getattr(model, "tip_chosen", False) and not sensor and not args.quiet:
-        print(f"robot {model.name}: tip link {model.tip_link!r}, the only leaf link the joints move "
-              f"(choose another with --tip-link)", file=sys.stderr)
+    fixed = getattr(model, "fixed_leaves", [])
+    if getattr(model, "tip_chosen", False) and fixed and not sensor and not args.quiet:
+        shown = ", ".join(repr(n) for n in fixed[:5]) + (f" and {len(fixed) - 5} more" if len(fixed) > 5 else "")
+        print(f"robot {model.name}: tip link {model.tip_link!r}, the only leaf link the joints move (besides "
+              f"{shown}, which no joint moves; choose another with --tip-link)", file=sys.stderr)
     return model
 
 
@@ -218,21 +226,34 @@ def relative(path, start) -> str:
 
 def sensor_chain(args, sensor):
     """The chain of ``--sensor-link``: from the sensor's link to the marker, which the tool holds (``--tip-link``, or
-    the tool the URDF ends in) or, where the sensor is on the tool itself, which is fixed in the cell (the chain
-    then runs back to the URDF's root)."""
+    the tool the URDF ends in) or, where the sensor is on the tool itself (the tip link or a link no joint moves
+    against it), which is fixed in the cell (the chain then runs back to the URDF's root). Each error names the
+    option whose link is wrong."""
+    from ..core.models.base import ModelError
     if getattr(args, "base_link", None):
         raise CLIError("--sensor-link: the chain starts from the sensor's link; give it instead of --base-link")
-    first = load_robot(args.robot, getattr(args, "tip_link", None))
-    if not hasattr(first, "tip_link"):
-        raise CLIError(f"--sensor-link: needs a URDF robot (robot {first.name!r} has no links)")
-    tip = first.tip_link
-    if tip == sensor:
-        tip = first.base_link            # the sensor on the tool: a marker fixed in the cell, on the root
-    model = load_robot(args.robot, tip, sensor)
+    tip = getattr(args, "tip_link", None)
+    try:
+        model = load_robot(args.robot, tip, sensor)
+    except ModelError as exc:
+        text = str(exc)
+        if "base_link: no link named" in text:
+            raise CLIError(text.replace("base_link: no link named", "--sensor-link: no link named")) from None
+        if "tip_link, base_link: only for" in text:
+            raise CLIError(f"--sensor-link: needs a URDF robot ({text})") from None
+        if "is not moved against base_link" not in text and "is not moved by any joint" not in text:
+            raise
+        model = None                     # no joint between the sensor and the tool: the sensor is on the tool
+    on_tool = model is None or model.tip_link == sensor
+    if on_tool:                          # a marker fixed in the cell, on the root
+        tool = load_robot(args.robot, sensor)
+        if tip is not None and tip != sensor and model is None and tip == tool.base_link:
+            raise CLIError(f"--sensor-link {sensor}, --tip-link {tip}: no joint moves the one against the other")
+        model = load_robot(args.robot, tool.base_link, sensor)
     if not args.quiet:
-        print(f"robot {model.name}: the sensor on {sensor!r} measures a marker on {tip!r}"
-              + (" (fixed in the cell)" if tip == first.base_link else " (held by the tool)")
-              + f": {model.dof} joints between them", file=sys.stderr)
+        where = " (fixed in the cell)" if on_tool or model.tip_link == model.root_link else " (held by the tool)"
+        print(f"robot {model.name}: the sensor on {sensor!r} measures a marker on {model.tip_link!r}{where}: "
+              f"{model.dof} joints between them", file=sys.stderr)
     return model
 
 
@@ -319,7 +340,11 @@ def contact_specs(specs, option="--contact"):
         if not at or n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
             raise CLIError(f"{option}: plane:{cid}: expected NX,NY,NZ@OFFSET (a normal of three numbers, an offset "
                            f"with its unit, e.g. 0,0,1@300mm), got {rest!r}")
-        out.append((kind, cid, (n / np.linalg.norm(n), quantity(offset, "length", option, positive=False))))
+        d = quantity(offset, "length", option, positive=False)
+        if not abs(d) <= MAX_POSITION_M:
+            raise CLIError(f"{option}: plane:{cid}: offset {offset.strip()} lies beyond {MAX_POSITION_M:g} m: no plane "
+                           f"of a robot's cell")
+        out.append((kind, cid, (n / np.linalg.norm(n), d)))
     if len({(k, i) for k, i, _ in out}) != len(out):
         raise CLIError(f"{option}: each plane and point once")
     return out

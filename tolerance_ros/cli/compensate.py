@@ -36,8 +36,49 @@ def add_arguments(p):
                         "of limits)")
 
 
-def run(args):
+FLAGS = ("out of reach", "near singularity", "out of limits")
+
+
+def compensate_poses(model, targets, calibrated, nominal, envelope, match="pose", seed=0) -> list:
+    """One dict per pose of the campaign ``targets``: its nominal and compensated joints (SI), the correction,
+    the residuals and its ``flags`` (out of reach, near a singularity, out of the limits, or a joint changed beyond
+    the ``envelope``: ``Envelope.point_changes``, as the trajectory node holds every point); a pose approached from
+    a pre-pose (``via``) has its pre-pose compensated too (``via``: its joints, correction, flags), and the
+    pre-pose's flags are the pose's."""
     from ..core.calibration.compensate import compensate
+    results = [None] * len(targets.poses)
+    jobs = [([i for i, tp in enumerate(targets.poses) if tp.joints is not None], "joints", None),
+            ([i for i, tp in enumerate(targets.poses) if tp.joints is None], "pose", None),
+            ([i for i, tp in enumerate(targets.poses) if tp.via is not None], "joints", "via")]
+    for idx, kind, part in jobs:
+        if not idx:
+            continue
+        if kind == "joints":
+            q = np.array([targets.poses[i].via if part else targets.poses[i].joints for i in idx])
+            comp = compensate(calibrated, nominal, joints=model.check_joints(q, "poses"), match=match)
+        else:
+            comp = compensate(calibrated, nominal, poses=np.array([targets.poses[i].pose for i in idx]), match=match,
+                              rng=seed)
+        d = comp.to_dict()
+        over = envelope.point_changes(model, comp.correction)
+        for k, i in enumerate(idx):
+            r = {"nominal_joints": d["nominal_joints"][k], "joints": d["joints"][k], "correction": d["correction"][k],
+                 "residual_position_m": float(comp.residual_position[k]),
+                 "residual_orientation_rad": float(comp.residual_orientation[k]),
+                 "reached": bool(comp.reached[k]), "near_singularity": bool(comp.near_singularity[k]),
+                 "out_of_limits": bool(comp.out_of_limits[k])}
+            r["flags"] = [f for f, on in zip(FLAGS, (not r["reached"], r["near_singularity"], r["out_of_limits"]))
+                          if on] + ([f"beyond the envelope: {over[k]}"] if k in over else [])
+            if part is None:
+                results[i] = {"name": targets.poses[i].name, "given": kind, **r}
+            else:
+                results[i]["via"] = r
+                results[i]["flags"] += [f"pre-pose {f}" for f in r["flags"]]
+                results[i]["reached"] = results[i]["reached"] and r["reached"]
+    return results
+
+
+def run(args):
     from ..core.calibration.envelope import Envelope
     from ..core.calibration.calibration_file import load_calibration
     from ..core.campaign import load_campaign
@@ -60,42 +101,30 @@ def run(args):
     if not (args.poses or args.poses_old):
         raise CLIError("--poses: the program's poses to correct (a campaign file) are required")
     targets = load_campaign(args.poses or args.poses_old, model)
-    by_joints = [i for i, tp in enumerate(targets.poses) if tp.joints is not None]
-    by_pose = [i for i, tp in enumerate(targets.poses) if tp.joints is None]
-    results = [None] * len(targets.poses)
-    for idx, kind in ((by_joints, "joints"), (by_pose, "pose")):
-        if not idx:
-            continue
-        if kind == "joints":
-            q = np.array([targets.poses[i].joints for i in idx])
-            comp = compensate(calibrated, nominal, joints=model.check_joints(q, "poses"), match=args.match)
-        else:
-            comp = compensate(calibrated, nominal, poses=np.array([targets.poses[i].pose for i in idx]), match=args.match,
-                              rng=args.seed)
-        d = comp.to_dict()
-        for k, i in enumerate(idx):
-            results[i] = {"name": targets.poses[i].name, "given": kind, "nominal_joints": d["nominal_joints"][k],
-                          "joints": d["joints"][k], "correction": d["correction"][k],
-                          "residual_position_m": float(comp.residual_position[k]),
-                          "residual_orientation_rad": float(comp.residual_orientation[k]),
-                          "reached": bool(comp.reached[k]), "near_singularity": bool(comp.near_singularity[k]),
-                          "out_of_limits": bool(comp.out_of_limits[k])}
+    results = compensate_poses(model, targets, calibrated, nominal, envelope, args.match, args.seed)
     unreached = [r["name"] for r in results if not r["reached"]]
     if unreached:
         missed(args, f"{len(unreached)} pose(s) out of reach of the calibrated robot: {', '.join(unreached)}")
     for r in results:
-        r["flags"] = [f for f, on in (("out of reach", not r["reached"]), ("near singularity", r["near_singularity"]),
-                                      ("out of limits", r["out_of_limits"])) if on]
         r["written"] = "nominal" if r["flags"] and not args.accept_flagged else "compensated"
     out_path = None
     if args.out:
-        from ..core.calibration.planning import campaign_dict
+        from ..core.calibration.planning import campaign_dict, file_joints
         doc = campaign_dict(model, np.array([r["joints"] if r["written"] == "compensated" else r["nominal_joints"]
                                              for r in results]), f"{targets.name}_compensated",
                             targets.cycles, targets.dwell_s,
                             f"{targets.name} compensated with {Path(args.calibration).name} (tolerance-ros compensate)")
-        for entry, r in zip(doc["poses"], results):
+        doc["order"] = targets.order
+        prismatic = [t == "prismatic" for t in model.joint_types]
+        for entry, r, tp in zip(doc["poses"], results, targets.poses):
             entry["name"] = r["name"]
+            if tp.of is not None:
+                entry["of"] = tp.of
+            if tp.approach is not None:
+                entry["approach"] = tp.approach
+            if "via" in r:   # the pre-pose corrected with its pose, so that the approach keeps its direction
+                entry["via"] = file_joints(r["via"]["joints"] if r["written"] == "compensated"
+                                           else r["via"]["nominal_joints"], prismatic)
         kept = [f"{r['name']} ({', '.join(r['flags'])})" for r in results if r["written"] == "nominal"]
         if kept:
             doc["notes"] = ("flagged, written with their nominal joints (--accept-flagged writes their compensated "

@@ -6,19 +6,20 @@ import argparse
 import os
 import re
 import sys
+import warnings
 
 from ..core.jsonio import dumps
 from ..core.resources import ConfigNotFound
 from ..core.synthesis.problem import InfeasibleError
 from ..core.threads import limited
-from . import (allocate, calibrate, compensate, import_table, iso9283, jacobian, keystore, paper, path_report,
+from . import (allocate, calibrate, compensate, data, import_table, iso9283, jacobian, keystore, paper, path_report,
                plan_campaign, report, robots, sensitivity, signing_key, simulate, validate, verify)
 from .common import (CAPS, CHECKED_BY_COMMAND, EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError,
                      Parser, UsageError, check_cap, check_outputs, common_arguments, os_error_message,
                      output_kinds)
 
 COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, path_report, iso9283, calibrate, validate,
-            compensate, plan_campaign, simulate, import_table, paper, keystore, signing_key)
+            compensate, plan_campaign, simulate, import_table, data, paper, keystore, signing_key)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -154,14 +155,17 @@ def main(argv=None) -> int:
         return _fail(parser.prog, "invalid_request", str(exc), as_json)
     prog = f"{parser.prog} {args.command}"
     args.missed = []
+    said = []
     try:
         own = getattr(sys.modules.get(args.func.__module__), "OWN_CAPS", ())  # the caps the command checks itself
         for name in CAPS:  # a count above its cap is refused before any work
             if name not in CHECKED_BY_COMMAND and name not in own and isinstance(getattr(args, name, None), int):
                 check_cap(getattr(args, name), name)
         check_outputs(args)
-        with limited(1):
+        with limited(1), warnings.catch_warnings(record=True) as said:
             out = args.func(args)
+        for w in said:   # said once the command has answered: a refusal is one line, not numpy's warnings first
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
         if as_json and out is not None:
             doc = {"ok": not args.missed, **out} if isinstance(out, dict) else out
             if args.missed and isinstance(doc, dict):
@@ -172,6 +176,9 @@ def main(argv=None) -> int:
         return EXIT_OK
     except Exception as exc:  # every error is one line (and a JSON document with --json)
         code = error_code(exc)
+        if code == "internal":   # a bug: what numpy said on the way may tell where
+            for w in said:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
         message = _message(exc) if code != "internal" else f"internal error (a bug): {type(exc).__name__}: {exc}"
         return _fail(prog, code, message, as_json)
     for what in args.missed:

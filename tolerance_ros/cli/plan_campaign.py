@@ -35,6 +35,10 @@ def add_arguments(p):
     p.add_argument("--iso9283", action="store_true",
                    help="write the ISO 9283 pose campaign instead: the cube's test poses P1-P5 (30 cycles unless "
                         "--cycles), and with --approach each also approached along +x, +y and +z (docs/iso9283.md)")
+    p.add_argument("--configuration", metavar="Q1,Q2,...",
+                   help="with --iso9283: the arm configuration to keep (each joint with its unit), its tool pose the "
+                        "cube's centre when it fits there (default: the configuration nearest the reference "
+                        "posture, each joint at zero, or mid-range where zero is beyond its limits)")
     p.add_argument("--approach", metavar="LENGTH",
                    help="with --iso9283: the pre-poses this far before each test pose, one per direction (e.g. "
                         "100mm), for the multi-directional pose accuracy variation vAP")
@@ -97,29 +101,36 @@ def add_arguments(p):
 
 def run_path(args, model):
     """``--path``: the test path's joint trajectory written to ``--out`` (YAML, SI)."""
-    from ..core.accuracy.iso_paths import plan_path
+    from ..core.accuracy import iso_paths as P
     from ..core.accuracy.path import arc_length, corners
     cycles = 10 if args.cycles is None else args.cycles
     if cycles < 1:
         raise CLIError("--cycles: must be >= 1")
     if args.path == "reorient":
-        speed = quantity(args.angular_speed, "angular speed", "--angular-speed")
-        accel = quantity(args.angular_accel, "angular acceleration", "--angular-accel")
+        speed = bounded(args.angular_speed, "angular speed", "--angular-speed", top=P.MAX_ANGULAR_SPEED)
+        accel = bounded(args.angular_accel, "angular acceleration", "--angular-accel", top=P.MAX_ANGULAR_ACCEL)
     else:
-        speed = quantity(args.speed, "speed", "--speed")
-        accel = quantity(args.accel, "acceleration", "--accel")
-    dwell = quantity(args.dwell, "time", "--dwell", positive=False)
-    side = quantity(args.side, "length", "--side")
+        speed = bounded(args.speed, "speed", "--speed", top=P.MAX_SPEED)
+        accel = bounded(args.accel, "acceleration", "--accel", top=P.MAX_ACCEL)
+    dwell = bounded(args.dwell, "time", "--dwell", 0.0, P.MAX_DWELL, "the rest before each cycle; one longer than ten "
+                                                                     "minutes is a drift test (iso9283 --drift)")
+    side = bounded(args.side, "length", "--side", P.MIN_SIDE, 2 * model.reach(),
+                   "below 10 mm the test line holds fewer than 30 knots; beyond twice the robot's reach no cube fits")
+    stroke = bounded(args.stroke, "length", "--stroke", P.MIN_STROKE, None,
+                     "below 0.1 mm, ten times a tracker's noise, there is no weaving to measure")
     center = joints_option(model, args.center_joints, "--center-joints") if args.center_joints else None
     try:
-        jp, tp = plan_path(model, args.path, speed, accel, dwell, cycles, side, center, seed=args.seed,
-                           stroke=quantity(args.stroke, "length", "--stroke"),
-                           pitch=quantity(args.pitch, "length", "--pitch"),
-                           angle=quantity(args.angle, "angle", "--angle"),
-                           distances=[quantity(x, "length", "--distances") for x in args.distances.split(",")]
-                           if args.distances else None, profile=args.profile)
+        jp, tp = P.plan_path(model, args.path, speed, accel, dwell, cycles, side, center, seed=args.seed,
+                             stroke=stroke,
+                             pitch=quantity(args.pitch, "length", "--pitch"),
+                             angle=quantity(args.angle, "angle", "--angle"),
+                             distances=[quantity(x, "length", "--distances") for x in args.distances.split(",")]
+                             if args.distances else None, profile=args.profile)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
+    if jp.period > P.MAX_PERIOD:
+        raise CLIError(f"--speed, --dwell: a cycle would last {jp.period:.4g} s, beyond {P.MAX_PERIOD:g} s (an hour "
+                       f"is no path test's cycle); a faster --speed or a shorter --dwell")
     test = tp.moves[tp.test]
     doc = jp.to_dict()
     doc.update(robot=model.name, side_m=tp.side, center_m=tp.center.tolist(), length_m=float(arc_length(test)[-1]),
@@ -138,6 +149,21 @@ def run_path(args, model):
     print(f"{what}; a cycle lasts {jp.period:.2f} s ({len(jp.t)} knots), {cycles} cycles {jp.duration:.1f} s")
     print(f"wrote {args.out}" if args.out else "trajectory not saved (give --out FILE.yaml to save it)")
     return None
+
+
+def bounded(text, kind, option, low=None, top=None, why=""):
+    """``quantity`` of an option that must lie in [low, top] (SI; None: no bound; a ``low`` of 0 allows 0, any other
+    bound is inclusive too); CLIError naming the option and the bound, with ``why``."""
+    value = quantity(text, kind, option, positive=low is None or low > 0)
+    if value is None:
+        return None
+    if (low is not None and value < low) or (top is not None and value > top):
+        unit = {"length": "m", "speed": "m/s", "acceleration": "m/s^2", "angular speed": "rad/s",
+                "angular acceleration": "rad/s^2", "time": "s"}[kind]
+        span = (f"from {low:g} to {top:.4g} {unit}" if low is not None and top is not None else
+                f"at least {low:g} {unit}" if low is not None else f"at most {top:g} {unit}")
+        raise CLIError(f"{option}: {text} is out of range: expected {span}" + (f" ({why})" if why else ""))
+    return value
 
 
 def tp_angle(tp) -> float:
@@ -198,15 +224,19 @@ def run_iso9283(args, model, ws):
     from ..core.accuracy.iso9283 import iso_cube_joints
     from ..core.calibration.planning import iso9283_campaign
     approach = quantity(args.approach, "length", "--approach") if args.approach else None
+    reference = joints_option(model, args.configuration, "--configuration") if args.configuration else None
+    if reference is not None:
+        v = ws.check(np.array([reference]))
+        if not v.ok[0]:
+            raise CLIError(f"--configuration: {v.reason[0]}" + (f" ({v.detail[0]})" if v.detail[0] else ""))
     qc, _ = ws.sample(int(args.candidates), np.random.default_rng(args.seed), 10 * int(args.candidates))
-    q, note = iso_cube_joints(model, qc, args.seed, allowed=lambda x: ws.check(x).ok)
+    q, note = iso_cube_joints(model, qc, args.seed, allowed=lambda x: ws.check(x).ok, reference=reference)
     if q is None:
         raise CLIError(f"{note}; widen the restrictions or give more --candidates")
     desc = (f"ISO 9283 pose campaign by tolerance-ros plan-campaign: {note}"
             + (f"; each pose also approached along +x, +y, +z from {approach * 1e3:g} mm before it" if approach else ""))
     try:
-        doc = iso9283_campaign(model, q, approach, cycles=args.cycles, description=desc,
-                               allowed=lambda x: ws.check(x).ok)
+        doc = iso9283_campaign(model, q, approach, cycles=args.cycles, description=desc, allowed=ws.check)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
     if args.out:
@@ -231,6 +261,13 @@ def run(args):
         raise CLIError("--angle: goes with --path reorient")
     if args.distances and args.path != "positioning":
         raise CLIError("--distances: goes with --path positioning")
+    if args.configuration and not args.iso9283:
+        raise CLIError("--configuration: goes with --iso9283 (a test path's centre: --center-joints)")
+    modes = [o for o, on in (("--path", args.path), ("--iso9283", args.iso9283),
+                             ("--contact", args.contact or args.target)) if on]
+    if len(modes) > 1:
+        raise CLIError(f"{', '.join(modes)}: one kind of campaign at a time (a test path, the ISO 9283 pose campaign, "
+                       f"or contacts); run plan-campaign once for each")
     if args.path:
         return run_path(args, model)
     if args.approach and not args.iso9283:

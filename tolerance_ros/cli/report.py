@@ -15,8 +15,9 @@ def add_arguments(p):
     p.add_argument("--measurements", required=True, help="CSV file, campaign log (.jsonl) or rosbag2 (dir, .db3, .mcap)")
     p.add_argument("--budget", help="tolerance budget to check against")
     p.add_argument("--campaign", help="campaign with the test poses (ISO 9283 statistics per pose)")
-    p.add_argument("--registration", choices=["base", "base+tool", "none"], default="base",
-                   help="estimate the base (and tool) transform, or take measurements as base-frame")
+    p.add_argument("--registration", choices=["auto", "base", "base+tool", "none"], default="auto",
+                   help="estimate the base (and tool) transform, or take measurements as base-frame; auto (default): "
+                        "base or base+tool, the one that predicts held-out poses better (--stream: base)")
     p.add_argument("--skip-bad", action="store_true", help="skip malformed rows (they are listed), instead of failing")
     p.add_argument("--no-robust", action="store_true",
                    help="keep every row in the registration (by default rows beyond 4.6 robust sigmas of its residual "
@@ -55,7 +56,8 @@ def run(args):
             raise CLIError("--skip-bad: not available with --stream, which stops at the first bad row")
         if args.registration == "base+tool":
             raise CLIError("--stream: the tool offset needs all measurements at once; use --registration base")
-        res = stream_file(model, args.measurements, budget, campaign, registration=args.registration, rule=rule)
+        res = stream_file(model, args.measurements, budget, campaign,
+                          registration="base" if args.registration == "auto" else args.registration, rule=rule)
         _over_limit(args, res["summary"])
         _proven_out(args, res["summary"].get("identification"))
         if args.json:
@@ -84,6 +86,9 @@ def run(args):
     if len(meas.skipped) > SKIPPED_SHOWN:
         print(f"  ... and {len(meas.skipped) - SKIPPED_SHOWN} more (all of them in skipped_rows of --json)")
     reg = res["registration"]
+    if reg.get("choice"):
+        from ..core.accuracy.checks import registration_words
+        print(registration_words(reg["choice"]))
     oe = s.get("orientation_error_rad")
     print(f"registration {reg['method']}: residual RMS (3-D) {reg['residual_rms_m'] * 1e3:.4f} mm; position error at "
           f"the {'targets' if len(res['targets']) > 1 else 'measured point'} mean {pe['mean'] * 1e3:.4f}, max "

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .geometry import transform
+from .ingest import MAX_POSITION_M
 from .models.base import ModelError
 from .resources import resolve
 from .units import UnitError, angle_scale, length_scale, parse_number
@@ -194,6 +195,10 @@ def campaign_from_dict(data, dof=None, model=None) -> Campaign:
                 rpy = [parse_number(v, f"{f}.pose.rpy[{k}]") * as_ for k, v in enumerate(q.get("rpy", [0, 0, 0]))]
                 if len(xyz) != 3 or len(rpy) != 3:
                     raise CampaignError(f"{f}.pose: xyz and rpy need three numbers each")
+                far = next((k for k, v in enumerate(xyz) if not abs(v) <= MAX_POSITION_M), None)
+                if far is not None:
+                    raise CampaignError(f"{f}.pose.xyz[{far}]: {q['xyz'][far]} lies beyond {MAX_POSITION_M:g} m of the "
+                                        f"base: no pose of a robot's cell")
                 tp.pose = transform(xyz, rpy)
         except UnitError as exc:
             raise CampaignError(str(exc)) from None

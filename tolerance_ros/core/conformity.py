@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 DECISIONS = ("within", "out", "undecided", "free")
+PLAUSIBLE_LENGTH = 0.05     # a length error beyond this fraction of the robot's reach is no build error
+PLAUSIBLE_ANGLE = 0.2       # rad: an angle error beyond this is no build error
 
 
 @dataclass(frozen=True)
@@ -88,7 +90,8 @@ def counts(decisions) -> dict:
     return {k: sum(1 for x in d if x == k) for k in DECISIONS}
 
 
-def parameter_groups(names, kinds, dx, std, held, aliases, delta, rule: DecisionRule = DEFAULT_RULE) -> list:
+def parameter_groups(names, kinds, dx, std, held, aliases, delta, rule: DecisionRule = DEFAULT_RULE,
+                     undetermined=None) -> list:
     """What estimates ``dx`` (p,) with standard uncertainties ``std`` (p,) say of each part against the budget
     ``delta`` (p,), SI: each estimated parameter j (not in ``held``) measures the combination
     ``e_j + sum_h c_h e_h`` of itself and the held parameters it absorbs (``aliases`` {j: {h: c}}), whose
@@ -96,9 +99,14 @@ def parameter_groups(names, kinds, dx, std, held, aliases, delta, rule: Decision
     that matter (a held parameter whose tolerance moves the group by less than 1 % of its own is not named, though
     it counts); ``kinds`` (p,) 'length' or 'angle' gives each group the unit of its first member ('m' or 'rad').
 
-    Returns [{parameters, coefficients {name: c} (every member), error, std, tolerance, ratio, unit, decision}],
-    the decisions by ``rule``; out first, then undecided, within and free, each by ratio, largest first.
+    ``undetermined`` {name: why}: estimated parameters the data cannot tell (a near-copy of another, or set by a
+    prior; ``Identification.undetermined``): their estimate is arbitrary, so their group is ``undecided`` whatever it reads, ``note``
+    saying why.
+
+    Returns [{parameters, coefficients {name: c} (every member), error, std, tolerance, ratio, unit, decision,
+    note}], the decisions by ``rule``; out first, then undecided, within and free, each by ratio, largest first.
     """
+    undetermined = undetermined or {}
     names = list(names)
     d = np.asarray(delta, float)
     groups = []
@@ -111,16 +119,34 @@ def parameter_groups(names, kinds, dx, std, held, aliases, delta, rule: Decision
         err, u = float(dx[j]), float(std[j])
         groups.append({"parameters": shown, "coefficients": coef, "error": err, "std": u, "tolerance": tol,
                        "ratio": abs(err) / tol if tol > 0 else float("inf"),
-                       "unit": "m" if kinds[j] == "length" else "rad", "decision": rule.decide(err, u, tol)})
+                       "unit": "m" if kinds[j] == "length" else "rad", "decision": rule.decide(err, u, tol),
+                       "note": undetermined.get(name)})
+        if name in undetermined and groups[-1]["decision"] != "free":
+            groups[-1]["decision"] = "undecided"
     order = {"out": 0, "undecided": 1, "within": 2, "free": 3}
     groups.sort(key=lambda g: (order[g["decision"]], -g["ratio"]))
     return groups
 
 
-def judged(names, kinds, dx, std, held, aliases, delta, rule: DecisionRule = DEFAULT_RULE) -> dict:
+def implausible(names, kinds, dx, reach: float) -> dict:
+    """{name: why} of the estimates beyond any build error (``PLAUSIBLE_LENGTH`` of the robot's ``reach`` m,
+    ``PLAUSIBLE_ANGLE``): where a fit took them, the data do not determine them."""
+    out = {}
+    for n, k, v in zip(names, kinds, dx):
+        if abs(v) > (PLAUSIBLE_LENGTH * reach if k == "length" else PLAUSIBLE_ANGLE):
+            out[n] = (f"estimated at {v * 1e3:+.4g} {'mm' if k == 'length' else 'mrad'}, beyond any build error: the "
+                      f"fit, not the data, put it there")
+    return out
+
+
+def judged(names, kinds, dx, std, held, aliases, delta, rule: DecisionRule = DEFAULT_RULE,
+           undetermined=None, reach: float | None = None) -> dict:
     """``parameter_groups`` with the rule said: {groups, rule, rule_words, counts {decision: n},
-    out_of_tolerance (the groups decided out)}."""
-    groups = parameter_groups(names, kinds, dx, std, held, aliases, delta, rule)
+    out_of_tolerance (the groups decided out)}; with the robot's ``reach`` (m), an implausible estimate
+    (``implausible``) is undetermined too."""
+    if reach is not None:
+        undetermined = {**implausible(names, kinds, dx, reach), **(undetermined or {})}
+    groups = parameter_groups(names, kinds, dx, std, held, aliases, delta, rule, undetermined)
     return {"groups": groups, "rule": str(rule), "rule_words": rule.words(),
             "counts": counts(g["decision"] for g in groups),
             "out_of_tolerance": [g for g in groups if g["decision"] == "out"]}

@@ -161,13 +161,15 @@ def served_robots(node) -> tuple:
 
 
 def robot_set(node, specs, default) -> RobotSet:
-    """The robots a node serves, with the ``tip_link`` / ``base_link`` parameters for ``robot_description``
-    (MissingDependency when the reader of a URDF robot, pinocchio, is missing).
+    """The robots a node serves, with the ``tip_link`` / ``base_link`` parameters for its URDF robots (a URDF file or
+    ``robot_description``) (MissingDependency when the reader of a URDF robot, pinocchio, is missing).
     The compiled kernels are prepared in the background (``core.models.warmup``): the node serves from the
     numpy path at once and switches to them when they are loaded (compiled first in a child process when
     the cache is cold), so that no request waits for a compilation."""
-    tip = declare(node, "tip_link", "", "robot_description: link the chain ends in (empty: the only moving leaf)")
-    base = declare(node, "base_link", "", "robot_description: link the chain starts from (empty: the URDF root)")
+    tip = declare(node, "tip_link", "", "URDF robots (a file or robot_description): link the chain ends in (empty: "
+                                        "the only moving leaf)")
+    base = declare(node, "base_link", "", "URDF robots (a file or robot_description): link the chain starts from "
+                                          "(empty: the URDF root)")
     if "robot_description" in list(specs) + [default]:
         require_packages(node, ["pinocchio"])   # URDF robots: the description arrives later, its reader must be there
     try:

@@ -185,7 +185,10 @@ def budget_lines(grp) -> list:
             f"Its decision accounts for the estimate's standard uncertainty: {grp['rule_words']}.", "",
             "Decisions: " + decision_counts(grp["counts"]) + ".", "",
             "| group | unit | error | u | tolerance | abs(error)/tolerance | decision |", "|---|---|---|---|---|---|---|"] \
-        + ["| " + " | ".join(r) + " |" for r in group_rows(grp["groups"])]
+        + ["| " + " | ".join(r) + " |" for r in group_rows(grp["groups"])] \
+        + ["", "Not determined by these data (undecided whatever they read):", ""] * any(g.get("note") for g in
+                                                                                      grp["groups"]) \
+        + [f"- {group_text(g)}: {g['note']}" for g in grp["groups"] if g.get("note")]
 
 
 def decision_counts(counts: dict) -> str:

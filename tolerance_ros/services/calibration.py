@@ -290,7 +290,8 @@ class CalibrationService(JobService):
         if budget is not None:
             resp["budget"] = {"source": budget.source, **judged(cal.names, cal.kinds, cal.dx, cal.std, cal.held,
                                                                  cal.aliases, budget.vector_for(job.mechanism),
-                                                                 job.rule)}
+                                                                 job.rule, cal.undetermined,
+                                                                 job.mechanism.reach())}
         if self.envelope is not None:
             resp["envelope"] = self.envelope.check(cal, job.mechanism)
             if not resp["envelope"]["ok"]:

@@ -50,8 +50,14 @@ class RobotSet:
         names = {}
         for spec in dict.fromkeys([s for s in list(specs) + [default] if s != DESCRIPTION]):
             model = load_robot(spec)
+            if (self.tip_link or self.base_link) and hasattr(model, "tip_link"):  # a URDF robot file: its chain
+                model = load_robot(spec, self.tip_link, self.base_link)
             self.models[model.name] = model
             names[spec] = model.name
+        if (self.tip_link or self.base_link) and not self.from_description and \
+                not any(hasattr(m, "tip_link") for m in self.models.values()):
+            raise ModelError(f"tip_link, base_link: only for URDF robots (a URDF file or robot_description), not "
+                             f"{', '.join(sorted(self.models))}")
         self._default = DESCRIPTION if default == DESCRIPTION else names[default]
 
     @property

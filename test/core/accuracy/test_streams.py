@@ -51,8 +51,26 @@ def test_a_stray_stamp_is_left_out_and_non_finite_rows_are_counted():
     v = np.zeros((100, 2))
     v[70, 1] = np.inf
     td = tidy(t, v)
-    assert td.stray == 1 and td.not_finite == 2 and td.kept == 97 and len(td.epochs) == 2
+    assert td.stray == 1 and td.not_finite == 2 and td.kept == 97
+    assert len(td.epochs) == 1 and td.jumps == []      # the stray stamp cuts nothing (issue 49: it had cut two)
     assert "1 row(s) on a clock of their own" in td.describe()
+
+
+@pytest.mark.parametrize("where", [0, 1, 4000, 8940, 8941])
+def test_one_stamp_of_1e308_is_one_row_left_out_wherever_it_lies(where):
+    t = np.arange(8942) * 0.004
+    t[where] = 1e308
+    td = tidy(t)
+    assert td.stray == 1 and td.kept == 8941 and len(td.epochs) == 1 and td.jumps == []
+    assert where not in td.epochs[0] and np.all(np.diff(t[td.epochs[0]]) > 0)
+
+
+def test_a_clock_that_started_again_still_cuts_with_a_stray_stamp_in_each_epoch():
+    t = np.concatenate([np.arange(300) * 0.01, np.arange(300) * 0.01])   # restarted at row 300
+    t[[100, 450]] = [1e308, -1e308]
+    td = tidy(t)
+    assert td.stray == 2 and [len(e) for e in td.epochs] == [299, 299] and len(td.jumps) == 1
+    assert td.jumps[0]["row"] == 300
 
 
 def test_a_clock_that_jumps_without_end_is_refused():

@@ -93,3 +93,52 @@ def test_planned_ur10_poses_keep_the_joint_range_the_floor_and_no_collision():
     with pytest.raises(ValueError, match=r"too few candidates for 10 poses: kept 0 of 1,500 candidates drawn: "
                                          r"1,500 tool outside the box .*enlarge --inside-box"):
         plan(ur10, 10, candidates=150, workspace=box)
+
+
+def test_the_iso_cube_keeps_the_configuration_nearest_the_reference_posture(gao):
+    """Issue 49: the planner had put P1-P5 with the arm folded over its back and P5 on another branch; now the cube
+    is centred in the configuration nearest the reference posture (the joints' zeros), all five poses reached from
+    it without a change of branch, and a configuration given (--configuration) is kept, centred on its tool."""
+    from tolerance_ros.core.accuracy.iso9283 import iso_cube_joints, iso_cube_points, posture_distance, \
+        reference_posture
+    candidates = gao.sample_joints(2000, np.random.default_rng(0))
+    q, note = iso_cube_joints(gao, candidates, 0)
+    ref = reference_posture(gao)
+    assert np.array_equal(ref, np.zeros(7)) and "nearest the reference posture" in note
+    near = posture_distance(gao, q, ref)
+    assert near.max() < np.percentile(posture_distance(gao, candidates, ref), 10)
+    steps = np.abs(gao.within_turn(q - q.mean(axis=0))).max()
+    assert steps < np.radians(90)                    # one branch: no joint half a turn from the others
+    given = np.radians([10.0, -30.0, 0.0, 70.0, 0.0, -30.0, 90.0])
+    q2, note2 = iso_cube_joints(gao, candidates, 0, reference=given)
+    centre = gao.fk(given[None])[0]
+    T = gao.fk(q2)
+    assert "nearest the one given" in note2 and np.allclose(T[:, :3, :3], centre[:3, :3], atol=1e-6)
+    side = np.linalg.norm(T[1, :3, 3] - T[2, :3, 3]) / (0.8 * np.sqrt(3))
+    np.testing.assert_allclose(T[:, :3, 3], iso_cube_points(centre[:3, 3], side), atol=1e-6)
+    assert posture_distance(gao, q2, given).max() < 0.1
+
+
+def test_an_infeasible_pre_pose_names_what_stops_it(gao):
+    """The reach, a joint limit (its joint, value and limits) or a restriction (its reason), each by name."""
+    from tolerance_ros.core.accuracy.iso9283 import iso_cube_joints
+    from tolerance_ros.core.calibration.planning import iso9283_campaign
+    from tolerance_ros.core.workspace import Verdict
+    q, _ = iso_cube_joints(gao, gao.sample_joints(2000, np.random.default_rng(0)), 0)
+    with pytest.raises(ValueError, match=r"P1: its pre-pose 2000 mm before it along \+x is beyond the robot's reach "
+                                         r"\(the nominal inverse kinematics stops [0-9.]+ mm from it"):
+        iso9283_campaign(gao, q, 2.0)
+    lim = gao.joint_limits.copy()
+    lim[:, 0] = q.min(axis=0) - 1e-3                   # each joint held to the span of the five poses
+    lim[:, 1] = q.max(axis=0) + 1e-3
+    with pytest.raises(ValueError, match=r"P1: its pre-pose 100 mm before it along \+x needs joint joint\d at "
+                                         r"-?[0-9.]+ deg, beyond its limits \[-?[0-9.]+ deg, -?[0-9.]+ deg\]"):
+        iso9283_campaign(gao.with_joint_limits(lim), q, 0.1)
+
+    def below_the_cube(x):
+        low = gao.fk(x)[:, 2, 3] < gao.fk(q)[:, 2, 3].min() - 1e-6
+        return Verdict(~low, np.where(low, "tool below a plane", ""), np.where(low, "0,0,1@0.2m", ""))
+    with pytest.raises(ValueError, match=r"along \+z breaks a restriction: tool below a plane \(0,0,1@0.2m\)"):
+        iso9283_campaign(gao, q, 0.1, allowed=below_the_cube)
+    doc = iso9283_campaign(gao, q, 0.05, allowed=lambda x: np.ones(len(x), bool))   # the plain form still taken
+    assert len(doc["poses"]) == 20

@@ -29,7 +29,9 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     registration only (``registration.left_out``: one bad row moves nothing else) and judged as measured.
 
     registration : 'base' (estimate base -> tracker), 'base+tool' (and each target's offset on the
-    tool), 'none' (measurements already in the base frame) or a Registration (its targets are used).
+    tool), 'auto' (the one of the two the data choose: ``checks.choose_registration``, said in
+    ``registration.choice``), 'none' (measurements already in the base frame) or a Registration (its
+    targets are used).
     Every error is taken at the measured target; measurements without orientation get no orientation
     figure. ``warnings`` names what the verdict should be read with (measurements in another frame than the
     one claimed, a target offset the registration does not fit, poses the campaign does not have).
@@ -41,18 +43,26 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     q = measurement_joints(model, meas, campaign)
     names = meas.target_names
     not_registered = []
+    beyond, unused = checks.unused_joint_columns(model, meas.joint_names, meas.joints)
     problem = checks.units_problem(model, q, meas.T[:, :3, 3]) or \
-        (checks.orientation_problem(model, q, meas.T[:, :3, :3]) if meas.has_orientation else None)
+        (checks.orientation_problem(model, q, meas.T[:, :3, :3], meas.T) if meas.has_orientation else None)
     if problem:
-        raise checks.CheckError(f"{meas.source}: {problem}")
+        raise checks.CheckError(f"{meas.source}: {checks.likely(problem, beyond)}")
     labels = _labels(meas)
     screened = checks.screen(model, q, meas, campaign, labels)
     warnings, notes = list(screened.notes), []
+    notes += [n for n in (beyond, unused) if n]
     if meas.loaded.any():
         notes.append(f"{int(meas.loaded.sum())} measurement(s) were taken under a load at the "
                      f"tool (load columns): their errors include the robot's deflection (iso9283 judges them as "
                      f"its static compliance and the unloaded ones as the pose characteristics)")
     T_tool_all = model.fk(q)
+    choice = None
+    if isinstance(registration, str) and registration == "auto":
+        keep = screened.keep
+        choice = checks.choose_registration(T_tool_all[keep], meas.T[keep], meas.target_index(names)[keep], names,
+                                            _groups(q, labels)[keep], meas.has_orientation, robust=robust)
+        registration = choice["chosen"]
     if isinstance(registration, Registration):
         idx_all = meas.target_index(registration.targets.names)
         residuals = np.linalg.norm(registration.to_base(meas.T)[:, :3, 3]
@@ -79,7 +89,7 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
             refused, hints = checks.diagnose(model, q[keep], meas.T[keep], idx_all[keep], names, registration,
                                              meas.has_orientation, reg, sel, scatter)
             if refused:
-                raise checks.CheckError(f"{meas.source}: {refused}")
+                raise checks.CheckError(f"{meas.source}: {checks.likely(refused, beyond)}")
             warnings += hints
             if not_registered:
                 notes.append(f"{len(not_registered)} measurement(s) far off the others were not used by the "
@@ -105,7 +115,8 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
     method = registration if isinstance(registration, str) else "given"
     out = {"source": meas.source, "robot": model.name, "measurements": len(q), "skipped_rows": meas.skipped,
            "orientation_measured": bool(meas.has_orientation), "targets": list(reg.targets.names),
-           "registration": {"method": method, **reg.to_dict(), "left_out": not_registered},
+           "registration": {"method": method, **reg.to_dict(), "left_out": not_registered,
+                            **({"choice": choice} if choice else {})},
            "summary": acc.summary(sigma_position, rule),
            "warnings": warnings, "notes": notes, "left_out": left_out}
     T_base = reg.to_base(meas.T)
@@ -155,7 +166,8 @@ def aliased_groups(model, q, T_base, delta, sigma_position=1e-5, sigma_orientati
                                                         sigma_orientation=sigma_orientation),
                      Unknowns(targets=targets, target_index=target_index), hold="dependent", noise_from_residuals=True,
                      clusters=visits)
-    out = judged(model.param_names, model.param_kinds, ident.dx, ident.std, ident.held, ident.aliases, delta, rule)
+    out = judged(model.param_names, model.param_kinds, ident.dx, ident.std, ident.held, ident.aliases, delta, rule,
+                 ident.undetermined, model.reach())
     base = {h for b, a in ident.aliases.items() if b.startswith("base.") for h, c in a.items() if abs(c) > 1e-6}
     grouped = {h for g in out["groups"] for h in g["parameters"]}
     return {**out, "absorbed_by_registration": [h for h in ident.held if h in base],

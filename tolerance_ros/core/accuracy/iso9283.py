@@ -330,32 +330,78 @@ class DriftTracker:
                               "dAP_p_per_h_m": s["per_h"]} for p, s in self.poses.items()}}
 
 
-def iso_cube_joints(model, q_candidates, rng=0, centres=10, allowed=None):
+def reference_posture(model) -> np.ndarray:
+    """(dof,) the robot's reference posture (rad or m): each joint at its zero (a URDF's or a D-H table's home)
+    where its limits hold zero, else at the middle of its limits."""
+    lim = np.asarray(model.joint_limits, float)
+    mid = np.where(np.isfinite(lim).all(axis=1), lim.mean(axis=1), 0.0)
+    return np.where((lim[:, 0] <= 0.0) & (lim[:, 1] >= 0.0), 0.0, mid)
+
+
+def posture_distance(model, q, reference) -> np.ndarray:
+    """(n,) distance of the configurations q (n, dof) from ``reference`` (dof,): each joint's difference (a
+    continuous joint's within a turn) over its range (a turn where the range is not finite), RMS over joints."""
+    lim = np.asarray(model.joint_limits, float)
+    span = np.where(np.isfinite(lim).all(axis=1), lim[:, 1] - lim[:, 0], 2 * np.pi)
+    d = model.within_turn(np.atleast_2d(np.asarray(q, float)) - np.asarray(reference, float))
+    return np.sqrt(np.mean((d / np.maximum(span, 1e-12)) ** 2, axis=1))
+
+
+WALK_STEPS = 10  # a test pose is reached from the cube's centre in this many steps, each solved from the last
+
+
+def walk_to(model, T_from, targets, q_from, steps=WALK_STEPS, **tol) -> np.ndarray:
+    """(k, dof) joints at the ``targets`` (k, 4, 4) reached from the pose ``T_from`` (4, 4) at joints ``q_from``
+    (dof,) in ``steps`` straight steps of the position (orientation as the targets'), each solved from the
+    last: the configuration of the start kept (no jump to another branch of the inverse kinematics)."""
+    from ..models.ik import nominal_solution
+    targets = np.asarray(targets, float)
+    q = np.tile(np.asarray(q_from, float), (len(targets), 1))
+    for f in np.linspace(1.0 / steps, 1.0, steps):
+        step = targets.copy()
+        step[:, :3, 3] = T_from[:3, 3] + f * (targets[:, :3, 3] - T_from[:3, 3])
+        q = nominal_solution(model, step, seed=q, **tol)
+    return q
+
+
+def iso_cube_joints(model, q_candidates, rng=0, centres=10, allowed=None, reference=None):
     """(joints (5, dof) of the ISO 9283 cube's test poses P1-P5, note), or (None, note).
 
-    The cube is centred on a candidate tool pose in front of the robot (the ``centres`` nearest the
-    median tool position of the candidates with x > 0 in the base frame, in turn) at that pose's
-    orientation, with the largest edge (halving from half the median distance of those candidates from
-    their median) whose five poses the nominal model reaches (and, with ``allowed``, a function of joints
+    The cube is centred on a candidate tool pose in front of the robot (x > 0 in the base frame) and in the
+    middle of the workspace (no farther from the candidates' median tool position than half of them), at that
+    pose's orientation, in the arm configuration nearest the reference posture (``reference`` (dof,), or else
+    ``reference_posture``; ``posture_distance``): the ``centres`` nearest candidates in turn, the reference
+    itself first when given. Its edge is the largest (halving from half the median distance of the
+    candidates from their median) whose five poses the nominal model reaches from the centre's configuration
+    without changing it (``walk_to``), within the joint limits (and, with ``allowed``, a function of joints
     (k, dof) -> (k,) bool, that it allows).
     """
-    from ..models.ik import nominal_solution
+    q_candidates = np.asarray(q_candidates, float)
+    given = reference is not None
+    ref = reference_posture(model) if reference is None else np.asarray(reference, float)
     T = model.fk(q_candidates)
     front = T[:, 0, 3] > 0
     T = T[front] if front.sum() >= 5 else T
     qf = q_candidates[front] if front.sum() >= 5 else q_candidates
     P = T[:, :3, 3]
     dist = np.linalg.norm(P - np.median(P, axis=0), axis=1)
-    for c in np.argsort(dist)[:centres]:
+    central = np.flatnonzero(dist <= np.median(dist))
+    order = list(central[np.argsort(posture_distance(model, qf[central], ref), kind="stable")][:centres])
+    starts = [(T[c], qf[c]) for c in order]
+    if given:
+        starts.insert(0, (model.fk(ref[None])[0], ref))
+    tol = dict(tol_position=1e-7, tol_orientation=1e-7)
+    for Tc, qc in starts:
         side = 0.5 * np.median(dist)
         for _ in range(5):
-            targets = np.tile(T[c], (5, 1, 1))
-            targets[:, :3, 3] = iso_cube_points(P[c], side)
-            q = nominal_solution(model, targets, seed=qf[c], tol_position=1e-7, tol_orientation=1e-7)
+            targets = np.tile(Tc, (5, 1, 1))
+            targets[:, :3, 3] = iso_cube_points(Tc[:3, 3], side)
+            q = walk_to(model, Tc, targets, qc, **tol)
             if np.allclose(model.fk(q), targets, atol=1e-6) and not model.out_of_limits(q).any() and \
                     (allowed is None or allowed(q).all()):
                 return q, (f"ISO 9283 cube P1-P5, edge {side * 1e3:.0f} mm, centred at "
-                           f"[{', '.join(f'{v * 1e3:.0f}' for v in P[c])}] mm")
+                           f"[{', '.join(f'{v * 1e3:.0f}' for v in Tc[:3, 3])}] mm, in the configuration nearest "
+                           + ("the one given" if given else "the reference posture"))
             side /= 2.0
     return None, ("ISO 9283 cube: no reachable cube found in front of the robot" +
                   (" within the restrictions" if allowed is not None else ""))

@@ -36,6 +36,25 @@ from .path import interp_columns
 PATHS = ("line", "circle", "rectangle", "weave", "reorient", "positioning")
 POSITIONING_DISTANCES = (0.01, 0.02, 0.05, 0.1, 0.2)  # m: the moves of a positioning program, those that fit
 MAX_KNOT_STEP = 0.05  # rad or m: the largest joint change between knots before a path is called discontinuous
+MAX_KNOTS = 100_000   # knots of a path's moves together: each is an inverse kinematics solve and a line of its file
+MIN_KNOTS_PER_PERIOD = 8  # a weave's period drawn by fewer knots is no sine
+# What a test path's options may be, and why (plan-campaign checks them before any work):
+MIN_SIDE = 0.01       # m: the cube's edge; below 10 mm the test line holds fewer than 30 knots and a tracker's
+#                       noise (10 um) is 0.1 % of it
+MIN_STROKE = 1e-4     # m: a weave's stroke below 0.1 mm is ten times a tracker's noise: no weaving to measure
+MAX_SPEED = 10.0      # m/s: no arm's tool is programmed faster (the fastest SCARAs reach about 10 m/s)
+MAX_ACCEL = 100.0     # m/s^2: about 10 g, beyond the fastest arms
+MAX_ANGULAR_SPEED = 20.0   # rad/s: beyond the fastest wrists (about 1,000 deg/s)
+MAX_ANGULAR_ACCEL = 500.0  # rad/s^2
+MAX_DWELL = 600.0     # s: a rest longer than ten minutes is a drift test (iso9283 --drift), not a cycle's start
+MAX_PERIOD = 3600.0   # s: a cycle longer than an hour is no path test (the speed or the dwell cannot be meant)
+
+
+def _check_knots(n: int, length: float, spacing: float):
+    """ValueError when a path of ``n`` knots exceeds ``MAX_KNOTS``."""
+    if n > MAX_KNOTS:
+        raise ValueError(f"path: {n:.3g} knots ({spacing * 1e3:g} mm apart along {length:.4g} m) exceed the "
+                         f"cap of {MAX_KNOTS:,} (each is an inverse kinematics solve and a line of the file)")
 
 
 @dataclass
@@ -55,6 +74,8 @@ class ToolPath:
 
 def _polyline(corners, spacing) -> np.ndarray:
     """(k, 3) points every ``spacing`` (at most) along the straight legs between ``corners``, corners kept."""
+    legs = np.linalg.norm(np.diff(corners, axis=0), axis=1)
+    _check_knots(int(np.sum(np.ceil(legs / spacing))), float(legs.sum()), spacing)
     out = [corners[:1]]
     for a, b in zip(corners[:-1], corners[1:]):
         n = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing)))
@@ -115,7 +136,18 @@ def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, s
         across = w - (w @ d) * d
         across /= np.linalg.norm(across)
         periods = max(3, int(round(L / pitch)))
-        n = int(np.ceil(L * np.hypot(1.0, np.pi * stroke * periods / L) / spacing)) + 1
+        woven = L * np.hypot(1.0, np.pi * stroke * periods / L)      # m along the sine (about)
+        n = int(np.ceil(woven / spacing)) + 1
+        if n / periods < MIN_KNOTS_PER_PERIOD:
+            least = np.sqrt(max((MIN_KNOTS_PER_PERIOD * spacing) ** 2 - (np.pi * stroke) ** 2, 0.0))
+            raise ValueError(f"weave: a pitch of {pitch * 1e3:g} mm with a stroke of {stroke * 1e3:g} mm draws each "
+                             f"period with {n / periods:.2g} knots ({spacing * 1e3:g} mm apart); a sine needs "
+                             f"{MIN_KNOTS_PER_PERIOD}: a pitch of at least {least * 1e3:.3g} mm")
+        if n > MAX_KNOTS:
+            raise ValueError(f"weave: a pitch of {pitch * 1e3:g} mm with a stroke of {stroke * 1e3:g} mm weaves "
+                             f"{woven:.4g} m, {n:.3g} knots {spacing * 1e3:g} mm apart, beyond the cap of "
+                             f"{MAX_KNOTS:,} (each is an inverse kinematics solve and a line of the file); a longer "
+                             f"pitch or a smaller stroke")
         sb = np.linspace(0.0, L, n)
         fwd = P3 + sb[:, None] * d + (0.5 * stroke * np.sin(2 * np.pi * periods * sb / L))[:, None] * across
         return ToolPath(kind, [fwd, _polyline(np.array([P2, P3]), spacing)], 0, R, c, side)
@@ -123,6 +155,7 @@ def tool_path(kind: str, center, side: float, R=None, spacing: float = 0.5e-3, s
         return ToolPath(kind, [_polyline(np.array([P3, P4, P2, P5, P3]), spacing)], 0, R, c, side)
     r = 0.4 * side
     n = max(8, int(np.ceil(2 * np.pi * r / spacing)))
+    _check_knots(n, 2 * np.pi * r, spacing)
     a = np.linspace(0.0, 2 * np.pi, n + 1)
     return ToolPath(kind, [c + r * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * w)], 0, R, c, side)
 
@@ -224,8 +257,10 @@ class JointPath:
         return interp_columns(tc, self.t, self.q)
 
     def to_dict(self) -> dict:
-        """The trajectory file (``read_trajectory``): SI, one cycle of knots."""
-        return {"kind": "joint_trajectory", "path": self.kind, "speed_m_s": self.speed, "cycles": self.cycles,
+        """The trajectory file (``read_trajectory``): SI, one cycle of knots; the programmed speed under
+        ``speed_m_s``, a reorientation's angular speed under ``speed_rad_s``."""
+        key = "speed_rad_s" if self.kind == "reorient" else "speed_m_s"
+        return {"kind": "joint_trajectory", "path": self.kind, key: self.speed, "cycles": self.cycles,
                 "joint_names": list(self.joint_names),
                 "points": [{"time_from_start": float(ti), "positions": [float(v) for v in qi]}
                            for ti, qi in zip(self.t, self.q)]}
@@ -313,7 +348,8 @@ def plan_path(model, kind: str, speed: float = 0.1, accel: float = 1.0, dwell: f
 
 def read_trajectory(path, model) -> JointPath:
     """A trajectory file (YAML or JSON: ``joint_names``, ``points`` of ``time_from_start`` s and
-    ``positions`` rad or m, optional ``cycles``), its joints put in the model's order."""
+    ``positions`` rad or m, optional ``cycles``), its joints put in the model's order; a reorientation's angular
+    speed from ``speed_rad_s`` (files written before it was so named: from ``speed_m_s``)."""
     from ..yamlio import read_yaml
     data = read_yaml(path)
     where = str(path)
@@ -339,5 +375,7 @@ def read_trajectory(path, model) -> JointPath:
     if cycles < 1:
         raise ValueError(f"{where}: cycles: must be >= 1")
     Q = Q[:, [names.index(n) for n in model.joint_names]]
-    return JointPath(tuple(model.joint_names), t - t[0], Q, cycles, str(data.get("path", "")),
-                     float(data.get("speed_m_s", float("nan"))))
+    kind = str(data.get("path", ""))
+    speed = data.get("speed_rad_s", data.get("speed_m_s")) if kind == "reorient" else data.get("speed_m_s")
+    return JointPath(tuple(model.joint_names), t - t[0], Q, cycles, kind,
+                     float("nan") if speed is None else float(speed))

@@ -10,7 +10,9 @@ so that nothing measured is dropped without a word:
   is kept (``repeated``; ``conflicting`` counts the repeats whose values differ from the kept row);
 - a stamp more than ``REORDER_S`` before the latest one (a clock that started again) or more than
   ``JUMP_S`` after it (a clock that jumped) cuts the stream into epochs (``jumps``: where, from and to);
-  an epoch of fewer than ``MIN_EPOCH_ROWS`` rows (a stray stamp) is left out (``stray``).
+  an epoch of fewer than ``MIN_EPOCH_ROWS`` rows (a stray stamp) is left out (``stray``), and the stream is
+  cut again without it, so that a stray stamp cuts nothing (one stamp of 1e308 amid a stream is one row left
+  out, not two epochs).
 
 ``Timeline`` lays the joint states' epochs end to end, ``SEPARATION_S`` apart, and puts each tracker point in
 the epoch of the joint states its own epoch overlaps (with one joint epoch, the tracker's longest epoch when
@@ -80,7 +82,7 @@ def describe_tidied(name: str, s: dict) -> str | None:
     if s["jump_count"] > len(s["jumps"]):
         words.append(f"{s['jump_count'] - len(s['jumps'])} more jump(s)")
     if s["stray"]:
-        words.append(f"{s['stray']:,} row(s) on a clock of their own between jumps (left out)")
+        words.append(f"{s['stray']:,} row(s) on a clock of their own (stray stamps, left out; they cut nothing)")
     return f"{s.get('stream', name)}: " + "; ".join(words) if words else None
 
 
@@ -99,6 +101,25 @@ def tidy(stamps, values=None, name: str = "stream", min_rows: int = MIN_EPOCH_RO
         good &= np.all(np.isfinite(V), axis=1)
     idx = np.flatnonzero(good)
     out.not_finite = int(t.size - idx.size)
+    while True:   # stray rows left out, the stream is cut again without them: they cut nothing
+        out.jumps, out.epochs, out.reordered, out.repeated, out.conflicting = [], [], 0, 0, 0
+        pieces = _cut(out, t, V, idx, name, min_rows)
+        stray = [k for k, p in enumerate(pieces) if p[3]]
+        if not stray:
+            return out
+        # first the stray pieces that interrupt one clock (the pieces either side of them would join: the stamp
+        # after them follows the one before within the bounds of a step); else every stray piece
+        joins = [k for k in stray if 0 < k < len(pieces) - 1
+                 and -REORDER_S <= pieces[k + 1][1] - pieces[k - 1][2] <= JUMP_S]
+        drop = np.concatenate([pieces[k][0] for k in (joins or stray)])
+        out.stray += int(drop.size)
+        idx = np.setdiff1d(idx, drop)
+
+
+def _cut(out: Tidied, t, V, idx, name, min_rows) -> list:
+    """Cut the rows ``idx`` of ``t`` at the jumps of the clock into ``out.epochs`` (each in order, one row per
+    stamp) with the counts; returns every piece cut, in arrival order, as (its rows kept, its first stamp as
+    it arrived, its latest stamp, whether it is stray: shorter than ``min_rows``, and not an epoch)."""
     tf = t[idx]
     starts = [0]
     while idx.size and starts[-1] < tf.size - 1:
@@ -115,14 +136,19 @@ def tidy(stamps, values=None, name: str = "stream", min_rows: int = MIN_EPOCH_RO
         out.jumps.append({"row": int(idx[k]), "from_s": float(M[k - a - 1]), "to_s": float(tf[k]),
                           "by_s": float(tf[k] - M[k - a - 1])})
         starts.append(k)
+    pieces = []
     for a, b in zip(starts, starts[1:] + [tf.size]):
         seg = tf[a:b]
         if seg.size == 0:
             continue
-        out.reordered += int(np.count_nonzero(seg[1:] < np.maximum.accumulate(seg[:-1])))
         order = np.argsort(seg, kind="stable")
         s = seg[order]
         rep = np.concatenate([[False], s[1:] == s[:-1]])
+        keep = idx[a + order[~rep]]
+        pieces.append((keep, float(seg[0]), float(s[-1]), keep.size < min_rows))
+        if keep.size < min_rows:
+            continue
+        out.reordered += int(np.count_nonzero(seg[1:] < np.maximum.accumulate(seg[:-1])))
         if rep.any():
             out.repeated += int(np.count_nonzero(rep))
             if V is not None:
@@ -130,12 +156,8 @@ def tidy(stamps, values=None, name: str = "stream", min_rows: int = MIN_EPOCH_RO
                 rows = idx[a + order]
                 differ = np.any(V[rows] != V[rows[first]], axis=1)
                 out.conflicting += int(np.count_nonzero(differ & rep))
-        keep = idx[a + order[~rep]]
-        if keep.size < min_rows:
-            out.stray += int(keep.size)
-            continue
         out.epochs.append(keep)
-    return out
+    return pieces
 
 
 def _overlap(a0, a1, b0, b1) -> float:

@@ -32,10 +32,12 @@ import numpy as np
 
 from ..accuracy import checks
 from ..models.base import Mechanism
-from .crossval import Folds, kept_figures, pose_groups, score, validate
+from ..accuracy.folds import pose_groups
+from .crossval import Folds, kept_figures, score, validate
 from .elastic import Load
 from .mechanism import calibrated_mechanism, corrected_origins
 from .result import Calibration, nominal_fingerprint
+from ..conformity import PLAUSIBLE_ANGLE, PLAUSIBLE_LENGTH
 from ..identification import PRIOR, REGISTRATIONS, FitOptions
 from .robust import MODELS, FitData, estimate_sets, fit, prior_vector
 
@@ -43,8 +45,6 @@ __all__ = ["Calibration", "FitOptions", "MODELS", "PRIOR", "REGISTRATIONS", "cal
            "calibrated_mechanism", "candidates", "corrected_origins", "pose_groups", "prior_vector"]
 
 PARSIMONY = 0.01            # the simplest candidate within this share of the lowest cross-validated RMS wins
-PLAUSIBLE_LENGTH = 0.05     # identified length errors above this fraction of the robot's reach are refused
-PLAUSIBLE_ANGLE = 0.2       # rad: identified angle errors (and elastic deflections) above this are refused
 REPEATED = 0.02             # rad or m: a posture within this of a training one repeats it
 INSIDE_MARGIN = 0.05        # rad or m: the training ranges widened by this are "inside"
 
@@ -215,33 +215,50 @@ def _warnings(cal, final, validation) -> list:
 
 
 def calibrate_measurements(model, meas, campaign=None, options: FitOptions | None = None, *, parameters="auto",
-                           progress=None, **changes) -> Calibration:
+                           progress=None, registration=None, **changes) -> Calibration:
     """``calibrate`` for a ``Measurements`` (joints from its columns or from the campaign's test poses), after the
     checks ``report`` makes (``checks``: the units of the points and of the orientations, the joint limits, the
     campaign of labelled poses, the nominal robot registered onto them): CheckError (bad input, exit 2) for
     measurements that cannot be this robot's, before any fit; the rows it leaves out and rejects are named by
-    their place in the file (``Measurements.where``)."""
+    their place in the file (``Measurements.where``). ``registration`` 'auto': base or base+tool chosen from the
+    data (``checks.choose_registration``, cross-validated by test pose; ``model["registration"]`` says how)."""
     from ..accuracy.evaluation import measurement_joints
     q = measurement_joints(model, meas, campaign)
+    beyond, unused = checks.unused_joint_columns(model, meas.joint_names, meas.joints)
     problem = checks.units_problem(model, q, meas.T[:, :3, 3])
     if problem:
-        raise checks.CheckError(f"{meas.source}: {problem}")
+        raise checks.CheckError(f"{meas.source}: {checks.likely(problem, beyond)}")
     labels = meas.pose if meas.pose is not None and any(str(p) for p in meas.pose) else None
     screened = checks.screen(model, q, meas, campaign, labels)   # beyond the limits: left out, said; wrong campaign
     if not screened.keep.all():
         meas, q = meas.select(screened.keep), q[screened.keep]
     labels = meas.pose if meas.pose is not None and any(str(p) for p in meas.pose) else None
     opts = (options or FitOptions()).updated(**changes)
+    choice = None
+    if registration == "auto":
+        choice = checks.choose_registration(model.fk(q), meas.T, meas.target_index(), meas.target_names,
+                                            pose_groups(q, labels)[0], meas.has_orientation, opts.folds, opts.seed,
+                                            opts.robust)
+        opts = opts.updated(registration=choice["chosen"])
+    elif registration is not None:
+        opts = opts.updated(registration=registration)
     try:
         checks.refuse_implausible(model, q, meas.T, meas.target_index(), meas.target_names, opts.registration,
                                   meas.has_orientation)
     except checks.CheckError as exc:
-        raise checks.CheckError(f"{meas.source}: {exc}") from None
+        raise checks.CheckError(f"{meas.source}: {checks.likely(str(exc), beyond)}") from None
     cal = calibrate(model, q, meas.T, labels, opts, parameters=parameters, has_orientation=meas.has_orientation,
                     sources={"measurements": meas.source}, target_index=meas.target_index(),
                     target_names=meas.target_names, stamps=meas.stamps, progress=progress,
                     where=[meas.where(i) for i in range(len(meas))])
     cal.warnings = [f"left out before the fit: {r['where']}: {r['reason']}" for r in screened.left_out] + cal.warnings
+    cal.model["registration"] = choice or {"chosen": opts.registration, "how": "given"}
+    cal.warnings[:0] = [n for n in (beyond, unused) if n]
+    if screened.unknown_poses:
+        named = [p for p in meas.pose if str(p)]
+        cal.warnings.insert(0, f"{checks.unknown_poses_text(screened.unknown_poses, campaign.name, named)}: the "
+                               f"campaign gives their measurements nothing; they are fitted at their own joint "
+                               f"columns")
     return cal
 
 

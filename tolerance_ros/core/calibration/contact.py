@@ -24,7 +24,7 @@ import numpy as np
 
 from ..targets import shift_jacobian
 from ..models.base import Mechanism
-from .crossval import folds_of, pose_groups
+from ..accuracy.folds import folds_of, pose_groups
 from ..identification import (PRIOR, SCALE_WITHOUT_BUDGET, Convergence, _minimise, _preference, _Layout,
                              column_scale, dependent_columns)
 from .robust import prior_vector

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..identification import BASE_NAMES, base_jacobian, column_scale, dependent_parameters
 from ..accuracy.iso9283 import iso_cube_joints
+from ..geometry import rotation_error
 from ..models.base import Mechanism
 
 CRITERIA = {"observability": "O1", "condition": "O2", "min-singular": "O3", "noise-amplification": "O4"}
@@ -250,7 +251,7 @@ def plan(model: Mechanism, n: int, criterion="observability", candidates=2000, s
                 [model.param_names[j] for j in np.flatnonzero(held)], chosen, rand, iso, note, spectra, report)
 
 
-def _file_joints(q, prismatic) -> list:
+def file_joints(q, prismatic) -> list:
     """Joints (dof,) SI as a campaign file of ``campaign_dict`` writes them: degrees, prismatic joints in m."""
     return [float(v) if pr else float(np.degrees(v)) for v, pr in zip(q, prismatic)]
 
@@ -262,7 +263,7 @@ def campaign_dict(model: Mechanism, q, name, cycles=3, dwell=2.0, description=""
     prismatic = [t == "prismatic" for t in model.joint_types]
     poses = []
     for i, row in enumerate(np.asarray(q, float)):
-        entry = {"name": f"C{i + 1}", "joints": _file_joints(row, prismatic)}
+        entry = {"name": f"C{i + 1}", "joints": file_joints(row, prismatic)}
         if any(prismatic):
             entry["joint_units"] = ["length" if pr else "angle" for pr in prismatic]
         poses.append(entry)
@@ -277,14 +278,42 @@ def campaign_dict(model: Mechanism, q, name, cycles=3, dwell=2.0, description=""
 AXES = {"+x": (0, 1.0), "+y": (1, 1.0), "+z": (2, 1.0), "-x": (0, -1.0), "-y": (1, -1.0), "-z": (2, -1.0)}
 
 
+def _pre_pose_problem(model, q, target, allowed) -> str | None:
+    """What stops the pre-pose joints q (1, dof) solved for ``target`` (4, 4): the reach, a joint limit or a
+    restriction (``allowed``); None when nothing does."""
+    T = model.fk(q)[0]
+    if not np.allclose(T, target, atol=1e-6):
+        gap = float(np.linalg.norm(T[:3, 3] - target[:3, 3]))
+        return (f"is beyond the robot's reach (the nominal inverse kinematics stops {gap * 1e3:.3g} mm from it, "
+                f"turned {float(np.linalg.norm(rotation_error(T[:3, :3], target[:3, :3]))):.3g} rad)")
+    out = model.out_of_limits(q)[0]
+    if out.any():
+        j = int(np.flatnonzero(out)[0])
+        prismatic = model.joint_types[j] == "prismatic"
+        value, (lo, hi) = q[0, j], model.joint_limits[j]
+        shown = ((lambda v: f"{v * 1e3:.4g} mm") if prismatic else (lambda v: f"{np.degrees(v):.4g} deg"))
+        return f"needs joint {model.joint_names[j]} at {shown(value)}, beyond its limits [{shown(lo)}, {shown(hi)}]"
+    if allowed is not None:
+        v = allowed(q)
+        ok = np.asarray(getattr(v, "ok", v), bool)
+        if not ok.all():
+            reason = getattr(v, "reason", None)
+            detail = getattr(v, "detail", None)
+            said = f": {reason[0]}" + (f" ({detail[0]})" if detail is not None and detail[0] else "") \
+                if reason is not None else ""
+            return f"breaks a restriction{said}"
+    return None
+
+
 def iso9283_campaign(model: Mechanism, q_poses, approach=None, directions=("+x", "+y", "+z"), cycles=30, dwell=2.0,
                      names=None, description="", allowed=None) -> dict:
     """An ISO 9283 campaign file (``core/campaign.py`` format) of the test poses q_poses (k, dof), named P1..Pk,
     and with ``approach`` (m) each pose also approached along each of ``directions`` of the base frame (``+x``:
     moving in +x, from a pre-pose ``approach`` metres before it), as poses ``Pk+x`` ... with ``of: Pk`` and the
     pre-pose's joints in ``via`` (the nominal model's inverse kinematics from the pose's own joints; ISO 9283
-    multi-directional pose accuracy variation). ValueError naming the pose when a pre-pose is out of reach or of
-    limits (or, with ``allowed``, a function of joints (k, dof) -> (k,) bool, not allowed)."""
+    multi-directional pose accuracy variation). ValueError naming the pose and the limit that stops its pre-pose:
+    the robot's reach, a joint limit (the joint, its value and limits), or, with ``allowed`` (a function of
+    joints (k, dof) -> (k,) bool, or a ``workspace.Verdict`` with its reasons), a restriction."""
     from ..models.ik import nominal_solution
     q_poses = np.asarray(q_poses, float)
     names = names or [f"P{i + 1}" for i in range(len(q_poses))]
@@ -309,12 +338,12 @@ def iso9283_campaign(model: Mechanism, q_poses, approach=None, directions=("+x",
                 target = Tk.copy()
                 target[axis, 3] -= sign * approach * f
                 q = nominal_solution(model, target[None], seed=q[0], tol_position=1e-7, tol_orientation=1e-7)
-            if not np.allclose(model.fk(q)[0], target, atol=1e-6) or model.out_of_limits(q).any() or \
-                    (allowed is not None and not allowed(q).all()):
-                raise ValueError(f"{name}: its pre-pose {approach * 1e3:g} mm before it along {d} is out of reach "
-                                 f"(or of the joint limits, or of the restrictions); shorten --approach")
+            why = _pre_pose_problem(model, q, target, allowed)
+            if why:
+                raise ValueError(f"{name}: its pre-pose {approach * 1e3:g} mm before it along {d} {why}; shorten "
+                                 f"--approach")
             entry = dict(doc["poses"][k], joints=list(doc["poses"][k]["joints"]), name=f"{name}{d}", of=name,
-                         approach=d, via=_file_joints(q[0], prismatic))
+                         approach=d, via=file_joints(q[0], prismatic))
             extra.append(entry)
     doc["poses"] += extra
     return doc

@@ -160,6 +160,7 @@ def predict_measurements(cal: Calibration, model: Mechanism, meas, reregister=Fa
     except checks.CheckError as exc:
         raise checks.CheckError(f"{meas.source}: {exc}") from None
     out["source"] = meas.source
+    out["notes"][:0] = [n for n in checks.unused_joint_columns(model, meas.joint_names, meas.joints) if n]
     return out
 
 

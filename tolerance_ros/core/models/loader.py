@@ -28,7 +28,7 @@ def load_robot(spec, tip_link=None, base_link=None) -> Mechanism:
             raise ModelError("tip_link, base_link: only for a robot loaded from a URDF or its file")
         return spec
     path = resolve("robots", spec, suffixes=(".yaml", ".yml", ".urdf"))
-    if path.suffix == ".urdf":
+    if _xml_kind(path) == "urdf" or path.suffix == ".urdf":
         try:
             return URDFChain(path, tip_link=tip_link, base_link=base_link).check_size()
         except ModelError as exc:  # every error names the file
@@ -52,6 +52,20 @@ def load_robot(spec, tip_link=None, base_link=None) -> Mechanism:
         raise ModelError(f"{path}: {exc}") from None
     model.config_path = str(path)
     return model.check_size(f"{path}: ")
+
+
+def _xml_kind(path: Path) -> str | None:
+    """'urdf' for a file of URDF XML whatever its suffix (``robot.xml``), None for any other file; ModelError for a
+    xacro file (URDF macros), which must be expanded into a URDF first."""
+    with open(path, "rb") as f:
+        text = f.read(1 << 24).decode("utf-8", errors="replace").lstrip("\ufeff \t\r\n")
+    xacro = path.name.endswith(".xacro") or (text.startswith("<") and "<xacro:" in text)  # a macro used
+    if xacro:
+        urdf = path.name.removesuffix(".xacro")
+        urdf = urdf if urdf.endswith(".urdf") else f"{Path(urdf).stem}.urdf"
+        raise ModelError(f"{path}: a xacro file (URDF macros), not a URDF: expand it first, e.g. `xacro {path} > "
+                         f"{urdf}` (xacro comes with ROS 2, or `pip install xacro`), and give the .urdf")
+    return "urdf" if text.startswith("<") else None
 
 
 def _kinds():

@@ -84,6 +84,8 @@ class URDFChain(CompiledChain):
         self.urdf_text = text
         joints_xml = {j.get("name"): j for j in root.findall("joint")}
         self.tip_chosen = tip_link is None
+        moving = moving_leaves(model, root)
+        self.fixed_leaves = [] if tip_link is not None else [n for n in leaves(root) if n not in moving]
         where = f"robot {self.name!r}" if source == "<string>" else f"{source} (robot {self.name!r})"
         tip_fid, tip_link = self._tip_frame(model, root, tip_link, where)
         base_T = np.eye(4)
@@ -163,7 +165,8 @@ class URDFChain(CompiledChain):
         self.joint_limits = np.array(limits, dtype=float)
         self.continuous = np.array(continuous, dtype=bool)
         self.tip_link = tip_link
-        self.base_link = base_link or root_link(root) or model.frames[0].name
+        self.root_link = root_link(root) or model.frames[0].name
+        self.base_link = base_link or self.root_link
         self._axes = np.array(axes)
         self._fixed = np.array(fixed)
         self._reversed = np.array([jid in upward for jid in chain], dtype=bool)
@@ -204,6 +207,22 @@ class URDFChain(CompiledChain):
             if nq not in (1, 2):
                 raise ModelError(f"urdf: joint {model.names[jid]!r} has {nq} configuration variables; "
                                  f"a serial chain needs 1-DOF joints")
+
+    def beyond_tip(self, joint_names) -> list:
+        """The names among ``joint_names`` of the URDF's joints that move links past the tip link (a tip chosen
+        short of where the measured point is)."""
+        m = self.pin_model
+        tip = frame_joint(m.frames[m.getFrameId(self.tip_link)])
+        out = []
+        for name in joint_names:
+            if not m.existJointName(str(name)):
+                continue
+            j = m.getJointId(str(name))
+            while j > 0 and j != tip:
+                j = m.parents[j]
+            if j == tip and m.getJointId(str(name)) != tip and tip > 0:
+                out.append(str(name))
+        return out
 
     def joint_columns(self) -> np.ndarray:
         """(dof,) column of each joint's zero offset ``j.offset``."""
@@ -378,12 +397,16 @@ def root_link(root):
     return roots[0] if len(roots) == 1 else None
 
 
+def leaves(root) -> list:
+    """Names of the URDF's leaf links (the parent of no joint), in file order."""
+    parents = {j.find("parent").get("link") for j in root.findall("joint") if j.find("parent") is not None}
+    return [name for name in (link.get("name") for link in root.findall("link")) if name not in parents]
+
+
 def moving_leaves(model, root) -> list:
     """Names of the URDF's leaf links (the parent of no joint) that some joint moves, in file order."""
-    parents = {j.find("parent").get("link") for j in root.findall("joint") if j.find("parent") is not None}
-    return [name for name in (link.get("name") for link in root.findall("link"))
-            if name not in parents and model.existFrame(name)
-            and frame_joint(model.frames[model.getFrameId(name)]) > 0]
+    return [name for name in leaves(root)
+            if model.existFrame(name) and frame_joint(model.frames[model.getFrameId(name)]) > 0]
 
 
 def _parse(text, source):

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ...geometry import quat_to_matrices, rpy_from_matrix, rpy_to_matrices
+from ...ingest import MAX_POSITION_M
 from ...resources import not_a_file
 from ...units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS, TORQUE_UNITS
 from .measurements import MeasurementError, Measurements, concat
@@ -316,6 +317,8 @@ def _convert_fast(rows, spec, last):
     if not np.all(np.isfinite(A)):
         return None
     A *= spec.scale
+    if not np.all(np.abs(A[:, 1:4]) <= MAX_POSITION_M):
+        return None
     stamps = A[:, 0]
     if stamps[0] < last or np.any(np.diff(stamps) < 0):
         return None
@@ -387,6 +390,10 @@ def _num(text, what):
 def _parse_row(row, spec):
     """(numeric values in SI, pose label, cycle, target) of one row; MeasurementError names the column."""
     vals = [_num(row[i], name) * s for i, name, s in zip(spec.num_cols, spec.num_names, spec.scale)]
+    for name, v, text in zip(spec.num_names[1:4], vals[1:4], [row[i] for i in spec.num_cols[1:4]]):
+        if not abs(v) <= MAX_POSITION_M:
+            raise MeasurementError(f"{name}: {_show(text)} lies {abs(v):.3g} m from the tracker's origin, beyond "
+                                   f"{MAX_POSITION_M:g} m: not a measured point")
     if spec.orientation == "quat":
         try:
             quat_to_matrices(vals[4:8])

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...ingest import MAX_POSITION_M
 from ...resources import not_a_file
 from ...units import ANGLE_UNITS, LENGTH_UNITS, TIME_UNITS
 from .csv_format import _COL, separator_hint
@@ -85,7 +86,7 @@ def read_joint_states(path, joint_names, joint_types=None, ignored=None):
         scale.append(table[unit])
     use = [cols["stamp"][0]] + [cols[f"joint:{n}"][0] for n in joint_names]
     try:
-        A = np.loadtxt(io.StringIO(body), delimiter=",", comments="#", usecols=use, ndmin=2)
+        A = _loadtxt(body, use)
     except ValueError:
         A = None
     if A is None or A.shape[1] != len(use) or not np.all(np.isfinite(A)) or not _fields_fit(body, len(header), len(A)):
@@ -147,7 +148,7 @@ def read_points(path):
                 all(cols[c][1] in LENGTH_UNITS for c in "xyz"):
             use = [cols[c][0] for c in ("stamp", "x", "y", "z")]
             try:
-                A = np.loadtxt(io.StringIO(body), delimiter=",", comments="#", usecols=use, ndmin=2)
+                A = _loadtxt(body, use)
             except ValueError:
                 A = None
             if A is None or not np.all(np.isfinite(A)) or not _fields_fit(body, 4, len(A)):
@@ -155,7 +156,8 @@ def read_points(path):
             if len(A) == 0:
                 raise MeasurementError(f"{path}: no measurements")
             A *= np.array([TIME_UNITS[cols["stamp"][1]]] + [LENGTH_UNITS[cols[c][1]] for c in "xyz"])
-            return A[:, 0], A[:, 1:], str(path)
+            if np.all(np.abs(A[:, 1:]) <= MAX_POSITION_M):  # else the row-by-row reader names the line
+                return A[:, 0], A[:, 1:], str(path)
     m = read_measurements(path)
     return m.stamps, m.T[:, :3, 3], m.source
 
@@ -181,3 +183,11 @@ def write_points(path, stamps, points, comments=()) -> Path:
     np.savetxt(path, np.column_stack([stamps, np.asarray(points) * 1e3]), fmt=["%.6f", "%.5f", "%.5f", "%.5f"],
                delimiter=",", header=head, comments="")
     return path
+
+
+def _loadtxt(body: str, use) -> np.ndarray:
+    """(n, len(use)) numbers of the CSV ``body`` (0 rows for a file of a header alone, without numpy's warning)."""
+    import warnings
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "loadtxt: input contained no data", UserWarning)
+        return np.loadtxt(io.StringIO(body), delimiter=",", comments="#", usecols=use, ndmin=2)
