@@ -371,3 +371,21 @@ def test_every_iso_input_is_checked_like_reports(capsys, tmp_path):
     code, _, err = run(capsys, *iso, "--measurements", tmp_path / "rep" / "report.html", "--out", tmp_path / "rep")
     assert code == 2 and "would write report.html over the input --measurements" in err
     assert (tmp_path / "rep" / "report.html").read_text() == text
+
+
+def test_orientations_in_degrees_labelled_radians_are_refused_where_the_tool_hardly_turns(capsys, tmp_path):
+    """The ISO cube's poses share one orientation, so their turns from one measurement to the next show nothing;
+    after the registration, orientations read in the wrong unit lie radians from the robot's: refused (exit 2) by
+    iso9283 and report alike."""
+    cli(capsys, "plan-campaign", "--robot", ROBOT, "--iso9283", "--cycles", "3", "--out", tmp_path / "cube.yaml")
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--tolerances", TOL, "--out",
+        tmp_path / "m.csv")
+    text = (tmp_path / "m.csv").read_text()
+    assert "roll[deg],pitch[deg],yaw[deg]" in text
+    (tmp_path / "rad.csv").write_text(text.replace("roll[deg],pitch[deg],yaw[deg]", "roll[rad],pitch[rad],yaw[rad]"))
+    for command in ("iso9283", "report"):
+        code, _, err = run(capsys, command, "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--measurements",
+                           tmp_path / "rad.csv")
+        assert code == 2 and "degrees labelled radians" in err and "after the registration" in err, (command, err)
+        assert run(capsys, command, "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--measurements",
+                   tmp_path / "m.csv", "--quiet")[0] == 0

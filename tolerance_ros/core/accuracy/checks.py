@@ -115,6 +115,21 @@ def orientation_problem(model, q, R, T_meas=None) -> str | None:
             f"robot's tool does; the angle unit of the orientation columns cannot be right{hint}")
 
 
+def registered_orientation_problem(R_base, R_nominal) -> str | None:
+    """Why measured orientations (n, 3, 3), registered into the base frame, cannot be in the angle unit claimed,
+    or None: at the median they lie more than ``ORIENTATION_MISMATCH`` from the robot's nominal ones (n, 3, 3), far
+    beyond any robot's error. Catches what ``orientation_problem`` cannot see where the tool hardly turns between
+    measurements (an ISO cube's poses share one orientation)."""
+    from ..geometry import rotation_error
+    off = np.linalg.norm(rotation_error(np.asarray(R_base, float), np.asarray(R_nominal, float)), axis=1)
+    median = float(np.median(off)) if len(off) else 0.0
+    if median <= ORIENTATION_MISMATCH:
+        return None
+    return (f"units: after the registration the measured orientations lie {median:.3g} rad (median) from the robot's, "
+            f"beyond any robot's error; the orientation columns cannot be right (degrees labelled radians, or another "
+            f"angle convention?)")
+
+
 def _points_fit(model, T_tool, T_meas) -> bool:
     """Whether the measured points fit the tool's, registered with one target's offset (orientations ignored),
     within ``PLAUSIBLE_RESIDUAL`` of the reach."""

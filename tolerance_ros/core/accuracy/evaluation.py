@@ -97,6 +97,11 @@ def evaluate_file(model, meas, budget=None, campaign=None, registration="base", 
         else:
             reg = register_measurements(T_tool_all, meas, idx_all, names, registration)
             warnings += frame_warnings(T_tool_all, meas, idx_all, names, reg)
+    if meas.has_orientation and not any(w.startswith(NOT_BASE_FRAME) for w in warnings):
+        problem = checks.registered_orientation_problem(reg.to_base(meas.T)[:, :3, :3],
+                                                        reg.targets.poses(T_tool_all, idx_all)[:, :3, :3])
+        if problem:
+            raise checks.CheckError(f"{meas.source}: {problem}")
     left_out = screened.left_out
     if not screened.keep.all():
         meas = meas.select(screened.keep)
