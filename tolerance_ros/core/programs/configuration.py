@@ -33,6 +33,13 @@ SHOULDER, ELBOW, WRIST = 0, 1, 2
 GRID = 72                   # samples of joints 2 and 3 each in the wrist-centre table
 TOL = 1e-9                  # m and rad: convergence of the nominal solution
 WINDOW_TOL = 1e-9           # rad: a joint this close outside its turn window is inside it
+JITTER = 1e-5 / 6           # rad: seeds start this far (times 1 to 6, alternating) from where they were computed
+
+
+def keeps(q, lo, hi) -> bool:
+    """True when ``q`` (rad) lies in the window [lo, hi) to within ``WINDOW_TOL``: a configuration number written for
+    that window still holds (a correction below the tolerance never moves it across a boundary)."""
+    return lo - WINDOW_TOL <= q < hi + WINDOW_TOL
 
 
 def _unit(v):
@@ -235,19 +242,23 @@ class ArmGeometry:
         near = np.full((n, 6), np.nan) if near is None else np.asarray(near, float)
         q_out = np.full((n, 6), np.nan)
         best = np.full(n, np.inf)
-        seeds, owner = self.seeds(T_flange, want)
         has_near = np.flatnonzero(np.all(np.isfinite(near), axis=1))
-        if len(has_near):
-            seeds, owner = np.vstack([near[has_near], seeds]), np.concatenate([has_near, owner])
-        self._take(T_flange, want, windows, near, seeds, owner, q_out, best)
+        if len(has_near):       # from the joints before it first: the solution the robot moves on to
+            self._take(T_flange, want, windows, near, near[has_near], has_near, q_out, best)
+        missing = np.flatnonzero(~np.isfinite(best))
+        if len(missing):
+            seeds, owner = self.seeds(T_flange[missing], want[missing])
+            self._take(T_flange, want, windows, near, seeds, missing[owner], q_out, best)
         missing = np.flatnonzero(~np.isfinite(best))
         if len(missing) and restarts:
             starts = self.model.sample_joints(restarts, rng)
-            seeds = np.tile(starts, (len(missing), 1))
-            owner = np.repeat(missing, restarts)
-            self._take(T_flange, want, windows, near, seeds, owner, q_out, best)
+            self._take(T_flange, want, windows, near, np.tile(starts, (len(missing), 1)),
+                       np.repeat(missing, restarts), q_out, best)
         ok = np.isfinite(best)
-        reasons = [None if ok[i] else self._why(T_flange[i:i + 1], want[i], windows[i]) for i in range(n)]
+        reasons = [None] * n
+        bad = np.flatnonzero(~ok)
+        for i, why in zip(bad, self._why(T_flange[bad], want[bad], windows[bad])):
+            reasons[i] = why
         return q_out, ok, reasons
 
     def _take(self, T_flange, want, windows, near, seeds, owner, q_out, best):
@@ -255,7 +266,14 @@ class ArmGeometry:
         ``near`` (the first one without)."""
         if not len(seeds):
             return
-        q, rp, ro, _ = solve(self.model, T_flange[owner], seeds, tol_position=TOL, tol_orientation=TOL)
+        # a seed exactly at a singularity (a table's stretched arm, a wrist at zero) would make the damped step's
+        # system singular to the last bit: seeds start a hair (1e-5 rad) away
+        seeds = seeds + JITTER * np.arange(1, 7) * (-1.0) ** np.arange(6)
+        try:
+            q, rp, ro, _ = solve(self.model, T_flange[owner], seeds, tol_position=TOL, tol_orientation=TOL)
+        except np.linalg.LinAlgError:
+            q, rp, ro, _ = solve(self.model, T_flange[owner], seeds + 1e3 * JITTER, tol_position=TOL,
+                                 tol_orientation=TOL)
         conv = (rp <= TOL) & (ro <= TOL)
         ref = near[owner]
         has_ref = np.all(np.isfinite(ref), axis=1)
@@ -273,21 +291,34 @@ class ArmGeometry:
             if score[j] < best[i]:
                 best[i], q_out[i] = score[j], q_w[j]
 
-    def _why(self, T_flange, want, windows) -> str:
-        """Why no admissible nominal solution was found for one target."""
-        seeds, owner = self.seeds(T_flange, np.zeros((1, 3), int))
-        seeds = np.vstack([seeds, self.model.sample_joints(16, 1)])
-        q, rp, ro, _ = solve(self.model, np.repeat(T_flange, len(seeds), axis=0), seeds, tol_position=TOL,
-                             tol_orientation=TOL)
+    def _why(self, T_flange, want, windows) -> list:
+        """Why no admissible nominal solution was found, for each target."""
+        n = len(T_flange)
+        if not n:
+            return []
+        seeds, owner = self.seeds(T_flange, np.zeros((n, 3), int))
+        starts = self.model.sample_joints(16, 1)
+        seeds, owner = np.vstack([seeds, np.tile(starts, (n, 1))]), np.concatenate([owner, np.repeat(np.arange(n), 16)])
+        seeds = seeds + JITTER * np.arange(1, 7) * (-1.0) ** np.arange(6)
+        q, rp, ro, _ = solve(self.model, T_flange[owner], seeds, tol_position=TOL, tol_orientation=TOL)
         conv = (rp <= TOL) & (ro <= TOL)
-        if not conv.any():
-            return f"out of the nominal robot's reach (nearest {rp.min() * 1e3:.3g} mm, {ro.min() * 1e3:.3g} mrad away)"
-        signs, _ = self.flags(q[conv])
-        found = sorted({tuple(s) for s in signs.tolist()})
-        if not any(all(w == 0 or w == s for w, s in zip(want, f)) for f in found):
-            return (f"no nominal solution in the configuration asked ({_signs_text(want)}); there are "
-                    + "; ".join(_signs_text(f) for f in found))
-        return "the nominal solution in the configuration asked is outside the turns asked or the joint limits"
+        signs, _ = self.flags(q)
+        out = []
+        for i in range(n):
+            mine = owner == i
+            if not (conv & mine).any():
+                k = np.flatnonzero(mine)[np.argmin(rp[mine])]
+                out.append(f"out of the nominal robot's reach (nearest {rp[k] * 1e3:.3g} mm, {ro[k] * 1e3:.3g} mrad "
+                           f"away)")
+                continue
+            found = sorted({tuple(s) for s in signs[conv & mine].tolist()})
+            if not any(all(w == 0 or w == s for w, s in zip(want[i], f)) for f in found):
+                out.append(f"no nominal solution in the configuration asked ({_signs_text(want[i])}); there are "
+                           + "; ".join(_signs_text(f) for f in found))
+            else:
+                out.append("the nominal solution in the configuration asked is outside the turns asked or the joint "
+                           "limits")
+        return out
 
 
 def _signs_text(s) -> str:

@@ -19,8 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .configuration import keeps
 from .model import BASE, Program, Target, Unresolved, Use, edits, pose_matrix
-from .orientation import nearest, to_matrix
+from .orientation import to_matrix
 from .text import NUMBER, Lines, Number, ProgramError, read_text
 
 NAME = "fanuc"
@@ -33,7 +34,7 @@ _VALUE = re.compile(r"\b([XYZWPR]|J\d+|E\d+)\s*=\s*(" + NUMBER + r")\s*(mm|deg)\
 _FRAMES = re.compile(r"\bUF\s*:\s*(\w+)\s*,\s*UT\s*:\s*(\w+)")
 _CONFIG = re.compile(r"CONFIG\s*:\s*'([^']*)'")
 _CONFIG_TEXT = re.compile(r"\s*([FN])\s+([UD])\s+([TB])\s*,\s*(-?\d+)\s*,\s*(-?\d+)\s*,\s*(-?\d+)\s*")
-_MOTION = re.compile(r"(?m)^[ \t]*(?:\d+[ \t]*:[ \t]*([JLCA])[ \t]+|:[ \t]*)(P|PR)\[\s*(\d+)[^\]\r\n]*\]([^\r\n]*)$")
+_MOTION = re.compile(r"(?m)^[ \t]*(?:\d+[ \t]*:[ \t]*([JLCA])[ \t]+|:[ \t]*)(P|PR)\[\s*(\d+)[^\]\r\n]*\]([^\r\n]*)")
 _NUMBERED = re.compile(r"(?m)^([ \t]*)(\d+):")
 
 
@@ -178,7 +179,10 @@ def turn(q) -> int:
     return int(np.floor((np.degrees(q) + 180.0) / 360.0 + 1e-12))
 
 
-def encode(target: Target, q, T, signs, model, setup, fmt) -> list:
+ORIENTATION = ("wpr", ("W", "P", "R"))
+
+
+def encode(target: Target, q, T, orient, model, setup, fmt) -> list:
     units = target.extra["units"]
     if target.kind == "joints":
         keys = _joint_keys(model.dof)
@@ -187,14 +191,12 @@ def encode(target: Target, q, T, signs, model, setup, fmt) -> list:
             q[2] += setup.fanuc_coupling * q[1]
         new = {k: (v * 1e3 if t == "prismatic" else np.degrees(v)) for k, v, t in zip(keys, q, model.joint_types)}
         return edits(target, new, lambda v, num, name: fmt(v, num, units[name]))
-    wpr = nearest("wpr", [[target.values[k] for k in "WPR"]], T[None, :3, :3])[0]
     new = dict(zip("XYZ", T[:3, 3] * 1e3))
-    new.update(zip("WPR", wpr))
+    new.update(zip("WPR", orient))
     out = edits(target, new, lambda v, num, name: fmt(v, num, units[name]))
     for j, old, (a, b) in zip((3, 4, 5), target.config["turns"], target.config["spans"]):
-        t = turn(q[j])
-        if t != old:
-            out.append((a, b, str(t)))
+        if not keeps(q[j], np.pi * (2 * old - 1), np.pi * (2 * old + 1)):
+            out.append((a, b, str(turn(q[j]))))
     return out
 
 

@@ -20,6 +20,7 @@ from . import fanuc, krl, rapid, urscript
 from .configuration import ArmGeometry
 from .correct import Requests, correct
 from .model import BASE, Program
+from .orientation import nearest
 from .text import ProgramError, formatted, newline, replaced
 
 DIALECTS = {m.NAME: m for m in (rapid, krl, fanuc, urscript)}
@@ -113,6 +114,7 @@ def resolve(program: Program, setup: Setup):
     req = Requests.empty(n, dof)
     why = [None] * n
     frame_of = [np.eye(4)] * n
+    cache = {}
     for i, t in enumerate(targets):
         T, q, want, windows = dialect.decode(t, model, setup)
         req.want[i], req.windows[i] = want, windows
@@ -130,19 +132,22 @@ def resolve(program: Program, setup: Setup):
             continue
         found = []
         for u in uses:
-            tool_name = t.tool if u is None else u.tool
-            frame_name = t.frame if u is None else u.frame
-            X, r1 = _lookup(tool_name, setup.tools, tools, refused_tools, setup.default_tool, "tool")
-            F, r2 = _lookup(frame_name, setup.frames, frames, refused_frames, None, "frame")
-            if r1 or r2:
-                found = r1 or r2
+            names = (t.tool, t.frame) if u is None else (u.tool, u.frame)
+            if names not in cache:
+                X, r1 = _lookup(names[0], setup.tools, tools, refused_tools, setup.default_tool, "tool")
+                F, r2 = _lookup(names[1], setup.frames, frames, refused_frames, None, "frame")
+                cache[names] = (X, F, r1 or r2)
+            X, F, reason = cache[names]
+            if reason:
+                found = reason
                 break
-            found.append((X, F, tool_name, frame_name))
+            if not found or names != found[0][2:]:
+                found.append((X, F, *names))
         if isinstance(found, str):
             why[i] = found
             continue
         first = found[0]
-        if any(not (np.allclose(X, first[0], atol=1e-12) and np.allclose(F, first[1], atol=1e-12))
+        if len(found) > 1 and any(not (np.allclose(X, first[0], atol=1e-12) and np.allclose(F, first[1], atol=1e-12))
                for X, F, *_ in found):
             pairs = sorted({f"tool {a or 'flange'} in frame {b or 'base'}" for *_, a, b in found})
             why[i] = (f"its motions use it with different tools or frames ({'; '.join(pairs)}): one correction "
@@ -152,8 +157,8 @@ def resolve(program: Program, setup: Setup):
         frame_of[i] = setup.base @ F
         req.T[i] = frame_of[i] @ T
         req.tool[i] = setup.flange @ X
-    if getattr(dialect, "INHERITS", False):
-        _inherit(targets, req, why, setup)
+    if getattr(dialect, "INHERITS", None):
+        _inherit(targets, req, why, setup, dialect.INHERITS)
     return targets, req, why, frame_of
 
 
@@ -169,9 +174,21 @@ def filter_program(program: Program, setup: Setup, header_lines: list) -> Outcom
     edits = {p: [] for p in program.texts}
     rows, left = [], []
     fmt = lambda value, num, unit: formatted(value, num.text, unit)  # noqa: E731
+    position = {int(i): k for k, i in enumerate(idx)}
+    correction = res.correction
+    done = [i for i in range(len(targets)) if i in position and res.ok[position[i]]]
+    poses = [i for i in done if targets[i].kind == "pose"]
+    T_frame, orient = {}, {}
+    if poses:
+        kind, keys = dialect.ORIENTATION
+        F = np.linalg.inv(np.array([frame_of[i] for i in poses]))
+        T = F @ res.T[[position[i] for i in poses]]
+        values = nearest(kind, [[targets[i].values[k] for k in keys] for i in poses], T[:, :3, :3])
+        T_frame = dict(zip(poses, T))
+        orient = dict(zip(poses, values))
     for i, t in enumerate(targets):
         row = {"name": t.name, "file": str(t.path), "line": t.line, "kind": t.kind}
-        k = int(np.searchsorted(idx, i)) if ready[i] else None
+        k = position.get(i)
         if k is None or not res.ok[k]:
             reason = why[i] if k is None else res.reason[k]
             row.update(status="left", reason=reason)
@@ -179,14 +196,10 @@ def filter_program(program: Program, setup: Setup, header_lines: list) -> Outcom
             rows.append(row)
             continue
         q = res.q[k]
-        T_frame = None
-        if t.kind == "pose":
-            T_frame = np.linalg.inv(frame_of[i]) @ res.T[k]
-        e = dialect.encode(t, q, T_frame, None if res.signs is None else res.signs[k], model, setup, fmt)
+        e = dialect.encode(t, q, T_frame.get(i), orient.get(i), model, setup, fmt)
         edits[t.path].extend(e)
-        corr = res.correction[k]
         row.update(status="corrected" if e else "unchanged", reason=None,
-                   joints_nominal=res.q_nominal[k], joints=q, correction=corr, shift_m=float(res.shift[k]),
+                   joints_nominal=res.q_nominal[k], joints=q, correction=correction[k], shift_m=float(res.shift[k]),
                    changed_fields=len(e))
         if res.signs is not None:
             row["configuration"] = res.signs[k].tolist()
@@ -199,9 +212,11 @@ def filter_program(program: Program, setup: Setup, header_lines: list) -> Outcom
     return Outcome(program, rows, texts, left, list(program.unresolved))
 
 
-def _inherit(targets, req, why, setup):
-    """Cartesian targets without a configuration take, in the order of their first motion, the configuration of the
-    target before them and the turns of the last joint target (the joints the robot starts the motion from)."""
+def _inherit(targets, req, why, setup, how):
+    """Cartesian targets without a configuration, in the order of their first motion: with ``how`` 'configuration'
+    (KUKA: the status of the motion before) the configuration of the target before them, solved nearest the last joint
+    target; with 'nearest' (UR: the solution nearest the joints the motion starts from) solved from the last joint
+    target, in whatever configuration that leads to."""
     geometry = setup.geometry
     if geometry is None:
         return
@@ -222,11 +237,12 @@ def _inherit(targets, req, why, setup):
             continue
         if why[i] is not None:
             continue
-        if last_flags is None:
+        if last_flags is None or (how == "nearest" and last_q is None):
             why[i] = ("it gives no configuration and no motion before it in the program does: its solution depends on "
                       "where the robot is (move to joints before it)")
             continue
-        req.want[i] = last_flags
+        if how == "configuration":
+            req.want[i] = last_flags
         if last_q is not None:
             req.near[i] = last_q
 
@@ -250,16 +266,16 @@ def landing(before: Program, after: Program, setup: Setup, truth: Mechanism) -> 
     """Where the targets of ``before`` land on the as-built robot ``truth`` (the chain with the model's tool frame)
     when the controller runs ``before`` and when it runs ``after`` (the same program corrected): each Cartesian
     target solved on the nominal robot in the configuration written, each joint target driven as written.
-    {"name", "kind", "before_m", "after_m", "before_rad", "after_rad"} per target both resolve (position and rotation
-    errors against the pose intended: ``before``'s target, or the nominal robot's pose at its joints)."""
+    {"name", "kind", "target", "before_m", "after_m", "before_rad", "after_rad"} per target both resolve (position
+    and rotation errors against the pose intended: ``before``'s target, or the nominal robot's pose at its joints)."""
     from ..geometry import rotation_error
     tb, rb, wb, _ = resolve(before, setup)
     ta, ra, wa, _ = resolve(after, setup)
     if [t.kind for t in tb] != [t.kind for t in ta]:     # in the same order (an inline target's line moves)
         raise ValueError("landing: the programs do not hold the same targets")
     keep = np.array([w1 is None and w2 is None for w1, w2 in zip(wb, wa)], bool)
-    out = {"name": [t.name for t, k in zip(tb, keep) if k], "kind": [t.kind for t, k in zip(tb, keep) if k]}
     idx = np.flatnonzero(keep)
+    out = {"name": [tb[i].name for i in idx], "kind": [tb[i].kind for i in idx], "target": [tb[i] for i in idx]}
     model = setup.model
     intended = np.where(rb.pose[idx, None, None], rb.T[idx], np.nan)
     jt = idx[~rb.pose[idx]]

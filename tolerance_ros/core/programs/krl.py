@@ -18,14 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .configuration import keeps
 from .model import BASE, Program, Target, Unresolved, Use, edits, pose_matrix
-from .orientation import nearest, to_matrix
+from .orientation import to_matrix
 from .text import Lines, ProgramError, mask, matching, number_at, read_text, split_top
 
 NAME = "krl"
 SUFFIXES = (".src", ".dat")
 COMMENT = ";"
-INHERITS = True   # a position without S and T takes the configuration of the motion before it
+INHERITS = "configuration"   # a pose without configuration: see filtering._inherit
 
 POSE_KEYS = ("X", "Y", "Z", "A", "B", "C")
 AXIS_KEYS = ("A1", "A2", "A3", "A4", "A5", "A6")
@@ -278,21 +279,25 @@ def decode(target: Target, model, setup):
     return T, None, want, windows
 
 
-def encode(target: Target, q, T, signs, model, setup, fmt) -> list:
+ORIENTATION = ("zyx", ("A", "B", "C"))
+
+
+def encode(target: Target, q, T, orient, model, setup, fmt) -> list:
     if target.kind == "joints":
         keys = list(AXIS_KEYS) + list(EXT_KEYS)
         new = {k: (v * 1e3 if t == "prismatic" else np.degrees(v)) for k, v, t in zip(keys, q, model.joint_types)}
         units = {k: ("mm" if t == "prismatic" else "deg") for k, t in zip(keys, model.joint_types)}
         return edits(target, new, lambda v, num, name: fmt(v, num, units[name]))
-    abc = nearest("zyx", [[target.values[k] for k in ("A", "B", "C")]], T[None, :3, :3])[0]
     new = dict(zip(("X", "Y", "Z"), T[:3, 3] * 1e3))
-    new.update(zip(("A", "B", "C"), abc))
+    new.update(zip(("A", "B", "C"), orient))
     out = edits(target, new, lambda v, num, name: fmt(v, num, "mm" if name in "XYZ" else "deg"))
     if "T" in target.config:
         old, (style, start, end, text) = target.config["T"]
         bits = old & ~0b111111
         for j in range(6):
-            bits |= (1 << j) if q[j] < 0 else 0
+            was = (old >> j) & 1
+            keep = keeps(q[j], -2 * np.pi, 0.0) if was else keeps(q[j], 0.0, 2 * np.pi)
+            bits |= (1 << j) if (was if keep else q[j] < 0) else 0
         if bits != old:
             if style == "bits":
                 width = len(text) - 3

@@ -23,9 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .configuration import keeps
 from .model import BASE, Program, Target, Unresolved, Use, pose_matrix
 from .orientation import to_matrix
-from .text import Lines, Number, ProgramError, mask, matching, number_at, read_text, split_top
+from .text import NUMBER, Lines, Number, ProgramError, mask, read_text, split_top
 
 NAME = "rapid"
 SUFFIXES = (".mod", ".modx", ".prg", ".sys")
@@ -39,35 +40,55 @@ MOTIONS = ("MoveJ", "MoveL", "MoveC", "MoveAbsJ", "MoveJDO", "MoveLDO", "MoveCDO
            "TriggJIOs", "TriggLIOs", "SearchL", "SearchC", "ArcL", "ArcC", "ArcLStart", "ArcLEnd", "ArcCStart",
            "ArcCEnd", "ArcL1", "ArcL2", "ArcC1", "ArcC2", "CapL", "CapC", "PaintL", "PaintC")
 _MOTION = re.compile(r"(?i)(?<![\w.])(" + "|".join(sorted(MOTIONS, key=len, reverse=True)) + r")(?![\w])")
+_SPACE = re.compile(r"\s*")
 _IDENT = re.compile(r"([A-Za-z]\w*)(?:\s*\{\s*(\d+)\s*\})?$")
 _BOOL = {"TRUE": True, "FALSE": False}
 
 
 # ---------------------------------------------------------------- aggregates
 
+_TOKEN = re.compile(r"\s*(?:([\[\],])|(" + NUMBER + r")(?![\w.])|([A-Za-z_]\w*)|(\"[^\"\r\n]*\"))")
+
+
 def _aggregate(text, code, start, where):
-    """(nested lists of leaves, end) of the aggregate ``[...]`` at ``start``: a leaf is a ``Number`` or the raw text
-    of a name, a boolean or a string."""
-    end = matching(code, start, "[", "]", where)
-    out = []
-    for a, b in split_top(code, start + 1, end - 1):
-        chunk = code[a:b].strip()
-        if chunk.startswith("["):
-            off = a + code[a:b].index("[")
-            sub, sub_end = _aggregate(text, code, off, where)
-            if code[sub_end:b].strip():
-                raise ProgramError(f"{where}: unexpected {code[sub_end:b].strip()!r} after an aggregate")
-            out.append(sub)
-        elif re.fullmatch(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", chunk):
-            out.append(number_at(text, a, b, where))
-        elif chunk == "" and text[a:b].strip().startswith('"'):
-            out.append(text[a:b].strip())
-        elif re.fullmatch(r"[A-Za-z]\w*", chunk):
-            out.append(chunk)
+    """(nested lists of leaves, end) of the aggregate ``[...]`` at ``start`` of ``code`` (comments blanked, strings
+    kept): a leaf is a ``Number`` or the raw text of a name, a boolean or a string."""
+    stack, i, expect_value = [[]], start, True
+    if code[start] != "[":
+        raise ProgramError(f"{where}: expected an aggregate '[...]'")
+    i += 1
+    while True:
+        m = _TOKEN.match(code, i)
+        if m is None:
+            rest = code[i:i + 30].strip().split("\n")[0]
+            if not rest or rest.startswith(";"):
+                raise ProgramError(f"{where}: an aggregate '[' is never closed")
+            raise ProgramError(f"{where}: {rest!r} is not a literal value (a target written as an expression is "
+                               f"computed at run time)")
+        punct, number, name, string = m.groups()
+        i = m.end()
+        if punct is None:
+            after = _SPACE.match(code, i).end()
+            if after >= len(code) or code[after] not in ",]":
+                rest = code[m.start():m.start() + 30].strip().split("\n")[0]
+                raise ProgramError(f"{where}: {rest!r} is not a literal value (a target written as an expression is "
+                                   f"computed at run time)")
+        if punct == "[":
+            stack.append([])
+        elif punct == "]":
+            done = stack.pop()
+            if not stack:
+                return done, i
+            stack[-1].append(done)
+        elif punct == ",":
+            pass
+        elif number is not None:
+            value = float(number)
+            if not np.isfinite(value):
+                raise ProgramError(f"{where}: {number!r} is not a finite number")
+            stack[-1].append(Number(m.start(2), m.end(2), number))
         else:
-            raise ProgramError(f"{where}: {chunk or text[a:b].strip()!r} is not a literal value (a target written "
-                               f"as an expression is computed at run time)")
-    return out, end
+            stack[-1].append(name or string)
 
 
 def _shape(agg, shape, what, where):
@@ -130,6 +151,7 @@ def read(paths) -> Program:
         text = read_text(path)
         texts[path] = text
         code = mask(text, COMMENT, '"')
+        values = mask(text, COMMENT, '"', keep_strings=True)
         lines = Lines(text)
         for m in _DECL.finditer(code):
             storage, kind, name, dims, assign = m.groups()
@@ -140,12 +162,12 @@ def read(paths) -> Program:
                 if kind in ("robtarget", "jointtarget"):
                     decls.setdefault(name.lower(), []).append(("runtime", kind, path, line))
                 continue
-            start = m.end() + len(code[m.end():]) - len(code[m.end():].lstrip())
+            start = _SPACE.match(code, m.end()).end()
             if start >= len(code) or code[start] != "[":
                 decls.setdefault(name.lower(), []).append(("runtime", kind, path, line))
                 continue
-            agg, end = _aggregate(text, code, start, where)
-            if not code[end:].lstrip().startswith(";"):
+            agg, end = _aggregate(text, values, start, where)
+            if not code.startswith(";", _SPACE.match(code, end).end()):
                 raise ProgramError(f"{where}: declaration of {name}: expected ';' after its value")
             items = [(name, agg)]
             if dims:
@@ -179,11 +201,13 @@ def read(paths) -> Program:
                         refused_frames[key] = (f"wobjdata {item_name} ({where}) moves with a mechanical unit "
                                                f"(ufprog FALSE)")
                     frames[key] = _frame(item[3]) @ _frame(item[4])
-        stmts.append((path, text, code, lines))
+        stmts.append((path, values, code, lines))
     for path, text, code, lines in stmts:
         for m in _MOTION.finditer(code):
-            before = code[:m.start()].rstrip()
-            if before and before[-1] not in ";\n" and not re.search(r"(?i)\b(THEN|ELSE|DO)$", before):
+            k = m.start()
+            while k > 0 and code[k - 1] in " \t":
+                k -= 1
+            if k > 0 and code[k - 1] not in ";\r\n" and not re.search(r"(?i)\b(THEN|ELSE|DO)$", code[max(0, k - 8):k]):
                 continue
             end = code.find(";", m.end())
             if end < 0:
@@ -217,14 +241,14 @@ def _motion(instr, text, code, start, end, path, line, decls, targets, unresolve
         idx = [0, 1] if circular else [0]
     if len(positional) < max(idx) + 2:
         raise ProgramError(f"{where}: {instr}: expected its target(s), speed and tool")
-    tool = code[positional[-1][0]:positional[-1][1]].strip().lower()
-    wobj = options.get("wobj", "wobj0").lower()
-    use = Use(path, line, BASE if tool == "tool0" else tool, BASE if wobj == "wobj0" else wobj, instr)
+    tool = code[positional[-1][0]:positional[-1][1]].strip()
+    wobj = options.get("wobj", "wobj0")
+    use = Use(path, line, BASE if tool.lower() == "tool0" else tool, BASE if wobj.lower() == "wobj0" else wobj, instr)
     for k in idx:
         a, b = positional[k]
         arg = code[a:b].strip()
         if arg.startswith("["):
-            agg, _ = _aggregate(text, code, a + code[a:b].index("["), where)
+            agg, _ = _aggregate(text, text, a + code[a:b].index("["), where)
             t = (_jointtarget if joint else _robtarget)(agg, path, line, f"{instr} at line {line}")
             t.uses.append(use)
             targets.append(t)
@@ -274,9 +298,12 @@ def quadrant(q) -> int:
     return int(np.floor(np.degrees(q) / 90.0 + 1e-12))
 
 
-def encode(target: Target, q, T, signs, model, setup, fmt) -> list:
+ORIENTATION = ("quat", ("q1", "q2", "q3", "q4"))
+
+
+def encode(target: Target, q, T, orient, model, setup, fmt) -> list:
     """Edits writing the corrected target: joints ``q`` (model, SI) or pose ``T`` (4x4, m, in its frame) with its
-    configuration from ``q``."""
+    orientation written ``orient`` (``ORIENTATION``'s values nearest the old ones) and its configuration from ``q``."""
     from .model import edits
     if target.kind == "joints":
         new = {f"j{k + 1}" if k < 6 else f"e{k - 5}": (v * 1e3 if t == "prismatic" else np.degrees(v))
@@ -285,18 +312,15 @@ def encode(target: Target, q, T, signs, model, setup, fmt) -> list:
         units.update({f"j{k + 1}" if k < 6 else f"e{k - 5}": "mm" for k, t in enumerate(model.joint_types)
                       if t == "prismatic"})
         return edits(target, new, lambda v, num, name: fmt(v, num, units[name]))
-    from .orientation import nearest
-    old_q = [[target.values[f] for f in ("q1", "q2", "q3", "q4")]]
-    quat = nearest("quat", old_q, T[None, :3, :3])[0]
     new = dict(zip(("x", "y", "z"), T[:3, 3] * 1e3))
-    new.update(zip(("q1", "q2", "q3", "q4"), quat))
+    new.update(zip(("q1", "q2", "q3", "q4"), orient))
     units = {"x": "mm", "y": "mm", "z": "mm", "q1": "quat", "q2": "quat", "q3": "quat", "q4": "quat"}
     out = edits(target, new, lambda v, num, name: fmt(v, num, units[name]))
-    config = {"cf1": quadrant(q[0]), "cf4": quadrant(q[3]), "cf6": quadrant(q[5])}
-    for name, value in config.items():
+    for name, j in (("cf1", 0), ("cf4", 3), ("cf6", 5)):
         num = target.fields[name]
-        if int(num.value) != value:
-            out.append((num.start, num.end, str(value)))
+        old = int(num.value)
+        if not keeps(q[j], *np.radians([90.0 * old, 90.0 * (old + 1)])):
+            out.append((num.start, num.end, str(quadrant(q[j]))))
     return out
 
 

@@ -59,30 +59,20 @@ def newline(text: str) -> str:
 
 
 def mask(text: str, comment: str, strings: str = "\"", keep_strings: bool = False) -> str:
-    """The text with comments (``comment``: the character that starts one, to the end of the line) and string
+    """The text with comments (``comment``: the characters that start one, to the end of the line) and string
     literals (quoted by any character of ``strings``; blanked unless ``keep_strings``) replaced with spaces, line ends
     kept; an unclosed string runs to the end of its line."""
-    out = list(text)
-    i, n = 0, len(text)
-    while i < n:
-        c = text[i]
-        if c in strings:
-            j = i + 1
-            while j < n and text[j] != c and text[j] not in "\r\n":
-                j += 1
-            if not keep_strings:
-                for k in range(i, min(j + 1, n)):
-                    if text[k] not in "\r\n":
-                        out[k] = " "
-            i = j + 1
-        elif c in comment:
-            j = i
-            while j < n and text[j] not in "\r\n":
-                out[j] = " "
-                j += 1
-            i = j
-        else:
-            i += 1
+    alternatives = [f"{re.escape(q)}[^{re.escape(q)}\\r\\n]*(?:{re.escape(q)}|(?=[\\r\\n])|\\Z)" for q in strings]
+    if comment:
+        alternatives.append(f"[{re.escape(comment)}][^\\r\\n]*")
+    out, last = [], 0
+    for m in re.finditer("|".join(alternatives), text):
+        if keep_strings and m.group()[0] in strings:
+            continue
+        out.append(text[last:m.start()])
+        out.append(" " * (m.end() - m.start()))
+        last = m.end()
+    out.append(text[last:])
     return "".join(out)
 
 

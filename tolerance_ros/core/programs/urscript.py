@@ -17,13 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from .model import BASE, Program, Target, Unresolved, Use, edits, pose_matrix
-from .orientation import nearest, to_matrix
+from .orientation import to_matrix
 from .text import Lines, ProgramError, mask, matching, number_at, read_text, split_top
 
 NAME = "urscript"
 SUFFIXES = (".script", ".urscript")
 COMMENT = "#"
-INHERITS = True
+INHERITS = "nearest"   # a pose without configuration: see filtering._inherit
 
 _ASSIGN = re.compile(r"(?m)^[ \t]*(?:(?:global|local)[ \t]+)?([A-Za-z_]\w*)[ \t]*=(?!=)[ \t]*")
 _CALL = re.compile(r"\b(movej|movel|movep|movec|servoj|set_tcp)\s*\(")
@@ -171,14 +171,16 @@ def decode(target: Target, model, setup):
     return _pose([target.values[k] for k in ("x", "y", "z", "rx", "ry", "rz")]), None, want, windows
 
 
-def encode(target: Target, q, T, signs, model, setup, fmt) -> list:
+ORIENTATION = ("rotvec", ("rx", "ry", "rz"))
+
+
+def encode(target: Target, q, T, orient, model, setup, fmt) -> list:
     if target.kind == "joints":
         new = {f"q{k + 1}": v for k, v in enumerate(q)}
         return edits(target, new, lambda v, num, name: fmt(v, num, "m" if model.joint_types[int(name[1:]) - 1]
                                                              == "prismatic" else "rad"))
-    r = nearest("rotvec", [[target.values[k] for k in ("rx", "ry", "rz")]], T[None, :3, :3])[0]
     new = dict(zip(("x", "y", "z"), T[:3, 3]))
-    new.update(zip(("rx", "ry", "rz"), r))
+    new.update(zip(("rx", "ry", "rz"), orient))
     return edits(target, new, lambda v, num, name: fmt(v, num, "m" if name in "xyz" else "rad"))
 
 
