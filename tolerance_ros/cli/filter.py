@@ -144,6 +144,15 @@ def run(args):
               f"command: {command}",
               "filter the original program, never this file again"]
     outcome = filter_program(program, setup, header)
+    notes = []
+    if any(r["kind"] == "pose" and r["status"] != "left" for r in outcome.rows) and not cal.targets.frames \
+            and len(cal.targets) < 3:
+        notes.append("the calibration measured one point on the tool, not its orientation: the flange's turns are "
+                     "not identified, so a tool centre point away from that point lands off by its distance times "
+                     "their error (measure three reflectors or a frame to see them)")
+    for note in notes:
+        if not args.quiet:
+            print(f"filter: note: {note}", file=sys.stderr)
     for src, dst in outputs.items():
         dst.parent.mkdir(parents=True, exist_ok=True)
         if args.in_place:
@@ -163,7 +172,7 @@ def run(args):
     if args.json:
         return {"robot": model.name, "calibration": str(args.calibration), "calibration_sha256": sha,
                 "format": program.dialect, "written": {str(k): str(v) for k, v in outputs.items()},
-                "counts": counts, "targets": rows,
+                "counts": counts, "targets": rows, "notes": notes,
                 "left": [{"name": t.name, "file": str(t.path), "line": t.line, "reason": why}
                          for t, why in outcome.left],
                 "unresolved": [{"file": str(u.path), "line": u.line, "motion": u.what, "reason": u.why}
