@@ -12,6 +12,14 @@ def test_every_byte_survives_a_round_trip(tmp_path):
     assert to_bytes(read_text(tmp_path / "m.mod")) == raw
 
 
+def test_a_file_too_large_is_refused(tmp_path, monkeypatch):
+    from tolerance_ros.core.programs import text
+    (tmp_path / "big.mod").write_bytes(b"!" * 2048)
+    monkeypatch.setattr(text, "MAX_BYTES", 1024)
+    with pytest.raises(ProgramError, match="big.mod:1: .* up to 0 MiB"):
+        read_text(tmp_path / "big.mod")
+
+
 def test_comments_and_strings_are_blanked_in_place():
     text = 'VAR string s := "a ! not a comment";  ! MoveL p10 in a comment\nMoveL p20;'
     code = mask(text, "!", '"')

@@ -89,11 +89,6 @@ def pose_matrix(position, R) -> np.ndarray:
     return T
 
 
-def numbers(fields: dict, names) -> list:
-    """The values of the named fields (``Number``)."""
-    return [fields[n].value for n in names]
-
-
 def edits(target: Target, new: dict, fmt) -> list:
     """(start, end, text) edits writing ``new`` {field: value} into the target's fields with ``fmt(value, Number,
     field)`` (a value whose text does not change gives no edit)."""

@@ -99,7 +99,7 @@ def _shape(agg, shape, what, where):
         return
     if not isinstance(agg, list) or len(agg) != len(shape):
         raise ProgramError(f"{where}: {what}: expected an aggregate of {len(shape)} components")
-    for k, (a, s) in enumerate(zip(agg, shape)):
+    for a, s in zip(agg, shape):
         _shape(a, s, what, where)
 
 

@@ -30,8 +30,15 @@ class ProgramError(ValueError):
     """A program that cannot be read as its controller would: the message names the file and the line."""
 
 
+MAX_BYTES = 64 << 20     # a program file's size: 64 MiB holds some 400,000 targets
+
+
 def read_text(path) -> str:
-    """The file's text, every byte kept (see the module docstring)."""
+    """The file's text, every byte kept (see the module docstring); ProgramError for a file over ``MAX_BYTES``."""
+    size = Path(path).stat().st_size
+    if size > MAX_BYTES:
+        raise ProgramError(f"{path}:1: {size / 2 ** 20:.0f} MiB: a program file is read whole, up to "
+                           f"{MAX_BYTES >> 20} MiB")
     return Path(path).read_bytes().decode(ENCODING, ERRORS)
 
 
