@@ -12,14 +12,15 @@ from ..core.jsonio import dumps
 from ..core.resources import ConfigNotFound
 from ..core.synthesis.problem import InfeasibleError
 from ..core.threads import limited
-from . import (allocate, calibrate, compensate, data, import_table, iso9283, jacobian, keystore, paper, path_report,
-               plan_campaign, report, robots, sensitivity, signing_key, simulate, validate, verify)
+from . import (allocate, calibrate, compensate, data, filter, import_table, iso9283, jacobian, keystore, paper,
+               path_report, plan_campaign, report, robots, sensitivity, signing_key, simulate, ur_kinematics, validate,
+               verify)
 from .common import (CAPS, CHECKED_BY_COMMAND, EXIT_INPUT, EXIT_INTERNAL, EXIT_OK, EXIT_TARGET_MISSED, CLIError,
                      Parser, UsageError, check_cap, check_outputs, common_arguments, os_error_message,
                      output_kinds)
 
 COMMANDS = (robots, jacobian, sensitivity, verify, allocate, report, path_report, iso9283, calibrate, validate,
-            compensate, plan_campaign, simulate, import_table, data, paper, keystore, signing_key)
+            compensate, filter, ur_kinematics, plan_campaign, simulate, import_table, data, paper, keystore, signing_key)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -85,7 +86,7 @@ def _fail(prog, code, message, as_json) -> int:
     return EXIT_INTERNAL if code == "internal" else EXIT_INPUT
 
 
-CHAIN_ONLY = ("calibrate", "compensate", "jacobian", "simulate", "plan-campaign")
+CHAIN_ONLY = ("calibrate", "compensate", "filter", "ur-kinematics", "jacobian", "simulate", "plan-campaign")
 """Commands whose work is the chain's kinematics, with no worst case of a budget to bound."""
 
 
@@ -155,6 +156,7 @@ def main(argv=None) -> int:
         return _fail(parser.prog, "invalid_request", str(exc), as_json)
     prog = f"{parser.prog} {args.command}"
     args.missed = []
+    args.argv = argv
     said = []
     try:
         own = getattr(sys.modules.get(args.func.__module__), "OWN_CAPS", ())  # the caps the command checks itself
