@@ -73,3 +73,17 @@ def test_validate_refuses_a_session_whose_joints_carry_the_wrong_unit(capsys, ca
     code, _, err = run(capsys, "validate", "--calibration", cal / "calibration.yaml", "--measurements",
                        tmp_path / "deg.csv")
     assert code == 2 and "radians labelled degrees" in err
+
+
+def test_the_joint_offsets_at_a_given_noise_converge(capsys, calibrated):
+    """The issue's run (--noise 0.3mm --parameters joint-offsets) had stopped unconverged (exit 3): a fingertip's
+    height, fitted at that noise, shared the contacts with the wrist's turn and sent it to the 0.2 rad wall."""
+    csv, _, _, _, cal = calibrated["left"]
+    code, out, err = run(capsys, "calibrate", *tc.robot_args("left"), "--measurements", csv, *tc.target_args(),
+                         "--noise", "0.3mm", "--parameters", "joint-offsets", "--out", cal.parent / "jo", "--json",
+                         "--quiet")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["fit"]["convergence"]["converged"] and doc["contact"]["noise"]["given"]
+    assert doc["model"]["label"] == "joint-offsets" and doc["plausibility"]["ok"]
+    assert not any(w["fitted"] for w in doc["contact"]["targets_why"].values())

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.calibration.contact import ALIAS, TARGET_SHARE
+from ..core.calibration.contact import ALIAS, INFLATION, TARGET_SHARE
 from ..core.calibration.contact_campaign import contact_fit
 from ..core.jsonio import dumps
 from .text import fmt, table
@@ -65,6 +65,8 @@ def target_lines(cal) -> list:
                               "flush, a common height beside the plane's offset)",
              (False, "unseen"): f"held at their nominal places, the contacts hardly see them (std at the noise over "
                                 f"{TARGET_SHARE * 100:g} % of their lever arm)",
+             (False, "shared"): f"held at their nominal places, fitted they would share the contacts with the "
+                                f"parameters (a parameter's std over {INFLATION:g} times larger)",
              (True, "seen"): f"fitted, the contacts see them well (std at the noise under {TARGET_SHARE * 100:g} % of "
                              f"their lever arm)",
              (True, "asked"): "fitted as asked (--fit-targets)",

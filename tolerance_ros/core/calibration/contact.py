@@ -52,6 +52,7 @@ LEVER_FLOOR = 0.01         # share of the robot's reach: the lever arm of a targ
 NOISE_FLOOR = 1e-9         # m: the floor of a noise estimated from the rows (contacts fitted exactly)
 RIG_COPY = 1e-3            # a target coordinate whose column beyond the rig's is under this share of the largest is
                            # a copy of the rig (a condition number over 1000: a common height beside a plane's offset)
+INFLATION = 2.0            # a target fitted only where it leaves the parameters' std within this factor of theirs
 ALIAS = 0.03               # an unregularised parameter whose column keeps less than this share beyond the rig's span
                            # is nearly a motion of the rig, and held
 TIKHONOV = (1e-3, 1e-2, 1e-1)   # weights of the regularised candidates, cost |r|^2 + lambda |dx|^2 (m, rad);
@@ -609,8 +610,10 @@ def _target_holds(J, layout, held, noise, offsets, reach, mode, target_prior, pr
     ``TARGET_SHARE`` of the target's lever arm (its nominal distance from the tool frame's origin, at least
     ``LEVER_FLOOR`` of the ``reach``); while one is not, the worst is held (kind 'unseen': fingertips flush on a table
     do not see their places along it, nor their heights beside a wrist's turn; free, a fit would move them onto one
-    point, where one contact per posture is fitted exactly by the robot's many parameters). Kinds 'asked' (``mode``
-    'fit') and 'prior' (``target_prior`` m) fit the others."""
+    point, where one contact per posture is fitted exactly by the robot's many parameters); and where the rest pass,
+    a target whose freedom makes a parameter's std more than ``INFLATION`` times larger (scale-free: a ratio at one
+    noise) is held, the worst first (kind 'shared': a fingertip's height beside the wrist's turn). Kinds 'asked'
+    (``mode`` 'fit') and 'prior' (``target_prior`` m) fit the others."""
     tcols = np.flatnonzero(~held[layout.t]) + layout.t.start
     gcols = np.flatnonzero(~held[layout.g]) + layout.g.start
     out = {}
@@ -634,11 +637,12 @@ def _target_holds(J, layout, held, noise, offsets, reach, mode, target_prior, pr
     elif mode == FIT:
         for j in free:
             out[j] = entry(True, "asked", "fitted as asked, however well the contacts see it")
-    params = np.flatnonzero(~held[:layout.p])
-    if len(params) and free:                         # a parameter that copies a target is held in its place
-        params = params[~dependent_columns(Js, params, np.r_[free, gcols], TOL_RANK)]
+    candidates = np.flatnonzero(~held[:layout.p])
     given = noise
     while free and target_prior is None and mode != FIT:
+        params = candidates     # but those that copy a target still free, which ``dependent_columns`` holds instead
+        if len(params):
+            params = params[~dependent_columns(Js, params, np.r_[free, gcols], TOL_RANK)]
         noise = given if given is not None else _rig_noise(J[:, np.r_[free, gcols]], r)
         A = J / noise                                # rows in units of the noise
         cols = np.r_[free, gcols, params]
@@ -649,6 +653,17 @@ def _target_holds(J, layout, held, noise, offsets, reach, mode, target_prior, pr
         k = (np.asarray(free) - layout.t.start) // 3
         share = std / lever[k]
         worst = int(np.argmax(share))
+        if share[worst] <= TARGET_SHARE and len(params):
+            alone = _param_std(A, np.r_[gcols, params], precision(noise) / noise ** 2, len(params))
+            inflation = np.array([np.max(_param_std(A, np.r_[j, gcols, params], precision(noise) / noise ** 2,
+                                                    len(params)) / alone) for j in free])
+            if inflation.max() > INFLATION:
+                i = int(np.argmax(inflation))
+                j = free.pop(i)
+                out[j] = entry(False, "shared", f"held at its nominal place: fitted, it would share the contacts with "
+                                                f"the parameters (their std up to {inflation[i]:.3g} times larger, over "
+                                                f"{INFLATION:g})", std[i])
+                continue
         if share[worst] <= TARGET_SHARE:
             for i, j in enumerate(free):
                 out[j] = entry(True, "seen", f"fitted: std {std[i] * 1e3:.3g} mm at the noise {noise * 1e3:.3g} mm, "
@@ -661,6 +676,14 @@ def _target_holds(J, layout, held, noise, offsets, reach, mode, target_prior, pr
                                         f"{lever[k[worst]] * 1e3:.4g} mm (over {TARGET_SHARE * 100:g} %): the contacts "
                                         f"hardly see it", std[worst])
     return {j: out[j] for j in sorted(out)}
+
+
+def _param_std(A, cols, precision, k) -> np.ndarray:
+    """(k,) standard deviations, in units of the noise, of the last ``k`` of the unknowns ``cols`` fitted together
+    on the columns ``A`` (rows in units of the noise) with the prior's weights ``precision`` (per unit^2 of the
+    unknowns, in units of the noise)."""
+    H = A[:, cols].T @ A[:, cols] + np.diag(precision[cols])
+    return np.sqrt(np.maximum(np.diag(np.linalg.pinv(H))[-k:], 1e-300))
 
 
 def _rig_noise(Jr, r) -> float:
