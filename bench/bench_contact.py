@@ -111,7 +111,10 @@ def against_scipy(tmp):
     t0 = time.perf_counter()
     f = fit_contacts(model, data, nominal, "full", sigma=1e-5, robust=False)
     ours_s = time.perf_counter() - t0
-    free = np.flatnonzero(~np.isin(np.arange(f.layout.n), model.param_index(f.held)))
+    names = f.layout.names(model, data)
+    held = list(model.param_index(f.held)) + [names.index(f"target {k}") for k, w in f.targets_why.items()
+                                              if not w["fitted"]]
+    free = np.flatnonzero(~np.isin(np.arange(f.layout.n), held))
 
     def residuals(z):
         x = np.zeros(f.layout.n)

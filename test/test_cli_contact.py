@@ -142,3 +142,61 @@ def test_a_target_given_as_a_urdf_link_is_that_links_origin_in_the_tool_frame():
         target_options(["B=link:link3"], model)
     with pytest.raises(CLIError, match="is not in the URDF"):
         target_options(["B=link:nowhere"], model)
+
+
+def _relabelled(path, out, old, new, rows=None):
+    """A copy of the contact CSV at ``path`` with ``old`` replaced by ``new`` in its header (rows None) or in the data
+    rows of the indices ``rows``."""
+    lines = Path(path).read_text().splitlines()
+    header = [i for i, line in enumerate(lines) if line.startswith("stamp")][0]
+    if rows is None:
+        lines[header] = lines[header].replace(old, new)
+    for i in rows or []:
+        lines[header + 1 + i] = lines[header + 1 + i].replace(old, new)
+    Path(out).write_text("\n".join(lines) + "\n")
+    return out
+
+
+def test_validate_refuses_a_session_in_the_wrong_unit_as_calibrate_does(capsys, tmp_path):
+    simulate(capsys, tmp_path / "s1.csv", PLANES, "s1", touches=15)
+    simulate(capsys, tmp_path / "s2.csv", MOVED, "s2", touches=10)
+    code, _, err = run(capsys, "calibrate", "--robot", URDF, "--measurements", tmp_path / "s1.csv", "--target",
+                       "A=12mm,-6mm,110mm", "--folds", 3, "--parameters", "joint-offsets", "--out", tmp_path / "cal",
+                       "--quiet")
+    assert code == 0, err
+    deg = _relabelled(tmp_path / "s2.csv", tmp_path / "deg.csv", "[rad]", "[deg]")
+    code, out, err = run(capsys, "validate", "--calibration", tmp_path / "cal" / "calibration.yaml", "--measurements",
+                         deg, "--robot", URDF, "--json")
+    assert code == 2 and not json.loads(out)["ok"] and "radians labelled degrees" in err and str(deg) in err
+
+
+def test_a_plane_id_changed_mid_session_is_named(capsys, tmp_path):
+    """Three contacts of the floor logged as plane:flor between floor contacts: the fit had taken them for a fourth
+    plane lying on the floor (three contacts fit any plane exactly: they were lost); refused, both ids named."""
+    simulate(capsys, tmp_path / "s1.csv", PLANES, "s1", touches=15)
+    typo = _relabelled(tmp_path / "s1.csv", tmp_path / "typo.csv", "plane:floor", "plane:flor", rows=[5, 6, 7])
+    base = ["calibrate", "--robot", URDF, "--target", "A=0mm,0mm,100mm", "--folds", 3, "--out", tmp_path / "cal",
+            "--quiet"]
+    code, _, err = run(capsys, *base, "--measurements", typo)
+    assert code == 2 and "plane:flor (3 contact(s)" in err and "plane:floor of session 's1'" in err
+    assert "line 8, line 9, line 10" in err
+    other = _relabelled(tmp_path / "s1.csv", tmp_path / "other.csv", "plane:floor", "plane:flor", rows=range(15))
+    code, _, err = run(capsys, *base, "--measurements", other)        # one id per plane, another name: fine
+    assert code == 0, err
+
+
+def test_the_targets_options_for_contacts(capsys, tmp_path):
+    simulate(capsys, tmp_path / "s1.csv", PLANES, "s1", touches=15)
+    base = ["calibrate", "--robot", URDF, "--measurements", tmp_path / "s1.csv", "--target", "A=0mm,0mm,100mm",
+            "--folds", 3, "--parameters", "joint-offsets", "--json", "--quiet"]
+    for extra, kind in ((["--target-prior", "20mm"], "prior"), (["--fit-targets"], "asked")):
+        code, out, err = run(capsys, *base, *extra, "--out", tmp_path / kind)
+        assert code == 0, err
+        doc = json.loads(out)
+        said = doc["contact"]["targets_why"]
+        assert {w["kind"] for w in said.values()} == {kind} and all(w["fitted"] for w in said.values())
+        assert np.allclose(doc["contact"]["rig"]["targets"][0]["xyz_m"], [0.012, -0.006, 0.110], atol=2e-4)
+    code, _, err = run(capsys, *base, "--target-prior", "20mm", "--fit-targets", "--out", tmp_path / "x")
+    assert code == 2 and "give one" in err
+    code, _, err = run(capsys, *base, "--target-prior", "2", "--out", tmp_path / "x")
+    assert code == 2 and "--target-prior" in err

@@ -296,3 +296,36 @@ def test_leverages_are_the_fits_hat_matrix(gao, truth, regularised):
     # left out: h_out / (1 + h_out) is the leverage the row has in the fit of every row (Sherman-Morrison, per axis
     # averaged; equal to first order in the small leverages of a 60-pose fit)
     assert out.row_leverage[i] / (1 + out.row_leverage[i]) == pytest.approx(ident.row_leverage[i], rel=0.03)
+
+
+def _line(target, wall=np.inf, refuse_first=False):
+    """evaluate(x) of the residual r = x - target (1-D, unit Jacobian) whose model cannot be assembled beyond
+    ``wall`` (ValueError), and, with ``refuse_first``, not at the first step tried."""
+    calls = {"n": 0}
+
+    def evaluate(x):
+        calls["n"] += 1
+        if abs(x[0]) > wall or (refuse_first and calls["n"] == 2):
+            raise ValueError("beyond the wall")
+        return np.ones((1, 1)), np.array([target - x[0]])
+    return evaluate
+
+
+def test_the_loop_goes_on_while_the_full_step_lowers_the_cost():
+    """The first step refused, the damping grows and the next step falls short by 1e-6 of the optimum, a step below
+    XTOL of these large unknowns: the loop had stopped there on its step test and called it converged; the full
+    step, tried before stopping, reaches the optimum."""
+    from tolerance_ros.core.identification import _minimise
+    x, _, r, conv = _minimise(_line(1e13 + 1.0, refuse_first=True), np.array([1e13]), np.arange(1), np.ones(1),
+                              np.zeros(1), np.zeros((0, 3), int), 200)
+    assert conv.converged and conv.stop == "gradient" and x[0] == 1e13 + 1.0 and r[0] == 0.0
+
+
+def test_a_fit_stopped_by_a_wall_is_not_called_converged():
+    """No step can cross the wall where the optimum lies beyond it: the loop stops there and says it did not converge
+    (the full step would still remove the whole cost), whatever its last damped step."""
+    from tolerance_ros.core.identification import _minimise
+    x, _, r, conv = _minimise(_line(3.0, wall=1.0), np.zeros(1), np.arange(1), np.ones(1), np.zeros(1),
+                              np.zeros((0, 3), int), 200)
+    assert not conv.converged and conv.stop in ("step", "no descent") and conv.decrement > 0.5
+    assert 0.9 < x[0] <= 1.0 and conv.words().startswith("NOT CONVERGED")

@@ -70,6 +70,13 @@ def test_a_contact_request_latches_the_newest_joint_state_into_the_log(robots, t
     ('[1, 2]', "expected a JSON object"),
     ('{"contact": "plane:t", "targets": [[]]}', "distinct names"),
     ('{"contact": "plane:t", "targets": [1, 2]}', "distinct names"),
+    ('{"contact": "plane:t", "targets": ["\\ud800"]}', "UTF-8 text"),        # a lone surrogate raised TypeError
+    ('{"contact": "plane:t", "targets": {"F\\udc80": [0, 0, 0.1]}}', "UTF-8 text"),
+    ('{"contact": "plane:t", "targets": ["A"], "session": "s\\ud800"}', "session: expected"),
+    ('{"contact": "plane:t", "targets": ["A"], "pose": "\\udfff"}', "pose: expected"),
+    ('{"contact": "plane:t", "targets": ["A"], "id": "\\ud800"}', "id: expected"),
+    ('{"contact": "plane:t", "targets": [" "]}', "targets: a name of 1 to 100"),  # logged, then it failed calibrate
+    ('{"contact": "plane:t", "targets": {"A ": [0, 0, 0.1]}}', "surrounding blanks"),
 ])
 def test_a_bad_contact_request_is_answered_with_the_field_and_the_monitor_goes_on(robots, tmp_path, text, words):
     model = robots.select(None)[1]
@@ -78,6 +85,9 @@ def test_a_bad_contact_request_is_answered_with_the_field_and_the_monitor_goes_o
     ans = mon.on_contact(text)
     assert not ans["ok"] and ans["error"] == "invalid_request" and words in ans["message"]
     assert mon.on_contact(json.dumps({"contact": "point:p", "targets": ["A"]}))["ok"]
+    mon.close()
+    contacts, _ = read_contact_log(tmp_path / "log.jsonl", model.joint_names)   # what was logged reads back
+    assert list(contacts.target) == ["A"]
 
 
 def test_the_calibrate_service_fits_the_contacts_the_monitor_logged(robots, tmp_path):

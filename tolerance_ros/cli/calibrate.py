@@ -39,8 +39,16 @@ def add_arguments(p):
                         "that stands for the load of a URDF without inertials")
     p.add_argument("--no-robust", action="store_true",
                    help="keep every measurement (by default outliers beyond 4.6 robust sigmas are left out and listed)")
-    p.add_argument("--noise", default="10um", help="tracker position noise, weights the rows (default 10um); the "
-                                                   "uncertainties use the residual noise")
+    p.add_argument("--noise", help="tracker position noise, weights the rows (default 10um); the uncertainties use "
+                                   "the residual noise. Contact campaigns: the contact noise, estimated from the rows by "
+                                   "default (given, it overrides that estimate)")
+    p.add_argument("--target-prior", metavar="LENGTH",
+                   help="contact campaigns: fit every target's place with a Gaussian prior of this std on its nominal "
+                        "place (e.g. 2mm); by default a target coordinate is fitted only where the contacts determine "
+                        "it well")
+    p.add_argument("--fit-targets", action="store_true",
+                   help="contact campaigns: fit every target coordinate the rig does not make a copy of, however "
+                        "poorly the contacts see it")
     p.add_argument("--orientation-noise", help="tracker orientation noise, e.g. 10urad: also fit orientations")
     p.add_argument("--folds", type=int, default=10, help="k of the k-fold validation by test pose (default 10)")
     p.add_argument("--seed", type=int, default=0, help="seed of the split into folds")
@@ -102,7 +110,8 @@ def run(args):
             Load("point-mass", *payload)
     except ValueError as exc:
         raise CLIError(f"--payload: {exc}") from None
-    opts = FitOptions(registration="base" if args.registration == "auto" else args.registration, sigma_position=quantity(args.noise, "length", "--noise"),
+    opts = FitOptions(registration="base" if args.registration == "auto" else args.registration,
+                      sigma_position=quantity(args.noise or "10um", "length", "--noise"),
                       sigma_orientation=quantity(args.orientation_noise, "angle", "--orientation-noise"),
                       robust=not args.no_robust, prior=prior_option(args.prior),
                       registration_prior=prior_option(args.registration_prior, "--registration-prior"),
@@ -110,9 +119,10 @@ def run(args):
     from ..core.accuracy.io.contact_csv import is_contact_campaign
     if is_contact_campaign(args.measurements):
         return run_contacts(args, model, opts, key)
-    if args.target:
-        raise CLIError("--target: for contact campaigns (a CSV with a contact column, or a campaign log with contact "
-                       "events); a tracker's targets are fitted with --registration base+tool")
+    if args.target or args.target_prior or args.fit_targets:
+        raise CLIError("--target, --target-prior, --fit-targets: for contact campaigns (a CSV with a contact column, or "
+                       "a campaign log with contact events); a tracker's targets are fitted with --registration "
+                       "base+tool")
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     log_sha256 = file_sha256(args.measurements)
@@ -222,11 +232,15 @@ def run_contacts(args, model, opts, key):
                        "(the rig is fitted with the parameters; contacts have no orientation)")
     if args.parameters not in ("auto", "joint-offsets", "full"):
         raise CLIError(f"--parameters {args.parameters}: contact campaigns identify auto, joint-offsets or full")
+    if args.target_prior and args.fit_targets:
+        raise CLIError("--target-prior, --fit-targets: give one (a prior on the targets' places, or none)")
+    target_prior = quantity(args.target_prior, "length", "--target-prior")
     contacts, logged = read_contact_campaign(args.measurements, model.joint_names, model.joint_types, args.skip_bad)
     offsets = {k: v for k, v in logged.items() if v is not None} | target_options(args.target, model)
     prog = Progress("calibrate (cross-validating the candidates)", not args.quiet)
-    cal = calibrate_campaign(model, contacts, offsets, args.parameters, opts.prior, opts.sigma_position, args.folds,
-                             args.seed, opts.robust, prog)
+    cal = calibrate_campaign(model, contacts, offsets, args.parameters, opts.prior,
+                             quantity(args.noise, "length", "--noise"), args.folds, args.seed, opts.robust, prog,
+                             "fit" if args.fit_targets else "auto", target_prior)
     out = Path(args.out)
     source = getattr(model, "config_path", None) or getattr(model, "source", None)
     cal.sources.update({"robot": relative(source, out) if source else model.name,

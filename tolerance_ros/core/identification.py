@@ -341,6 +341,7 @@ def _result(model, x, cov, rank, cond, weight, cols, delta, rms0, rms1, iteratio
 MAX_ITERATIONS = 200   # cap of the damped Gauss-Newton loop; a fit that reaches it says so (Identification.convergence)
 FTOL = 1e-12           # converged: a full Gauss-Newton step would lower the cost by less than this share
 XTOL = 1e-12           # converged: the step is below this share of the unknowns (in column-scale units)
+ROUNDING = 1e-9        # ... or no step lowers the cost, with a full step's decrement below this share: rounding
 PRIOR_SHARE = 0.7      # a parameter whose posterior std is above this share of its prior std is set by the prior
 NEAR_COPY = 0.99       # two estimated unknowns correlated beyond this cannot be told apart by the data
 
@@ -350,8 +351,11 @@ class Convergence:
     """How the damped Gauss-Newton (Levenberg-Marquardt) loop ended.
 
     stop : 'gradient' (a full Gauss-Newton step would lower the cost by less than ``FTOL`` of it), 'step' (the
-    step is below ``XTOL`` of the unknowns), 'no descent' (no damped step lowers the cost: at the minimum to
-    rounding when the decrement is below 1e-9 of the cost) or 'iteration cap'.  gradient_cosine : the
+    step is below ``XTOL`` of the unknowns, and the full step does not lower the cost by more than ``FTOL`` of
+    it), 'no descent' (neither a damped step nor the full one lowers the cost) or 'iteration cap'.  converged :
+    the gradient test, or a stop on the step or for no descent where the decrement is below ``ROUNDING`` of the
+    cost (the minimum to rounding); a larger decrement that no step can take is a bound or a model that cannot
+    be assembled there, not a minimum.  gradient_cosine : the
     largest cosine between the residual and a column of the Jacobian (0 at a minimum, scale-free; with a
     prior, of the augmented problem).  decrement : the cost a full Gauss-Newton step would still remove,
     as a share of the cost.  cost : the final cost, |r|^2 + the prior's term (m^2).
@@ -373,6 +377,10 @@ class Convergence:
         if self.stop == "iteration cap":
             return (f"NOT CONVERGED: stopped by the cap of {self.iterations} iterations (a full step would still "
                     f"lower the cost by {self.decrement:.2g} of it)")
+        if not self.converged:
+            return (f"NOT CONVERGED: stopped ({self.stop}) after {self.iterations} iterations, a full step would still "
+                    f"lower the cost by {self.decrement:.2g} of it but no step can be taken there (a bound of the "
+                    f"search, or a model that cannot be assembled)")
         return f"converged in {self.iterations} iterations ({self.stop} test; largest gradient cosine " \
                f"{self.gradient_cosine:.1e})"
 
@@ -392,12 +400,29 @@ def _minimise(evaluate, x, free, scale, prior, rot, cap):
     from x. ``evaluate(x) -> (J, r)``; columns scaled by ``scale``. Each iteration takes the eigenvectors of
     the scaled normal matrix once: the Gauss-Newton step and every damped one (Levenberg, ``H + mu I`` in
     the scaled space, Nielsen's update of ``mu``) are then sums over them, directions the data leave
-    undetermined (eigenvalues below 1e-12 of the largest) left out. Stops by the tests of ``Convergence``."""
+    undetermined (eigenvalues below 1e-12 of the largest) left out. Stops by the tests of ``Convergence``, and
+    never while the full Gauss-Newton step lowers the cost: where the damped steps would stop (a step below
+    ``XTOL``, or no damped step lowering the cost) the full step is tried, and taken when it lowers the cost by
+    more than ``FTOL`` of it (a damping grown large on a rejected step otherwise leaves steps too short to go on)."""
     J, r = evaluate(x)
     cost = float(r @ r + prior @ (x * x))
     mu, nu, it, stop = 0.0, 2.0, 0, "iteration cap"
     sf, pf = scale[free], prior[free] * scale[free] ** 2
     decrement = cosine = np.inf
+    small = False
+
+    def trial(mu, V, lam, gv, live):
+        s = V[:, live] @ (gv[live] / (lam[live] + mu))
+        step = np.zeros_like(x)
+        step[free] = s * sf
+        x_new = _update(x, step, rot)
+        try:
+            J_new, r_new = evaluate(x_new)
+            cost_new = float(r_new @ r_new + prior @ (x_new * x_new))
+        except (ValueError, ArithmeticError):  # a step the model cannot assemble (a parallel mechanism)
+            J_new, r_new, cost_new = None, None, np.inf
+        return s, x_new, J_new, r_new, cost_new
+
     while True:
         Jf = J[:, free] * sf
         H = Jf.T @ Jf + np.diag(pf)
@@ -415,36 +440,31 @@ def _minimise(evaluate, x, free, scale, prior, rot, cap):
             break
         if it >= cap:
             break
-        it += 1
-        accepted = False
-        while mu <= 1e6 * top:
-            s = V[:, live] @ (gv[live] / (lam[live] + mu))
-            step = np.zeros_like(x)
-            step[free] = s * sf
-            x_new = _update(x, step, rot)
-            try:
-                J_new, r_new = evaluate(x_new)
-                cost_new = float(r_new @ r_new + prior @ (x_new * x_new))
-            except (ValueError, ArithmeticError):  # a step the model cannot assemble (a parallel mechanism)
-                cost_new = np.inf
-            pred = float(2.0 * s @ g - s @ H @ s)
-            rho = (cost - cost_new) / pred if pred > 0 else -1.0
-            if np.isfinite(cost_new) and cost_new < cost and rho > 0:
-                mu = mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if mu > 1e-12 * top else 0.0
-                nu = 2.0
-                accepted = True
-                break
-            mu = max(mu * nu, 1e-6 * top)
-            nu *= 2.0
+        accepted = tried_full = False
+        if not small:
+            while mu <= 1e6 * top:
+                s, x_new, J_new, r_new, cost_new = trial(mu, V, lam, gv, live)
+                tried_full = tried_full or mu == 0.0
+                pred = float(2.0 * s @ g - s @ H @ s)
+                rho = (cost - cost_new) / pred if pred > 0 else -1.0
+                if np.isfinite(cost_new) and cost_new < cost and rho > 0:
+                    mu = mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if mu > 1e-12 * top else 0.0
+                    nu = 2.0
+                    accepted = True
+                    break
+                mu = max(mu * nu, 1e-6 * top)
+                nu *= 2.0
+        if not accepted and not tried_full:
+            s, x_new, J_new, r_new, cost_new = trial(0.0, V, lam, gv, live)
+            if np.isfinite(cost_new) and cost - cost_new > FTOL * cost:
+                accepted, mu, nu = True, 0.0, 2.0
         if not accepted:
-            stop = "no descent"
+            stop = "step" if small else "no descent"
             break
+        it += 1
         small = np.max(np.abs(s)) <= XTOL * (np.max(np.abs(x[free] / sf)) + XTOL)
         x, J, r, cost = x_new, J_new, r_new, cost_new
-        if small:
-            stop = "step"
-            break
-    converged = stop in ("gradient", "step") or (stop == "no descent" and decrement <= 1e-9)
+    converged = stop == "gradient" or (stop in ("step", "no descent") and decrement <= ROUNDING)
     return x, J, r, Convergence(it, stop, bool(converged), cosine, max(decrement, 0.0), cost)
 
 

@@ -13,7 +13,8 @@ Request (on ``tolerance/calibrate/request``, std_msgs/String JSON; the shape of 
 
 A log of contacts (``tolerance/contact`` requests latched by the monitor, or a contact CSV) is calibrated from
 contact (``core.calibration.contact_campaign``): ``"targets": {"A": [x, y, z]}`` (m, tool frame) gives the targets'
-nominal places where the logged requests did not; its validation figures are ``contact_rms_m``.
+nominal places where the logged requests did not; ``noise``, absent or null, is estimated from its rows; its
+validation figures are ``contact_rms_m``.
 
 Answers: ``{"status": "accepted", "queued": n}`` at once, progress on ``.../progress``, then ``{"status":
 "done", "success": true|false, "robot", "measurements", "model", "validation": {before, after, improvement},
@@ -75,7 +76,7 @@ class CalibrationJob:
     registration: str = "base"
     parameters: str = "auto"
     prior: tuple | None = PRIOR
-    noise: float = 1e-5
+    noise: float | None = None      # m; None: 1e-5 for a tracker's log, estimated from the rows for contacts
     orientation_noise: float | None = None
     folds: int = 10
     seed: int = 0
@@ -164,7 +165,7 @@ def parse_calibrate_request(text, robots, limits: Limits, current_log=None, max_
                 raise ContractError("invalid_request", f"targets.{str(k)[:40]}: expected [x, y, z] (m, tool frame)")
             targets[k] = tuple(number(c, f"targets.{str(k)[:40]}", -5.0, 5.0) for c in v)
     return CalibrationJob(req["id"], name, model, log, window, registration, parameters, prior,
-                          number(req.get("noise", 1e-5), "noise", 1e-9, 1.0),
+                          None if req.get("noise") is None else number(req["noise"], "noise", 1e-9, 1.0),
                           None if onoise is None else number(onoise, "orientation_noise", 1e-12, 1.0),
                           int(number(req.get("folds", 10), "folds", 2, 100, integer=True)),
                           int(number(req.get("seed", 0), "seed", 0, 2 ** 31, integer=True)),
@@ -196,7 +197,8 @@ def run_calibration(job: CalibrationJob, progress=None, made_by="tolerance_ros c
             raise MeasurementError(f"window: no measurement of {job.log} is stamped in [{job.window[0]:.9g}, "
                                    f"{job.window[1]:.9g}] s")
         meas = meas.select(keep)
-    opts = FitOptions(registration=job.registration, sigma_position=job.noise, sigma_orientation=job.orientation_noise,
+    opts = FitOptions(registration=job.registration, sigma_position=1e-5 if job.noise is None else job.noise,
+                      sigma_orientation=job.orientation_noise,
                       robust=job.robust, prior=job.prior, folds=job.folds, seed=job.seed)
     cal = calibrate_measurements(job.mechanism, meas, None, opts, parameters=job.parameters, progress=progress)
     cal.sources.update(measurements=job.log)

@@ -29,7 +29,7 @@ from ..core.accuracy.accumulator import AccuracyAccumulator
 from ..core.accuracy.checks import StreamCheck
 from ..core.accuracy.iso9283 import DriftTracker
 from ..core.targets import Targets
-from .contracts import check_budget
+from .contracts import MAX_ID_CHARS, check_budget, valid_id
 from .guards import summary
 
 OK, WARN, ERROR = 0, 1, 2
@@ -450,8 +450,9 @@ def parse_contact(text) -> dict:
     session = req.get("session", "")
     pose = req.get("pose")
     for field, v in (("session", session), ("pose", pose)):
-        if v is not None and (not isinstance(v, str) or len(v) > 100 or any(ord(c) < 32 or c == "," for c in v)):
-            raise ValueError(f"{field}: expected a name of at most 100 printable characters without commas")
+        if v is not None and not _log_name(v, blank=True):
+            raise ValueError(f"{field}: expected a name of at most 100 printable characters (UTF-8 text) without commas "
+                             f"or surrounding blanks")
     targets = req.get("targets")
     if isinstance(targets, list):
         names_only = all(isinstance(t, str) for t in targets) and len(set(targets)) == len(targets)
@@ -461,8 +462,9 @@ def parse_contact(text) -> dict:
                          f"tool frame)")
     out = {}
     for name, off in targets.items():
-        if not isinstance(name, str) or not name or len(name) > 100 or any(ord(c) < 32 or c == "," for c in name):
-            raise ValueError("targets: a name of at most 100 printable characters without commas")
+        if not _log_name(name):
+            raise ValueError("targets: a name of 1 to 100 printable characters (UTF-8 text) without commas or "
+                             "surrounding blanks")
         if off is not None:
             if not isinstance(off, list) or len(off) != 3 or not all(
                     isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in off):
@@ -471,7 +473,26 @@ def parse_contact(text) -> dict:
                 raise ValueError(f"targets.{name}: more than 5 m from the tool frame (metres expected)")
             off = [float(v) for v in off]
         out[name] = off
-    return {"contact": contact, "targets": out, "session": session, "pose": pose, "id": req.get("id")}
+    rid = req.get("id")
+    if rid is not None and not valid_id(rid):
+        raise ValueError(f"id: expected a string of UTF-8 text of at most {MAX_ID_CHARS} characters, or a 64-bit "
+                         f"integer")
+    return {"contact": contact, "targets": out, "session": session, "pose": pose, "id": rid}
+
+
+def _log_name(v, blank=False) -> bool:
+    """True for a name the campaign log keeps and the contact reader gives back as it is: a str of at most 100
+    printable characters, UTF-8 text (no lone surrogate), no comma, no blank at either end (the reader strips
+    them), not empty unless ``blank``."""
+    if not isinstance(v, str) or len(v) > 100 or v != v.strip() or (not v and not blank):
+        return False
+    if any(ord(c) < 32 or c == "," for c in v):
+        return False
+    try:
+        v.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def tracker_frame(T_tracker_base) -> tuple:

@@ -11,10 +11,15 @@ a plane's normal is a rigid motion of the plane, a common target height is the p
 
 Unknowns, in this order: the parameter errors (p), the targets' offsets (3 per target, tool frame, m), then 3
 per constraint: a plane's normal turned by ``(u, v)`` (rad) in its tangent plane and its offset ``w`` (m), or a
-point's ``(x, y, z)`` (m). The fit is ``identification._minimise`` (Levenberg-Marquardt to its convergence
-tests) on ``sum(r^2) / sigma^2 + prior``, its steps kept within the plausible errors (``PLAUSIBLE_LENGTH``,
-``PLAUSIBLE_ANGLE``: a robot folded until its contacts meet in one point fits every plane exactly), robust by the rows' distances (``REJECT`` robust standard deviations
-at the tail probability of the tracker's rule, per row kind). SI throughout.
+point's ``(x, y, z)`` (m). Every plane and point touched is fitted; a target stays at its nominal place unless the
+fit determines it well (``_target_holds``); an unregularised parameter that is nearly a motion of the rig is held
+(``ALIAS``). The noise of the rows is estimated from them (robust, after the rig-only fit, then after the
+parameters) unless given. The fit is ``identification._minimise`` (Levenberg-Marquardt to its convergence tests)
+on ``sum(r^2) + prior``, the prior a Gaussian one weighed against the noise or a Tikhonov weight, its steps kept
+within the plausible errors (``PLAUSIBLE_LENGTH``, ``PLAUSIBLE_ANGLE``: a robot folded until its contacts meet in
+one point fits every plane exactly), robust by the rows' distances (``REJECT`` robust standard deviations at the
+tail probability of the tracker's rule, per row kind). What to identify is chosen by the one-standard-error rule
+over the folds of a cross-validation by pose (``one_standard_error``). SI throughout.
 """
 from __future__ import annotations
 
@@ -36,11 +41,22 @@ TOL_RANK = 1e-5            # singular values below this share of the largest lea
 TAIL = 1e-4                # a row whose distance is this improbable under the robust noise is an outlier
 MAX_REJECTED = 0.25        # at most this share of the rows left out
 ROUNDS = 5                 # rejection rounds of a robust fit
-PARSIMONY = 0.01           # the simplest candidate within this share of the lowest held-out RMS wins
 MODELS = ("rig", "joint-offsets", "full")
 PLAUSIBLE_LENGTH = 0.05    # the search stays where length errors and target moves are below this share of the reach
 PLAUSIBLE_ANGLE = 0.2      # rad, and angle errors below this: beyond, a calibration is refused anyway, and a
                            # plane-contact fit free to go there can fold the robot until its contacts meet in a point
+AUTO, FIT = "auto", "fit"
+TARGET_MODES = (AUTO, FIT)  # the targets fitted where the contacts determine them well, or wherever they can be
+TARGET_SHARE = 0.001       # ... well: a target coordinate's std at the rows' noise under this share of its lever arm
+LEVER_FLOOR = 0.01         # share of the robot's reach: the lever arm of a target at the tool frame's origin
+NOISE_FLOOR = 1e-9         # m: the floor of a noise estimated from the rows (contacts fitted exactly)
+RIG_COPY = 1e-3            # a target coordinate whose column beyond the rig's is under this share of the largest is
+                           # a copy of the rig (a condition number over 1000: a common height beside a plane's offset)
+INFLATION = 2.0            # a target fitted only where it leaves the parameters' std within this factor of theirs
+ALIAS = 0.03               # an unregularised parameter whose column keeps less than this share beyond the rig's span
+                           # is nearly a motion of the rig, and held
+TIKHONOV = (1e-3, 1e-2, 1e-1)   # weights of the regularised candidates, cost |r|^2 + lambda |dx|^2 (m, rad);
+                                # 1e-3 is FIGAROH's on TALOS
 
 
 def _reject_levels():
@@ -298,7 +314,12 @@ def _stack(model, data, x, ref, layout, sqrt_w=None):
 @dataclass
 class ContactFit:
     """One fit: the unknowns ``x`` on ``layout`` from ``reference``; which parameters were held (and why), the
-    rows left out, the noise (m), the covariance of the unknowns, the convergence, the rows' distances (m)."""
+    rows left out, the noise (m: from the residuals, the covariance's scale), the covariance of the unknowns, the
+    convergence, the rows' distances (m). ``noise_rig``: the noise (m) that judged the targets (the robust estimate
+    after the fit of the planes and points alone, or the one given: ``noise_given``); ``noise_robust``: the robust
+    estimate after this fit, which judged its outliers and weighed its prior (``prior_weight``, m); ``targets_why``
+    {target coordinate: held or fitted, and why}, judged at the noise ``targets_judged_at`` (m: the rig's, then
+    again at the one the parameters leave); ``effective_unknowns``: the trace of the fit's hat matrix."""
 
     layout: ContactLayout
     reference: _Reference
@@ -316,6 +337,13 @@ class ContactFit:
     threshold: np.ndarray | None = None
     rig_held: list = field(default_factory=list)
     held_judged_at: str = "nominal"
+    noise_rig: float | None = None
+    noise_robust: float | None = None
+    noise_given: bool = False
+    targets_why: dict = field(default_factory=dict)
+    effective_unknowns: float = 0.0
+    prior_weight: float = 0.0
+    targets_judged_at: float | None = None
 
     @property
     def dx(self) -> np.ndarray:
@@ -357,13 +385,25 @@ def _row_count(data, weights):
     return int(np.sum(k[weights > 0]))
 
 
-def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", prior=None, sigma=1e-5, robust=True,
-                 iterations=200, fixed=None, analysis=True, start=None) -> ContactFit:
+def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", prior=None, sigma=None, robust=True,
+                 iterations=200, fixed=None, analysis=True, start=None, targets=AUTO, target_prior=None,
+                 tikhonov=None) -> ContactFit:
     """The robust least-squares fit of candidate ``which`` (``MODELS``) with its rig, from the targets' nominal
     offsets (K, 3) m; ``prior`` (m, rad) on the origin errors (``robust.prior_vector``: none on joint offsets) or
     None. ``fixed``: (dx (p,), target offsets (K, 3)) of a calibrated model whose parameters and targets are held
     (only the planes and points are fitted: validation on another session, and the 'before' figures). ``start``:
-    a ContactFit on the same layout to start from."""
+    a ContactFit on the same layout to start from.
+
+    ``sigma``: the contact noise (m), or None to estimate it from the rows (``_robust_sigma``: after the fit of the
+    planes and points alone, the nominal robot and targets held; then after the parameters); given, it overrides
+    the first estimate and floors the later ones. ``targets`` (``TARGET_MODES``): 'auto' fits a target's coordinate
+    only where the contacts determine it well (``_target_holds``), 'fit' fits every one the rig does not make a
+    copy of; ``target_prior`` (m): a Gaussian prior of that std on each target's offset from its nominal place
+    (the targets then fitted as with 'fit'). ``tikhonov``: a weight lambda on the parameter errors estimated, the
+    cost ``|r|^2 + lambda |dx|^2`` (m^2; dx in m and rad), whatever the noise. Every plane and point touched is always
+    fitted."""
+    if targets not in TARGET_MODES:
+        raise ValueError(f"targets: expected one of {TARGET_MODES}, got {targets!r}")
     p = model.n_params
     if fixed is not None:
         dx0, off0 = np.asarray(fixed[0], float), np.asarray(fixed[1], float)
@@ -381,9 +421,15 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
     held[layout.g] = ~np.repeat(used, 3)
     delta = prior_vector(model, prior) if prior is not None else None
     scale = np.concatenate([column_scale(delta, p)[:p], np.full(layout.n - p, SCALE_WITHOUT_BUDGET)])
-    prior_diag = np.zeros(layout.n)
+    prior_std = np.full(layout.n, np.inf)    # m or rad; inf: no prior
     if delta is not None:
-        prior_diag[:p] = np.where(np.isinf(delta), 0.0, (sigma / scale[:p]) ** 2)
+        prior_std[:p] = delta
+    if target_prior is not None and fixed is None:
+        prior_std[layout.t] = float(target_prior)
+        scale[layout.t] = float(target_prior)
+    ridge = np.zeros(layout.n)
+    if tikhonov is not None and fixed is None:
+        ridge[:p] = float(tikhonov)
     natural = np.full(layout.n, SCALE_WITHOUT_BUDGET)
     reach = model.reach()
     bound = np.r_[np.where(np.array(model.param_kinds) == "length", PLAUSIBLE_LENGTH * reach, PLAUSIBLE_ANGLE),
@@ -391,10 +437,16 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
     n = len(data)
     rot = np.zeros((0, 3), int)
     reject_plane, reject_point = _reject_levels()
+    floor = NOISE_FLOOR if sigma is None else float(sigma)
+    plane = data.kind == PLANE
+
+    def precision(noise):
+        """(n,) the prior's weight on each unknown in the cost (m^2 per unit^2), weighed against ``noise``."""
+        return np.where(np.isinf(prior_std), 0.0, (noise / prior_std) ** 2) + ridge
 
     def solve(weights, noise, x0, held):
         sw = np.sqrt(weights)
-        pr = prior_diag * (noise / sigma) ** 2
+        pr = precision(noise)
 
         def evaluate(x):
             if np.any(np.abs(x[:layout.g.start]) > bound):
@@ -405,47 +457,61 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
         return _minimise(evaluate, np.where(held, 0.0, x0), free, scale, pr, rot, iterations), free
 
     J0, _, _ = _stack(base_model, data, np.zeros(layout.n), ref, layout)
-    why = {}
-    rig_cols = np.flatnonzero(~held[p:]) + p
-    rig_held = []
-    if len(rig_cols):
-        # the rig's own directions the contacts cannot see (a target's shift along the plane it touches flush, a
-        # common height that is the plane's offset) are held where they were put: free, a fit would drift along
-        # them into degenerate solutions (``_unseen_rig``)
-        names = layout.names(model, data)
-        for j in _unseen_rig(J0, rig_cols, rig_cols >= layout.g.start, sigma):
-            held[j] = True
-            rig_held.append(names[j])
+    why, targets_why = {}, {}
+    rejected = np.zeros(n, bool)
+    noise_rig = None
     if fixed is None:
+        # the noise and the gross rows first from the planes and points alone (the nominal robot and targets held):
+        # the rows it judges gross start out of the fit, and the fit's own residuals judge every row again from there
+        base = fit_contacts(model, data, off0, sigma=sigma, robust=robust, iterations=iterations,
+                            fixed=(np.zeros(p), off0), analysis=False)
+        noise_rig = float(sigma) if sigma is not None else base.noise_robust
+        if robust and (~held[:p]).any():
+            rejected = base.rejected.copy()
+        names = layout.names(model, data)
         why.update(_hold_scale(model, held))
+        r0 = _stack(base_model, data, base.x, ref, layout, np.sqrt((~rejected).astype(float)))[1]
+        for j, w in _target_holds(J0, layout, held, sigma, off0, reach, targets, target_prior, precision, r0).items():
+            targets_why[names[j][len("target "):]] = w
+            held[j] = not w["fitted"]
+        if sigma is None and not held[layout.t].all():
+            # the noise after the rig-only fit: its planes and points and the targets it sees well
+            rig_only = held.copy()
+            rig_only[:p] = True
+            (xr, _, _, _), _ = solve((~rejected).astype(float), noise_rig, np.zeros(layout.n), rig_only)
+            dist_r = _stack(base_model, data, xr, ref, layout)[2]
+            noise_rig = max(_robust_sigma(dist_r[~rejected], plane[~rejected]), floor)
+    rig_held = [f"target {k}" for k, w in targets_why.items() if not w["fitted"]]
     cand = np.flatnonzero(~held[:p])
     nuisance = np.flatnonzero(~held[p:]) + p
     if len(cand) and fixed is None:
+        unregularised = cand[np.isinf(prior_std[cand]) & (ridge[cand] == 0)]
+        for j, share in _near_rig(J0 * natural, unregularised, nuisance).items():
+            held[j] = True
+            why[model.param_names[j]] = (
+                f"nearly a motion of the rig: {share * 100:.2g} % of its effect on the contacts is not one of the "
+                f"planes and points (under {ALIAS * 100:g} %); free, it would drift with the rig (held at nominal; a "
+                f"regularised candidate keeps it, its prior deciding)")
+        cand = np.flatnonzero(~held[:p])
         prefer = _preference(model, _Layout(p, 0, False, False, None), cand)
         dep = dependent_columns(J0 * natural, cand, nuisance, TOL_RANK, prefer)
         held[cand[dep]] = True
         why.update(_held_reasons(model, J0 * natural, cand[dep], nuisance))
-    noise = sigma
+    noise = noise_rig if noise_rig is not None else floor
     x = np.zeros(layout.n) if start is None else np.where(held, 0.0, start.x)
-    rejected = np.zeros(n, bool)
-    if robust and fixed is None and (~held[:p]).any():
-        # a gross outlier can pull a free fit into a degenerate valley (the robot folded so that a plane's contacts
-        # fall on a line, its distances to zero): the rows the rig-only fit judges gross start out of the fit, and the
-        # fit's own residuals judge every row again from there
-        stiff = fit_contacts(model, data, offsets, "rig", None, sigma, True, iterations, analysis=False)
-        rejected = stiff.rejected.copy()
     weights = (~rejected).astype(float)
     still = np.zeros(len(data.constraints), bool)
     still[np.unique(data.constraint[~rejected])] = True
     held[layout.g] |= ~np.repeat(still, 3)
     threshold = None
-    plane = data.kind == PLANE
+    noise_robust = None
     for round_ in range(ROUNDS + 1):
         (x, J, r, conv), free = solve(weights, noise, x, held)
         _, _, dist = _stack(base_model, data, x, ref, layout)
+        s = max(_robust_sigma(dist[~rejected], plane[~rejected]), floor)
+        noise_robust = s
         if not robust or round_ == ROUNDS:
             break
-        s = max(_robust_sigma(dist[~rejected], plane[~rejected]), sigma)
         threshold = np.where(plane, reject_plane * s, reject_point * s)
         new = dist > threshold
         cap = int(MAX_REJECTED * n)
@@ -453,13 +519,29 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
             new = np.zeros(n, bool)
             if cap:
                 new[np.argsort(dist / threshold)[-cap:]] = True
-        if np.array_equal(new, rejected) and (delta is None or abs(s / noise - 1.0) < 0.05):
+        if np.array_equal(new, rejected) and (not np.isfinite(prior_std).any() or abs(s / noise - 1.0) < 0.05):
             break
         rejected, noise = new, s
         weights = (~rejected).astype(float)
         still = np.zeros(len(data.constraints), bool)
         still[np.unique(data.constraint[~rejected])] = True
         held[layout.g] |= ~np.repeat(still, 3)
+    judged_noise = noise_rig
+    if (fixed is None and sigma is None and targets == AUTO and target_prior is None and layout.K
+            and noise_robust < noise_rig):
+        # the targets judged again at the noise the parameters leave (the real noise, not the rig's misfit)
+        again = held.copy()
+        again[layout.t] = False
+        judged_noise = noise_robust
+        verdict = _target_holds(J, layout, again, noise_robust, off0, reach, targets, None, precision)
+        again[list(verdict)] = [not w["fitted"] for w in verdict.values()]
+        targets_why = {names[j][len("target "):]: w for j, w in verdict.items()}
+        rig_held = [f"target {k}" for k, w in targets_why.items() if not w["fitted"]]
+        if not np.array_equal(again, held):
+            held = again
+            x = np.where(held, 0.0, x)
+            (x, J, r, conv), free = solve(weights, noise, x, held)
+            _, _, dist = _stack(base_model, data, x, ref, layout)
     judged = "nominal"
     if fixed is None and len(cand):
         # a dependence that only the solution shows, among the parameters still free (as ``identify`` judges)
@@ -477,16 +559,20 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
     rows_used = _row_count(data, weights)
     sf = scale[free]
     Jf = J[:, free] * sf
-    H = Jf.T @ Jf + np.diag(prior_diag[free] * sf ** 2)
+    pr = precision(noise)
+    H = Jf.T @ Jf + np.diag(pr[free] * sf ** 2)
     Hinv = np.linalg.pinv(H)
     edf = float(np.trace(Hinv @ (Jf.T @ Jf))) if len(free) else 0.0
     dof = rows_used - edf
-    noise = float(np.sqrt(r @ r / dof)) if dof >= 1 else sigma
-    noise = max(noise, 1e-300)
+    final = float(np.sqrt(r @ r / dof)) if dof >= 1 else noise
+    final = max(final, 1e-300)
     cov = np.zeros((layout.n, layout.n))
-    cov[np.ix_(free, free)] = Hinv * np.outer(sf, sf) * noise ** 2
-    out = ContactFit(layout, ref, x, [model.param_names[j] for j in np.flatnonzero(held[:p])], why, rejected, noise,
-                     cov, conv, dist, threshold=threshold, rig_held=rig_held, held_judged_at=judged)
+    cov[np.ix_(free, free)] = Hinv * np.outer(sf, sf) * final ** 2
+    out = ContactFit(layout, ref, x, [model.param_names[j] for j in np.flatnonzero(held[:p])], why, rejected, final,
+                     cov, conv, dist, threshold=threshold, rig_held=rig_held, held_judged_at=judged,
+                     noise_rig=noise_rig, noise_robust=noise_robust, noise_given=sigma is not None,
+                     targets_why=targets_why, effective_unknowns=edf, prior_weight=float(noise),
+                     targets_judged_at=judged_noise)
     if analysis:
         lam, V = np.linalg.eigh(Jf.T @ Jf) if len(free) else (np.zeros(0), np.zeros((0, 0)))
         top = lam.max() if lam.size else 0.0
@@ -511,35 +597,105 @@ class _Fixed:
         return self.model.fk_and_jacobian(q, self.dx, jacobian)
 
 
-UNSEEN = 0.1   # a rig unknown the contacts determine worse than this share of its scale (1 mm, 1 mrad) is held
+def _target_holds(J, layout, held, noise, offsets, reach, mode, target_prior, precision, r=None) -> dict:
+    """{column: {fitted, kind, why, std_m}} of every target coordinate not ``held``, on the Jacobian ``J`` (per m and
+    rad). First, scale-free, the coordinates that the planes and points and the other targets make a copy of
+    (``dependent_columns`` of the columns scaled by 1 mm, ``RIG_COPY``; kind 'copy': a common height is a plane's
+    offset) are held. Then ('auto', no ``target_prior``) a coordinate is fitted only where the fit determines it well
+    (kind 'seen'): its standard deviation at the rows' ``noise`` (m; None: the robust noise of the residuals ``r``
+    (rows, 0 for a row left out) that the planes and points and the targets still free leave, to first order, the
+    rig-only fit), the planes and points and the parameters not ``held`` fitted with it (but those that copy a target
+    or the rig, which ``dependent_columns`` holds instead; ``precision(noise)`` (n,): the prior's weight on each
+    unknown, m^2 per unit^2 of the cost), under
+    ``TARGET_SHARE`` of the target's lever arm (its nominal distance from the tool frame's origin, at least
+    ``LEVER_FLOOR`` of the ``reach``); while one is not, the worst is held (kind 'unseen': fingertips flush on a table
+    do not see their places along it, nor their heights beside a wrist's turn; free, a fit would move them onto one
+    point, where one contact per posture is fitted exactly by the robot's many parameters); and where the rest pass,
+    a target whose freedom makes a parameter's std more than ``INFLATION`` times larger (scale-free: a ratio at one
+    noise) is held, the worst first (kind 'shared': a fingertip's height beside the wrist's turn). Kinds 'asked'
+    (``mode`` 'fit') and 'prior' (``target_prior`` m) fit the others."""
+    tcols = np.flatnonzero(~held[layout.t]) + layout.t.start
+    gcols = np.flatnonzero(~held[layout.g]) + layout.g.start
+    out = {}
+    if not len(tcols):
+        return out
 
-
-def _unseen_rig(J, cols, keep_first, sigma) -> list:
-    """The rig columns to hold, in the order held: while one of ``cols`` has a standard deviation beyond ``UNSEEN``
-    of its scale (the rig alone fitted to rows of noise ``sigma``, m, at nominal: infinite in an exact null
-    direction, large where only the robot's own errors tilt a flush tool), the worst is held, a target's before a
-    plane's or point's (``keep_first`` marks those). Free, such a direction lets a fit drift far: fingertips
-    flush on a table, their places along it free, are moved onto one point, where a single contact per posture
-    is fitted exactly by the robot's many parameters (a zero residual, a degenerate calibration)."""
-    A = J[:, cols] * SCALE_WITHOUT_BUDGET / sigma
-    free = list(range(len(cols)))
-    out = []
-    while free:
-        H = A[:, free].T @ A[:, free]
-        lam, V = np.linalg.eigh(H)
-        top = max(lam[-1], 1e-300)
-        inv = np.where(lam > 1e-12 * top, 1.0 / np.where(lam > 0, lam, 1.0), np.inf)
-        with np.errstate(invalid="ignore"):
-            var = np.where(np.abs(V) > 1e-9, V ** 2, 0.0) @ np.where(np.isinf(inv), 1e300, inv)
-        worst = np.sqrt(var)
-        if worst.max() <= UNSEEN:
+    def entry(fitted, kind, why, std=None):
+        return {"fitted": fitted, "kind": kind, "why": why, "std_m": None if std is None else float(std)}
+    rig = np.r_[tcols, gcols]
+    Js = J * SCALE_WITHOUT_BUDGET
+    dep = dependent_columns(Js[:, rig], np.arange(len(tcols)), np.arange(len(tcols), len(rig)), RIG_COPY)
+    for j in tcols[dep]:
+        out[j] = entry(False, "copy", "held at its nominal place: the contacts cannot tell it from the rig (a place "
+                                      "along the plane a target touches flush; a common height of targets flush on a "
+                                      "plane, which is the plane's offset)")
+    free = list(tcols[~dep])
+    lever = np.maximum(np.linalg.norm(np.asarray(offsets, float), axis=1), LEVER_FLOOR * reach)
+    if target_prior is not None:
+        for j in free:
+            out[j] = entry(True, "prior", f"fitted with a prior of {target_prior * 1e3:.4g} mm on its nominal place")
+    elif mode == FIT:
+        for j in free:
+            out[j] = entry(True, "asked", "fitted as asked, however well the contacts see it")
+    candidates = np.flatnonzero(~held[:layout.p])
+    given = noise
+    while free and target_prior is None and mode != FIT:
+        params = candidates     # but those that copy a target still free, which ``dependent_columns`` holds instead
+        if len(params):
+            params = params[~dependent_columns(Js, params, np.r_[free, gcols], TOL_RANK)]
+        noise = given if given is not None else _rig_noise(J[:, np.r_[free, gcols]], r)
+        A = J / noise                                # rows in units of the noise
+        cols = np.r_[free, gcols, params]
+        lam, V = np.linalg.eigh(A[:, cols].T @ A[:, cols] + np.diag(precision(noise)[cols] / noise ** 2))
+        live = lam > 1e-12 * max(lam[-1], 1e-300)
+        std = np.sqrt(np.maximum((V[:len(free), live] ** 2) @ (1.0 / lam[live]), 0.0))
+        std = np.where(np.any(np.abs(V[:len(free), ~live]) > 1e-9, axis=1), np.inf, std)
+        k = (np.asarray(free) - layout.t.start) // 3
+        share = std / lever[k]
+        worst = int(np.argmax(share))
+        if share[worst] <= TARGET_SHARE and len(params):
+            alone = _param_std(A, np.r_[gcols, params], precision(noise) / noise ** 2, len(params))
+            inflation = np.array([np.max(_param_std(A, np.r_[j, gcols, params], precision(noise) / noise ** 2,
+                                                    len(params)) / alone) for j in free])
+            if inflation.max() > INFLATION:
+                i = int(np.argmax(inflation))
+                j = free.pop(i)
+                out[j] = entry(False, "shared", f"held at its nominal place: fitted, it would share the contacts with "
+                                                f"the parameters (their std up to {inflation[i]:.3g} times larger, over "
+                                                f"{INFLATION:g})", std[i])
+                continue
+        if share[worst] <= TARGET_SHARE:
+            for i, j in enumerate(free):
+                out[j] = entry(True, "seen", f"fitted: std {std[i] * 1e3:.3g} mm at the noise {noise * 1e3:.3g} mm, "
+                                             f"{share[i] * 100:.2g} % of its lever arm {lever[k[i]] * 1e3:.4g} mm (under "
+                                             f"{TARGET_SHARE * 100:g} %)", std[i])
             break
-        order = np.lexsort((-worst, np.asarray(keep_first)[free]))   # targets first, then the largest spread
-        bad = [i for i in order if worst[i] > UNSEEN]
-        k = free[bad[0]]
-        out.append(cols[k])
-        free.remove(k)
-    return out
+        j = free.pop(worst)
+        out[j] = entry(False, "unseen", f"held at its nominal place: std {std[worst] * 1e3:.3g} mm at the noise "
+                                        f"{noise * 1e3:.3g} mm, {share[worst] * 100:.3g} % of its lever arm "
+                                        f"{lever[k[worst]] * 1e3:.4g} mm (over {TARGET_SHARE * 100:g} %): the contacts "
+                                        f"hardly see it", std[worst])
+    return {j: out[j] for j in sorted(out)}
+
+
+def _param_std(A, cols, precision, k) -> np.ndarray:
+    """(k,) standard deviations, in units of the noise, of the last ``k`` of the unknowns ``cols`` fitted together
+    on the columns ``A`` (rows in units of the noise) with the prior's weights ``precision`` (per unit^2 of the
+    unknowns, in units of the noise)."""
+    H = A[:, cols].T @ A[:, cols] + np.diag(precision[cols])
+    return np.sqrt(np.maximum(np.diag(np.linalg.pinv(H))[-k:], 1e-300))
+
+
+def _rig_noise(Jr, r) -> float:
+    """Robust noise per axis (m) of the residuals ``r`` (rows; 0 for a row left out) beyond the span of the rig's
+    columns ``Jr``: the median |e| over 0.6745, corrected for the unknowns; at least ``NOISE_FLOOR``."""
+    used = r != 0
+    Q, R = np.linalg.qr(Jr[used])
+    keep = np.abs(np.diag(R)) > 1e-9 * max(np.abs(R).max(), 1e-300) if R.size else np.zeros(0, bool)
+    Q = Q[:, keep]
+    e = r[used] - Q @ (Q.T @ r[used])
+    m = int(used.sum())
+    return max(float(np.median(np.abs(e)) / 0.6745 * np.sqrt(m / max(m - Q.shape[1], 1))), NOISE_FLOOR)
 
 
 def _robust_sigma(dist, plane) -> float:
@@ -572,6 +728,22 @@ def _hold_scale(model, held) -> dict:
                                    f"({nominal[j]:.4g} m nominal) is held at nominal")}
 
 
+def _near_rig(Js, cols, nuisance) -> dict:
+    """{column: share} of the ``cols`` of the scaled Jacobian ``Js`` whose effect on the contacts is nearly a motion
+    of the rig: the share of the column's norm beyond the span of the ``nuisance`` columns (the planes, points and
+    targets fitted) under ``ALIAS`` (scale-free: the sine of the angle between the column and the rig's span; an
+    ankle's pitch beside a table's tilt), exact motions (share 0) left to ``dependent_columns``."""
+    if not len(cols) or not len(nuisance):
+        return {}
+    Q, R = np.linalg.qr(Js[:, nuisance])
+    Q = Q[:, np.abs(np.diag(R)) > 1e-12 * max(np.abs(R).max(), 1e-300)]
+    A = Js[:, cols]
+    size = np.linalg.norm(A, axis=0)
+    beyond = np.linalg.norm(A - Q @ (Q.T @ A), axis=0)
+    share = np.where(size > 0, beyond / np.where(size > 0, size, 1.0), 0.0)
+    return {int(j): float(f) for j, f, z in zip(cols, share, size) if z > 0 and 1e-6 < f < ALIAS}
+
+
 def _held_reasons(model, Js, held, nuisance) -> dict:
     """{parameter: why it is held}: a rigid motion of the rig (its column within the rig's span) or a
     combination of other parameters (and the rig)."""
@@ -594,11 +766,39 @@ def _held_reasons(model, Js, held, nuisance) -> dict:
     return out
 
 
-def candidates(prior=PRIOR) -> list:
-    """[(label, parameters, prior)] that ``calibrate_contacts`` cross-validates."""
-    out = [("rig", "rig", None), ("joint-offsets", "joint-offsets", None), ("full", "full", None)]
+@dataclass(frozen=True)
+class Candidate:
+    """What a contact fit identifies: the parameters ``which`` (``MODELS``), regularised by a Gaussian ``prior``
+    (length m, angle rad) on the origin errors weighed against the rows' noise (none on the joint offsets), or by a
+    ``tikhonov`` weight lambda on every parameter estimated (cost ``|r|^2 + lambda |dx|^2``, m and rad), or
+    neither."""
+
+    which: str
+    prior: tuple | None = None
+    tikhonov: float | None = None
+
+    @property
+    def label(self) -> str:
+        if self.prior is not None:
+            return f"{self.which}, prior {self.prior[0] * 1e3:g} mm / {self.prior[1] * 1e3:g} mrad"
+        if self.tikhonov is not None:
+            return f"{self.which}, Tikhonov {self.tikhonov:g}"
+        return self.which
+
+    def to_dict(self) -> dict:
+        return {"label": self.label, "parameters": self.which,
+                "prior": None if self.prior is None else list(self.prior), "tikhonov": self.tikhonov}
+
+
+def candidates(prior=PRIOR, tikhonov=TIKHONOV) -> list:
+    """The ``Candidate`` list ``calibrate_contacts`` cross-validates: the rig alone, the joint offsets (alone and
+    with each ``tikhonov`` weight), every parameter (alone, with the ``prior`` (m, rad) if any, with each weight)."""
+    out = [Candidate("rig"), Candidate("joint-offsets")]
+    out += [Candidate("joint-offsets", tikhonov=w) for w in tikhonov]
+    out.append(Candidate("full"))
     if prior is not None:
-        out.append((f"full, prior {prior[0] * 1e3:g} mm / {prior[1] * 1e3:g} mrad", "full", tuple(prior)))
+        out.append(Candidate("full", prior=tuple(prior)))
+    out += [Candidate("full", tikhonov=w) for w in tikhonov]
     return out
 
 
@@ -630,28 +830,62 @@ def _score_rows(model, data, fitted: ContactFit, rows, sigma) -> np.ndarray:
     return out
 
 
-def cross_validate(model, data, which, prior, sigma, folds=10, seed=0, robust=True, offsets=None) -> dict:
+def cross_validate(model, data, candidate: Candidate, sigma=None, folds=10, seed=0, robust=True, offsets=None,
+                   targets=AUTO, target_prior=None) -> dict:
     """K-fold by test pose: each fold's rows predicted by the fit of the others (``_score_rows``); every row
-    scored. {'after': {contact_rms_m, contact_max_m}, 'distances_m', 'rows_scored', 'not_converged'}."""
+    scored. {'after': {contact_rms_m, contact_max_m}, 'distances_m', 'rows_scored', 'folds', 'fold_rms_m' (each
+    fold's RMS, nan where none of its rows was scored), 'standard_error_m' (the folds' standard deviation over
+    sqrt(k)), 'effective_unknowns' (the folds' mean), 'not_converged'}, distances in m."""
     groups, _ = pose_groups(data.q, data.labels)
     fold, k = folds_of(groups, folds, seed)
     dist = np.full(len(data), np.nan)
-    bad = []
+    bad, edf = [], []
     for f in range(k):
         test = np.flatnonzero(fold == f)
         train = data.subset(fold != f)
         try:
-            fitted = fit_contacts(model, train, offsets, which, prior, sigma, robust, analysis=False)
+            fitted = fit_contacts(model, train, offsets, candidate.which, candidate.prior, sigma, robust,
+                                  analysis=False, targets=targets, target_prior=target_prior,
+                                  tikhonov=candidate.tikhonov)
         except (ValueError, np.linalg.LinAlgError):
             continue
         if not fitted.convergence.converged:
             bad.append(f)
+        edf.append(fitted.effective_unknowns)
         dist[test] = _score_rows(model, data, fitted, test, sigma)
     scored = np.isfinite(dist)
     d = dist[scored]
+    per_fold = np.array([np.sqrt(np.mean(dist[(fold == f) & scored] ** 2)) if np.any((fold == f) & scored)
+                         else np.nan for f in range(k)])
+    ok = np.isfinite(per_fold)
+    se = float(np.std(per_fold[ok], ddof=1) / np.sqrt(ok.sum())) if ok.sum() > 1 else float("nan")
     return {"after": {"contact_rms_m": float(np.sqrt(np.mean(d ** 2))) if d.size else float("nan"),
                       "contact_max_m": float(d.max()) if d.size else float("nan")},
-            "distances_m": dist, "rows_scored": int(scored.sum()), "folds": k, "not_converged": bad}
+            "distances_m": dist, "rows_scored": int(scored.sum()), "folds": k, "fold_rms_m": per_fold.tolist(),
+            "standard_error_m": se, "effective_unknowns": float(np.mean(edf)) if edf else float("nan"),
+            "not_converged": bad}
+
+
+def one_standard_error(scores) -> tuple:
+    """(chosen score, reason) by the one-standard-error rule over the folds, among ``scores`` (dicts with
+    ``cv_contact_rms_m``, ``standard_error_m``, ``estimated`` (how many parameters the candidate estimates) and
+    ``not_converged_folds``): the best is the lowest held-out RMS among the candidates whose every fold converged
+    (among all when none did); within one standard error of it (its folds' scatter over sqrt(k)) the candidate
+    estimating the fewest parameters wins, and of equally many the lower held-out RMS (a regulariser is tuned by
+    the folds, the parameter set by parsimony)."""
+    valid = [s for s in scores if np.isfinite(s.get("cv_contact_rms_m", np.nan))]
+    pool = [s for s in valid if not s["not_converged_folds"]] or valid
+    best = min(pool, key=lambda s: s["cv_contact_rms_m"])
+    se = best["standard_error_m"] if np.isfinite(best["standard_error_m"]) else 0.0
+    limit = best["cv_contact_rms_m"] + se
+    chosen = min((s for s in pool if s["cv_contact_rms_m"] <= limit),
+                 key=lambda s: (s["estimated"], s["cv_contact_rms_m"]))
+    why = (f"the one-standard-error rule over the folds: the lowest held-out RMS {best['cv_contact_rms_m'] * 1e3:.4g} mm "
+           f"({best['label']}) plus its standard error {se * 1e3:.3g} mm gives {limit * 1e3:.4g} mm; within it, the "
+           f"fewest parameters estimated, then the lower held-out RMS")
+    if len(pool) < len(valid):
+        why += "; candidates with a fold that did not converge are not chosen"
+    return chosen, why
 
 
 @dataclass
@@ -668,41 +902,54 @@ class ContactCalibration:
     validation: dict
     rejected: list
     warnings: list
+    how: str = ""
+    tikhonov: float | None = None
 
 
-def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters="auto", prior=PRIOR, sigma=1e-5,
-                       folds=10, seed=0, robust=True, progress=None) -> ContactCalibration:
-    """Choose what to identify by the held-out contact RMS (``cross_validate``; the simplest within ``PARSIMONY``
-    of the lowest), fit it on every row, and validate: ``before`` is the nominal model with its rig fitted on
-    every row (its best case), ``after`` the calibrated one predicting each fold's poses from the others."""
+def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters="auto", prior=PRIOR, sigma=None,
+                       folds=10, seed=0, robust=True, progress=None, targets=AUTO,
+                       target_prior=None) -> ContactCalibration:
+    """Choose what to identify by the held-out contact RMS (``cross_validate``; ``one_standard_error``), fit it on
+    every row, and validate: ``before`` is the nominal model with its rig fitted on every row (its best case),
+    ``after`` the calibrated one predicting each fold's poses from the others. ``sigma`` (m): the contact noise,
+    None to estimate it from the rows; ``targets``, ``target_prior``: see ``fit_contacts``."""
     groups, names = pose_groups(data.q, data.labels)
     if len(names) < 2:
         raise ValueError("validation: needs at least 2 distinct test poses (touch from more poses)")
     todo = candidates(prior) if parameters == "auto" else [
-        (parameters if not (parameters == "full" and prior) else candidates(prior)[-1][0], parameters,
-         prior if parameters == "full" else None)]
+        Candidate(parameters, tuple(prior) if parameters == "full" and prior else None)]
     scores, cvs = [], {}
-    for step, (label, which, pr) in enumerate(todo):
+    kw = {"targets": targets, "target_prior": target_prior}
+    for step, cand in enumerate(todo):
         if progress is not None:
             progress(step, len(todo) + 1)
         try:
-            cv = cross_validate(model, data, which, pr, sigma, folds, seed, robust, offsets)
+            cv = cross_validate(model, data, cand, sigma, folds, seed, robust, offsets, **kw)
         except (ValueError, np.linalg.LinAlgError) as exc:
-            scores.append({"label": label, "parameters": which, "error": str(exc)})
+            scores.append({**cand.to_dict(), "error": str(exc)})
             continue
-        cvs[label] = cv
-        scores.append({"label": label, "parameters": which, "prior": None if pr is None else list(pr),
+        cvs[cand.label] = cv
+        fold_rms = np.asarray(cv["fold_rms_m"], float)
+        scores.append({**cand.to_dict(), "estimated": int(_estimate_mask(model, cand.which).sum()),
                        "cv_contact_rms_m": cv["after"]["contact_rms_m"], "cv_contact_max_m": cv["after"]["contact_max_m"],
-                       "rows_scored": cv["rows_scored"], "not_converged_folds": cv["not_converged"]})
+                       "fold_rms_m": cv["fold_rms_m"], "standard_error_m": cv["standard_error_m"],
+                       "fold_scatter_m": float(np.nanstd(fold_rms, ddof=1)) if np.isfinite(fold_rms).sum() > 1 else None,
+                       "effective_unknowns": cv["effective_unknowns"], "rows_scored": cv["rows_scored"],
+                       "not_converged_folds": cv["not_converged"]})
     valid = [s for s in scores if np.isfinite(s.get("cv_contact_rms_m", np.nan))]
     if not valid:
         raise ValueError("calibration: no candidate could be fitted: " + "; ".join(s.get("error", "no row scored")
                                                                                for s in scores))
-    lowest = min(s["cv_contact_rms_m"] for s in valid)
-    best = next(s for s in valid if s["cv_contact_rms_m"] <= lowest * (1 + PARSIMONY))
-    pr = None if best.get("prior") is None else tuple(best["prior"])
-    final = fit_contacts(model, data, offsets, best["parameters"], pr, sigma, robust)
-    nominal = fit_contacts(model, data, offsets, "rig", None, sigma, robust)
+    if parameters == "auto":
+        best, how = one_standard_error(valid)
+    else:
+        best, how = valid[0], "given (--parameters)"
+    for s in scores:
+        s["chosen"] = s is best
+    cand = Candidate(best["parameters"], None if best.get("prior") is None else tuple(best["prior"]),
+                     best.get("tikhonov"))
+    final = fit_contacts(model, data, offsets, cand.which, cand.prior, sigma, robust, tikhonov=cand.tikhonov, **kw)
+    nominal = fit_contacts(model, data, offsets, "rig", None, sigma, robust, **kw)
     if progress is not None:
         progress(len(todo) + 1, len(todo) + 1)
     cv = cvs[best["label"]]
@@ -712,7 +959,8 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
                   "before": {"contact_rms_m": before, "contact_max_m": float(nominal.distances.max())},
                   "after": dict(cv["after"]), "rows_scored": cv["rows_scored"], "rows": len(data),
                   "improvement": float(1.0 - after / before) if before > 0 else 0.0,
-                  "distances_m": cv["distances_m"].tolist()}
+                  "distances_m": cv["distances_m"].tolist(), "fold_rms_m": cv["fold_rms_m"],
+                  "standard_error_m": cv["standard_error_m"]}
     rejected = [{"row": int(i), "where": data.where[i] if data.where is not None else f"row {int(i)}",
                  "contact": data.constraint_name(data.constraint[i]), "target": data.target_names[data.target[i]],
                  "distance_m": float(final.distances[i]), "threshold_m": float(final.threshold[i]),
@@ -727,17 +975,14 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
     if cv["rows_scored"] < len(data):
         warnings.append(f"{len(data) - cv['rows_scored']} row(s) could not be scored held out (their plane or point "
                         f"touched from too few poses outside their fold)")
-    if final.rig_held:
-        warnings.append("held where given (contact cannot see them): " + ", ".join(final.rig_held)
-                        + "; a target's place along the plane it touches flush, or its height beside the plane's offset")
     if final.undetermined_rig:
         warnings.append("the contacts do not determine " + ", ".join(final.undetermined_rig)
                         + " (left at their nominal or first estimate)")
-    return ContactCalibration(final, nominal, best["label"], best["parameters"], pr, scores, validation, rejected,
-                              warnings)
+    return ContactCalibration(final, nominal, best["label"], cand.which, cand.prior, scores, validation, rejected,
+                              warnings, how, cand.tikhonov)
 
 
-def validate_contacts(model: Mechanism, data: ContactData, dx, offsets, nominal_offsets, sigma=1e-5,
+def validate_contacts(model: Mechanism, data: ContactData, dx, offsets, nominal_offsets, sigma=None,
                       robust=True) -> dict:
     """Score a calibration (``dx`` (p,), targets at ``offsets`` (K, 3)) on other rows (another session): only
     their planes and points are fitted, for the calibrated model (``after``) and the nominal one with the nominal

@@ -6,15 +6,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..accuracy.checks import CheckError
+from ..accuracy.checks import LIMIT_MARGIN, CheckError
 from ..targets import Targets
 from ..models.base import Mechanism
-from .contact import (PLANE, PLAUSIBLE_ANGLE, PLAUSIBLE_LENGTH, ContactData, calibrate_contacts, initial_rig,
+from .contact import (AUTO, PLANE, PLAUSIBLE_ANGLE, PLAUSIBLE_LENGTH, ContactData, calibrate_contacts, initial_rig,
                       not_converged_words, target_points, validate_contacts)
 from .result import Calibration, nominal_fingerprint
 
 UNIT_SLIP_SHARE = 0.5      # beyond this share of rows outside the joint limits, the unit is wrong, not the rows
 PLAUSIBLE_SPREAD = 50.0    # a plane's contacts farther from it than this many times the fit's noise: not this robot
+RADIANS_AS_DEGREES = np.radians(np.pi) * (1 + 1e-9)   # rad: the largest radian number read as degrees
+RENAMED = 2.0              # contacts of another id this close to a plane (times its own contacts' RMS): the same plane
 
 
 def contact_data(model: Mechanism, contacts, offsets: dict) -> tuple:
@@ -23,19 +25,24 @@ def contact_data(model: Mechanism, contacts, offsets: dict) -> tuple:
     are (the angle unit), when a target has no nominal offset in ``offsets`` {name: (3,) m}, or when a plane or
     point is touched too few times to be fitted."""
     q = model.check_joints(contacts.joints)
-    out = model.out_of_limits(q).any(axis=1)
+    beyond = _beyond_limits(model, q)
+    out = beyond.any(axis=1)
     src = contacts.source
     if out.mean() > UNIT_SLIP_SHARE:
         revolute = [j for j in range(model.dof) if model.joint_types[j] != "prismatic"]
         qq = q.copy()
         qq[:, revolute] *= np.pi / 180.0
         hint = (" (the joint values look like degrees labelled radians: read in degrees they are within)"
-                if revolute and not model.out_of_limits(qq).any(axis=1).mean() > UNIT_SLIP_SHARE else
+                if revolute and not _beyond_limits(model, qq).any(axis=1).mean() > UNIT_SLIP_SHARE else
                 " (another robot, or joints in another unit?)")
         raise CheckError(f"{src}: {int(out.sum())} of {len(q)} rows have a joint outside the limits of robot "
                          f"{model.name!r}{hint}")
-    warnings = [f"left out before the fit: {contacts.where(i)}: a joint outside the limits of {model.name!r}"
-                for i in np.flatnonzero(out)]
+    warnings = []
+    for i in np.flatnonzero(out):
+        j = int(np.argmax(beyond[i]))
+        warnings.append(f"left out before the fit: {contacts.where(i)}: joint {model.joint_names[j]} = {q[i, j]:.6g} "
+                        f"lies beyond its limits [{model.joint_limits[j, 0]:.6g}, {model.joint_limits[j, 1]:.6g}] of "
+                        f"{model.name!r}")
     if contacts.ignored:
         warnings.append(f"joint column(s) of joints outside the chain, ignored: {', '.join(contacts.ignored)}")
     keep = ~out
@@ -60,14 +67,64 @@ def contact_data(model: Mechanism, contacts, offsets: dict) -> tuple:
             raise CheckError(f"{src}: plane:{i} (session {s}) has {count} contact(s); a plane needs 3 or more, spread "
                              f"over it")
     nominal = np.array([offsets[t] for t in names], float).reshape(-1, 3)
+    renamed = renamed_constraint(model, data, nominal)
+    if renamed:
+        raise CheckError(f"{src}: {renamed}")
     return data, nominal, warnings
 
 
-def refuse_implausible(model: Mechanism, data: ContactData, offsets, sigma):
-    """CheckError when the contacts cannot be this robot's: the nominal robot (its rig fitted) puts them farther
-    off their planes and points than ``PLAUSIBLE_LENGTH`` of its reach, or ten times farther than it does with
-    the revolute joints read in the other angle unit (degrees labelled radians, or the reverse), as a share of
-    how far the contacts spread."""
+def renamed_constraint(model: Mechanism, data: ContactData, offsets) -> str | None:
+    """Why two ids of one session name one plane or point (None when none do): the contacts of one id fall between
+    those of another in the file (the id changed mid-session) and lie on the other's plane (or at its point), with
+    the nominal robot, as closely as the other's own contacts do (``RENAMED`` times their RMS). Contact sees one
+    surface per plane: coplanar surfaces are one plane, and a plane fitted to a few renamed contacts only absorbs
+    them."""
+    try:
+        rig = initial_rig(model, data, offsets)
+    except ValueError:
+        return None
+    P = target_points(model, data.q, data.target, offsets)
+    rows = np.arange(len(data))
+    for c1, (s1, k1, i1) in enumerate(data.constraints):
+        in1 = rows[data.constraint == c1]
+        if len(in1) < 2:
+            continue
+        if k1 == PLANE:
+            def off(sel):
+                return P[sel] @ rig.normals[c1] - rig.d[c1]
+        else:
+            def off(sel):
+                return np.linalg.norm(P[sel] - rig.points[c1], axis=1)
+        own = float(np.sqrt(np.mean(off(in1) ** 2)))
+        for c2, (s2, k2, i2) in enumerate(data.constraints):
+            in2 = rows[data.constraint == c2]
+            if c2 == c1 or s2 != s1 or k2 != k1 or not len(in2) or len(in2) > len(in1):
+                continue
+            if not (in1.min() < in2.min() and in2.max() < in1.max()):
+                continue
+            there = float(np.sqrt(np.mean(off(in2) ** 2)))
+            if there <= RENAMED * max(own, 1e-9):
+                lines = [data.where[i] for i in in2] if data.where is not None else [f"row {i}" for i in in2]
+                return (f"{k2}:{i2} ({len(in2)} contact(s): {', '.join(lines[:5])}{', ...' if len(lines) > 5 else ''}) "
+                        f"falls between the contacts of {k1}:{i1} of session {s1!r} and lies on it ({there * 1e3:.4g} mm "
+                        f"RMS off it, its own contacts {own * 1e3:.4g} mm): one {k1} under two ids, the id changed "
+                        f"mid-session? give them one id (contact sees coplanar surfaces as one plane)")
+    return None
+
+
+def _beyond_limits(model: Mechanism, q) -> np.ndarray:
+    """(n, dof) joints beyond their limits by more than ``checks.LIMIT_MARGIN`` (a joint read at its stop, a few
+    encoder counts past the URDF's limit, is a reading of this robot, as ``checks.screen`` judges it)."""
+    wrapped = model.within_turn(np.atleast_2d(q))
+    return (wrapped < model.joint_limits[:, 0] - LIMIT_MARGIN) | (wrapped > model.joint_limits[:, 1] + LIMIT_MARGIN)
+
+
+def refuse_implausible(model: Mechanism, data: ContactData, offsets):
+    """CheckError when the contacts cannot be this robot's: every revolute joint reads within +-pi degrees (the
+    numbers of radians read as degrees: ``RADIANS_AS_DEGREES``) and the same numbers read as radians move the robot
+    within its limits; the nominal robot (its rig fitted) puts them farther off their planes and points than
+    ``PLAUSIBLE_LENGTH`` of its reach, or ten times farther than it does with the revolute joints read in the other
+    angle unit (degrees labelled radians, or the reverse), as a share of how far the contacts spread."""
     def misfit(q):
         d = data if q is data.q else ContactData(q, data.target, data.constraint, data.constraints, data.target_names)
         try:
@@ -93,6 +150,14 @@ def refuse_implausible(model: Mechanism, data: ContactData, offsets, sigma):
         raise CheckError(f"{exc}") from None
     rms = misfit(data.q)
     revolute = [j for j in range(model.dof) if model.joint_types[j] != "prismatic"]
+    if revolute and len(data) > 1:
+        top = float(np.abs(data.q[:, revolute]).max())
+        q = data.q.copy()
+        q[:, revolute] *= 180.0 / np.pi
+        if top <= RADIANS_AS_DEGREES and not _beyond_limits(model, q).any() and np.ptp(q[:, revolute]) > 10 * top:
+            raise CheckError(f"units: every revolute joint reads within +-{np.degrees(top):.4g} degrees, as if its "
+                             f"numbers, all within +-pi, were radians labelled degrees (read as radians they span "
+                             f"{np.ptp(q[:, revolute]):.3g} rad within the limits): check the unit of the joint columns")
     for factor, said in ((180.0 / np.pi, "radians labelled degrees"), (np.pi / 180.0, "degrees labelled radians")):
         q = data.q.copy()
         q[:, revolute] *= factor
@@ -105,6 +170,14 @@ def refuse_implausible(model: Mechanism, data: ContactData, offsets, sigma):
         raise CheckError(f"the nominal robot puts the contacts {rms * 1e3:.4g} mm RMS off their planes and points, more "
                          f"than {PLAUSIBLE_LENGTH * 100:g} % of its reach ({model.reach():.3g} m): not this robot's "
                          f"contacts, or joints in another unit")
+
+
+def _refuse(model, data, offsets, source):
+    """``refuse_implausible``, its CheckError naming the file."""
+    try:
+        refuse_implausible(model, data, offsets)
+    except CheckError as exc:
+        raise CheckError(f"{source}: {exc}") from None
 
 
 def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=None) -> Calibration:
@@ -125,8 +198,10 @@ def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=Non
     cal.nominal = nominal_fingerprint(model)
     cal.sources.setdefault("joint_names", list(model.joint_names))
     cal.model = {"parameters": cc.which, "prior": None if cc.prior is None else list(cc.prior), "label": cc.label,
-                 "how": "chosen by the lowest cross-validated contact RMS", "candidates": cc.scores,
-                 "held_why": dict(f.held_why), "rig": rig.to_dict(),
+                 "tikhonov": cc.tikhonov, "how": cc.how, "candidates": cc.scores,
+                 "held_why": dict(f.held_why), "rig": rig.to_dict(), "targets_why": dict(f.targets_why),
+                 "noise": {"rig_only_m": f.noise_rig, "after_parameters_m": f.noise_robust, "residual_m": f.noise,
+                           "given": f.noise_given, "prior_weighed_at_m": f.prior_weight},
                  "nominal_targets": {n: list(map(float, o)) for n, o in zip(data.target_names, nominal)},
                  "nominal_fit_targets": {n: list(map(float, o)) for n, o in zip(data.target_names,
                                                                                 cc.nominal.rig.offsets)},
@@ -172,15 +247,16 @@ def contact_fit(cal: Calibration) -> dict:
     return out
 
 
-def calibrate_campaign(model: Mechanism, contacts, offsets: dict, parameters="auto", prior=None, sigma=1e-5,
-                       folds=10, seed=0, robust=True, progress=None) -> Calibration:
+def calibrate_campaign(model: Mechanism, contacts, offsets: dict, parameters="auto", prior=None, sigma=None,
+                       folds=10, seed=0, robust=True, progress=None, targets=AUTO, target_prior=None) -> Calibration:
     """``calibration_of`` the contact campaign ``contacts`` after the checks of ``contact_data`` and
-    ``refuse_implausible`` (CheckError: bad input)."""
+    ``refuse_implausible`` (CheckError: bad input). ``sigma``: the contact noise (m), None to estimate it from the
+    rows; ``targets``, ``target_prior``: see ``contact.fit_contacts``."""
     from .contact import PRIOR
     data, nominal, warnings = contact_data(model, contacts, offsets)
-    refuse_implausible(model, data, nominal, sigma)
+    _refuse(model, data, nominal, contacts.source)
     cc = calibrate_contacts(model, data, nominal, parameters, PRIOR if prior is None else prior, sigma, folds, seed,
-                            robust, progress)
+                            robust, progress, targets, target_prior)
     cal = calibration_of(model, data, nominal, cc, {"measurements": contacts.source})
     cal.warnings = warnings + cal.warnings
     return cal
@@ -197,7 +273,8 @@ def validate_campaign(cal: Calibration, model: Mechanism, contacts, robust=True)
     data, nominal, warnings = contact_data(model, contacts, offsets)
     fitted = np.array([offsets[t] for t in data.target_names])
     nominal = np.array([nominal_doc.get(t, offsets[t]) for t in data.target_names], float)
-    res = validate_contacts(model, data, cal.dx, fitted, nominal, sigma=max(cal.sigma or 1e-5, 1e-9), robust=robust)
+    _refuse(model, data, nominal, contacts.source)
+    res = validate_contacts(model, data, cal.dx, fitted, nominal, robust=robust)
     res["measurements"] = len(data)
     res["warnings"] = warnings
     return res

@@ -59,13 +59,30 @@ def _xml_kind(path: Path) -> str | None:
     xacro file (URDF macros), which must be expanded into a URDF first."""
     with open(path, "rb") as f:
         text = f.read(1 << 24).decode("utf-8", errors="replace").lstrip("\ufeff \t\r\n")
-    xacro = path.name.endswith(".xacro") or (text.startswith("<") and "<xacro:" in text)  # a macro used
-    if xacro:
+    if path.name.endswith(".xacro") or (text.startswith("<") and "<xacro:" in text and _xacro_shapes(text)):
         urdf = path.name.removesuffix(".xacro")
         urdf = urdf if urdf.endswith(".urdf") else f"{Path(urdf).stem}.urdf"
         raise ModelError(f"{path}: a xacro file (URDF macros), not a URDF: expand it first, e.g. `xacro {path} > "
                          f"{urdf}` (xacro comes with ROS 2, or `pip install xacro`), and give the .urdf")
     return "urdf" if text.startswith("<") else None
+
+
+def _xacro_shapes(text: str) -> bool:
+    """Whether xacro shapes the kinematics of this XML (a macro defined or a file included, a ``${...}`` in a link or
+    joint, or no joint at all): such a file must be expanded. A URDF whose links and joints are written out is read
+    as it is, whatever xacro leftovers it carries elsewhere (example-robot-data's TALOS keeps macro calls in its
+    transmissions)."""
+    import xml.etree.ElementTree as ET
+    if "<xacro:macro" in text or "<xacro:include" in text:
+        return True
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError:
+        return True
+    joints = root.findall("joint")
+    if not joints:
+        return True
+    return any("${" in v for el in joints + root.findall("link") for sub in el.iter() for v in sub.attrib.values())
 
 
 def _kinds():
