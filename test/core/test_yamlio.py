@@ -127,3 +127,13 @@ def test_a_large_campaign_loads_fast():
     pure = time.perf_counter() - t0
     assert ours < 5 * pure, f"{ours:.2f} s for the whole text, the pure-Python loader {pure:.2f} s for a twentieth"
     assert len(doc["poses"]) == 20_000 and doc["poses"][-1]["joints"][-1] == 19_999 % 90
+
+
+@pytest.mark.parametrize("text", ["2e89134567890123", "1e5", "0123", "1_000", "12:30", "yes", "null", "0x1f", "-.5",
+                                  "+7", "abc", "0a1b2c3d4e5f6071"])
+def test_every_string_written_reads_back_as_written(text):
+    """dump_yaml quotes what loads_yaml would read as a number or a word: a signing key's id of hex digits such as
+    2e89134567890123 had been written plain by PyYAML and read back as a float (inf), failing its calibration."""
+    from tolerance_ros.core.yamlio import dump_yaml, loads_yaml
+    doc = {"key_id": text, "nested": [{"name": text}]}
+    assert loads_yaml(dump_yaml(doc, default_flow_style=None)) == doc

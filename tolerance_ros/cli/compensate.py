@@ -134,8 +134,8 @@ def run(args):
                       f"{'; '.join(kept)} (--accept-flagged to write the corrections)", file=sys.stderr)
         out_path = Path(args.out)
         out_path.parent.mkdir(parents=True, exist_ok=True)
-        import yaml
-        out_path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
+        from ..core.yamlio import dump_yaml
+        out_path.write_text(dump_yaml(doc, sort_keys=False, default_flow_style=None, width=120))
     if args.json:
         return {"robot": model.name, "calibration": str(args.calibration), "match": args.match,
                 "joint_names": list(model.joint_names), "poses": results,

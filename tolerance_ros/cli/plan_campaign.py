@@ -175,10 +175,10 @@ def tp_angle(tp) -> float:
 
 def write_yaml(path, desc, doc):
     """A campaign or trajectory file: ``desc`` as its first comment line, then ``doc`` as YAML."""
-    import yaml
+    from ..core.yamlio import dump_yaml
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(f"# {desc}\n" + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120))
+    out.write_text(f"# {desc}\n" + dump_yaml(doc, sort_keys=False, default_flow_style=None, width=120))
 
 
 def run_contacts(args, model):

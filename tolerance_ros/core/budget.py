@@ -22,12 +22,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .errors import LIMIT_CRITERIA
 from .resources import resolve
 from .units import UnitError, angle_scale, length_scale, parse_number
-from .yamlio import read_json, read_yaml
+from .yamlio import dump_yaml, read_json, read_yaml
 
 _KEYS = {"robot", "units", "limit", "criterion", "tolerances", "free", "default", "source", "meta"}
 
@@ -112,7 +111,7 @@ class Budget:
         data = self.to_dict(units, kinds)
         path.parent.mkdir(parents=True, exist_ok=True)
         if path.suffix in (".yaml", ".yml"):
-            path.write_text(yaml.safe_dump(data, sort_keys=False))
+            path.write_text(dump_yaml(data, sort_keys=False))
         else:
             path.write_text(json.dumps(data, indent=2) + "\n")
         return path

@@ -186,6 +186,30 @@ def _scalar(value, ev, source, error):
     return value
 
 
+def _plain_misread(text: str) -> bool:
+    """Whether ``text``, written as a plain scalar, would be read back by ``loads_yaml`` as something else (a
+    number, a word such as ``yes`` or ``null``) or refused: ``1e5`` or a hexadecimal id such as ``2e89134567890123``
+    is a number to YAML 1.2's readers and ours, though PyYAML writes it plain."""
+    if text in _WORDS:
+        return True
+    return bool(text) and text[0] in "0123456789+-." and bool(
+        _INT.fullmatch(text) or _FLOAT.fullmatch(text) or _YAML11_NUMBER.fullmatch(text))
+
+
+class Dumper(yaml.SafeDumper):
+    """PyYAML's safe dumper, quoting every string ``loads_yaml`` would not read back as that string."""
+
+
+Dumper.add_representer(str, lambda dumper, data: dumper.represent_scalar(
+    "tag:yaml.org,2002:str", data, style="'" if _plain_misread(data) else None))
+
+
+def dump_yaml(doc, **options) -> str:
+    """``doc`` as YAML text (``yaml.dump`` options: ``sort_keys``, ``default_flow_style``, ``width``...) that
+    ``loads_yaml`` reads back as written."""
+    return yaml.dump(doc, Dumper=options.pop("Dumper", Dumper), **options)
+
+
 def _shown(character) -> str:
     return f"#x{character:04x}" if isinstance(character, int) else repr(character)
 

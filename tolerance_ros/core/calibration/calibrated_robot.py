@@ -11,7 +11,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ..identification import base_matrix
 from ..geometry import rpy_from_matrix
@@ -19,7 +18,7 @@ from ..models.base import Mechanism
 from ..models.dh import DHChain
 from ..models.urdf import URDFChain
 from ..units import angle_scale, length_scale
-from ..yamlio import read_yaml
+from ..yamlio import dump_yaml, read_yaml
 from .calibration_file import CalibrationError, plain_floats
 from .mechanism import calibrated_mechanism, corrected_origins
 from .result import Calibration
@@ -57,7 +56,7 @@ def write_calibrated_robot(model: Mechanism, cal: Calibration, out_dir) -> dict:
             {"name": model.name, "kind": "urdf"}
         data.update(urdf=urdf.name, tip_link=model.tip_link, base_link=model.base_link)
         path = out_dir / f"{model.name}_calibrated.yaml"
-        path.write_text(_header(model) + yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
+        path.write_text(_header(model) + dump_yaml(data, sort_keys=False, default_flow_style=None))
         files["robot"] = str(path)
         return files
     raise CalibrationError(f"calibration: robot {model.name!r} is a {type(model).__name__}; calibrated files are "
@@ -94,7 +93,7 @@ def calibrated_dh_yaml(model: DHChain, dx, base) -> str:
     if not np.array_equal(cal.base, model.base) or not cfg:
         data["base"] = {"xyz": plain_floats(cal.base[:3, 3] / ls),
                         "rpy": plain_floats(rpy_from_matrix(cal.base[None, :3, :3])[0] / as_)}
-    return _header(model) + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120)
+    return _header(model) + dump_yaml(data, sort_keys=False, default_flow_style=None, width=120)
 
 
 _COMMENT = re.compile(r"<!--.*?-->", re.S)

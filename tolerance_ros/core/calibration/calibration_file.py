@@ -66,7 +66,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ..identification import BASE_NAMES
 from ..geometry import rpy_from_matrix
@@ -75,7 +74,7 @@ from ..models.loader import frame_from_dict, load_robot
 from ..resources import ConfigNotFound, not_a_file
 from ..units import UnitError, angle_scale, length_scale, parse_number
 from ..targets import Targets
-from ..yamlio import loads_yaml, read_yaml
+from ..yamlio import Dumper, dump_yaml, loads_yaml, read_yaml
 from .elastic import Load
 from .provenance import ProvenanceError, check_blocks, signature, stamped, verified_provenance
 from .result import NOMINAL_TOLERANCE, Calibration
@@ -131,7 +130,7 @@ class _BlockMapping(dict):
     """A mapping written one key a line."""
 
 
-class _Dumper(yaml.SafeDumper):
+class _Dumper(Dumper):
     pass
 
 
@@ -142,7 +141,7 @@ _Dumper.add_representer(_BlockMapping, lambda dumper, data: dumper.represent_map
 def _dump(doc) -> str:
     """The document as YAML: short mappings of numbers inline, the provenance and signature one key a line."""
     doc = {k: _BlockMapping(v) if k in _BLOCK and isinstance(v, dict) else v for k, v in doc.items()}
-    return yaml.dump(doc, Dumper=_Dumper, sort_keys=False, default_flow_style=None, width=110)
+    return dump_yaml(doc, Dumper=_Dumper, sort_keys=False, default_flow_style=None, width=110)
 
 
 def calibration_from_text(text, model: Mechanism, source="tolerance_calibration") -> Calibration:
