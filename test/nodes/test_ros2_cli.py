@@ -7,6 +7,7 @@ import shutil
 import signal
 import site
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -27,11 +28,11 @@ def sh(cmd, env, timeout=120, check=True):
 
 
 @contextlib.contextmanager
-def launched(workspace, launch_file):
-    """``ros2 launch tolerance_ros <launch_file>`` for the duration of the block; stopped with Ctrl-C (then
-    killed if it hangs), and no node may have printed a traceback."""
+def launched(workspace, launch_file, *arguments):
+    """``ros2 launch tolerance_ros <launch_file> [arguments]`` for the duration of the block; stopped with Ctrl-C
+    (then killed if it hangs), and no node may have printed a traceback."""
     launch = subprocess.Popen(["bash", "-c", f"source $WS/install/setup.bash && exec ros2 launch tolerance_ros "
-                               f"{launch_file}"], env=workspace, stdout=subprocess.PIPE,
+                               f"{launch_file} " + " ".join(arguments)], env=workspace, stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
         yield launch
@@ -55,8 +56,11 @@ def workspace(tmp_path_factory):
     env = dict(os.environ, ROS_DOMAIN_ID=str(private_domain_id(180, 50)), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     # The nodes run on the system python3 that colcon builds for; they find the Python dependencies where
     # this test run has them (the environment pip installed them into, as rosdep would for a ROS user).
+    # The folders the site-packages' .pth files add count too (pinocchio's wheel lives in a cmeel.prefix folder
+    # of its own, which a PYTHONPATH entry does not reach: its .pth files are read only for a site folder).
+    added = [q for q in sys.path if any(q.startswith(d + os.sep) for d in site.getsitepackages())]
     env["PYTHONPATH"] = os.pathsep.join([p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p]
-                                        + site.getsitepackages())
+                                        + site.getsitepackages() + added)
     sh(f"cd {ws} && colcon build --packages-select tolerance_ros", env, timeout=300)
     env["WS"] = str(ws)
     return env
@@ -292,3 +296,35 @@ def test_the_launch_files_take_a_keystore_and_run_every_node_in_its_enclave(work
         echo = sh(src + "timeout 20 ros2 topic echo --once --no-daemon /sec/tolerance/accuracy_report "
                         "std_msgs/msg/String", operator, check=False).stdout
         assert '"robot":"gao2023_7dof"' in echo.replace(" ", ""), echo
+
+
+def test_an_integrators_own_urdf_in_one_launch_argument(workspace):
+    """Issue 49: robot:= a URDF path and tip_link:= give every node the robot (the error model answers with its six
+    joints' parameters, the monitor runs on it); a robot:= that does not exist stops the launch with one line naming
+    the argument, no traceback."""
+    urdf = ROOT / "test" / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf"
+    with launched(workspace, "accuracy_suite.launch.py", f"robot:={urdf}", "tip_link:=flange"):
+        deadline = time.monotonic() + 40
+        while time.monotonic() < deadline:
+            nodes = sh("source $WS/install/setup.bash && ros2 node list", workspace, check=False).stdout
+            if "/tolerance_error_model" in nodes and "/tolerance_accuracy_monitor" in nodes:
+                break
+            time.sleep(1)
+        echo = subprocess.Popen(["bash", "-c", "source $WS/install/setup.bash && exec ros2 topic echo --once "
+                                 "/tolerance/compute_error_jacobian/response std_msgs/msg/String"],
+                                env=workspace, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                start_new_session=True)
+        time.sleep(3)
+        req = ('{data: \'{"id": "fanuc-1", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5], "outputs": "position", '
+               '"include_jacobian": true}\'}')
+        pub = subprocess.run(["bash", "-c", 'source $WS/install/setup.bash && exec ros2 topic pub --once -w 1 '
+                              '/tolerance/compute_error_jacobian/request std_msgs/msg/String "$0"', req],
+                             env=workspace, capture_output=True, text=True, timeout=60)
+        assert pub.returncode == 0, pub.stderr
+        out, _ = echo.communicate(timeout=30)
+        assert '"id":"fanuc-1","ok":true,"robot":"fanuc_r2000ic_165f"' in out, out[:2000]
+    bad = subprocess.run(["bash", "-c", "source $WS/install/setup.bash && exec timeout 60 ros2 launch tolerance_ros "
+                          "accuracy_suite.launch.py robot:=/nowhere/robot.urdf"], env=workspace,
+                         capture_output=True, text=True, timeout=90)
+    said = bad.stdout + bad.stderr
+    assert bad.returncode != 0 and "robot:=" in said and "Traceback" not in said, said[-2000:]

@@ -86,14 +86,11 @@ def add_arguments(p):
 
 
 def _tolerances(model, spec):
-    from ..core.budget import load_budget
-    if spec.startswith("uniform:"):
-        parts = spec[len("uniform:"):].split(",")
-        if len(parts) != 2:
-            raise CLIError(f"--tolerances: expected uniform:LENGTH,ANGLE (e.g. uniform:0.1mm,0.5mrad), got {spec!r}")
-        length, angle = quantity(parts[0], "length", "--tolerances"), quantity(parts[1], "angle", "--tolerances")
-        return np.array([length if k == "length" else angle for k in model.param_kinds])
-    return load_budget(spec, model).vector_for(model)
+    from ..core.budget import BudgetError, tolerance_vector
+    try:
+        return tolerance_vector(spec, model)
+    except BudgetError as exc:
+        raise CLIError(f"--{exc}" if str(exc).startswith("tolerances:") else str(exc)) from None
 
 
 def _targets(specs):

@@ -25,7 +25,7 @@ import numpy as np
 
 from .errors import LIMIT_CRITERIA
 from .resources import resolve
-from .units import UnitError, angle_scale, length_scale, parse_number
+from .units import UnitError, angle_scale, length_scale, parse_number, parse_quantity
 from .yamlio import dump_yaml, read_json, read_yaml
 
 _KEYS = {"robot", "units", "limit", "criterion", "tolerances", "free", "default", "source", "meta"}
@@ -253,3 +253,22 @@ def _clean(x: float) -> float:
     """``x`` to 15 significant digits: a unit conversion's last-bit noise (1e-5 m is 0.009999999999999998 mm)
     removed, every digit a tolerance can carry kept."""
     return float(f"{x:.15g}")
+
+
+def tolerance_vector(spec: str, model) -> np.ndarray:
+    """(p,) tolerances (m, rad) of ``model``'s parameters from a budget (a file or a shipped name) or
+    ``uniform:LENGTH,ANGLE`` (each with its unit: ``uniform:0.1mm,0.5mrad``, every length and every angle);
+    BudgetError naming the spec."""
+    if str(spec).startswith("uniform:"):
+        parts = str(spec)[len("uniform:"):].split(",")
+        if len(parts) != 2:
+            raise BudgetError(f"tolerances: expected uniform:LENGTH,ANGLE (e.g. uniform:0.1mm,0.5mrad), got {spec!r}")
+        try:
+            length, angle = parse_quantity(parts[0], "length", "tolerances"), parse_quantity(parts[1], "angle",
+                                                                                              "tolerances")
+        except UnitError as exc:
+            raise BudgetError(str(exc)) from None
+        if not (length > 0 and angle > 0):
+            raise BudgetError(f"tolerances: uniform lengths and angles must be > 0, got {spec!r}")
+        return np.array([length if k == "length" else angle for k in model.param_kinds])
+    return load_budget(spec, model).vector_for(model)

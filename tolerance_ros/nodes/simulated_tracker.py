@@ -10,7 +10,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from ..core.budget import load_budget
+from ..core.budget import tolerance_vector
 from ..core.geometry import transform
 from ..core.geometry import matrices_to_quat
 from ..core.ingest import IngestError, stamp_seconds
@@ -49,8 +49,9 @@ class SimulatedTrackerNode(Node):
         follow_robot(self, self.robots, self.start, check=self.tolerances)
 
     def tolerances(self, model):
-        """The budget's tolerances for ``model`` (BudgetError when the budget does not fit it)."""
-        return load_budget(self.budget_spec, model).vector_for(model)
+        """The budget's tolerances for ``model``: a budget, or uniform:LENGTH,ANGLE (BudgetError when it does not fit
+        the robot)."""
+        return tolerance_vector(self.budget_spec, model)
 
     def start(self, model):
         """Draw the as-built robot of the current model (again, when robot_description changes)."""
