@@ -606,7 +606,8 @@ def test_the_accuracy_loop_closes_on_the_graph(graph, ns, tmp_path):
     planned = plan(gao, 24, "observability", candidates=500, seed=3).q
     (tmp_path / "planned.yaml").write_text(yaml.safe_dump(campaign_dict(gao, planned, "planned", 1)))
     base = [1.5, 0.2, 0.0, 0.0, 0.0, 0.5]
-    graph.start(AccuracyMonitor, ns, tracker_to_base=base, log_dir=str(tmp_path), report_period=0.3, slop=0.005)
+    graph.start(AccuracyMonitor, ns, tracker_to_base=base, log_dir=str(tmp_path), report_period=0.3, slop=0.005,
+                budget="gao2023_delta2")
     graph.start(SimulatedTrackerNode, ns, tracker_to_base=base, measure_every=3, seed=4)
     graph.start(TrajectoryCompensator, ns)
     graph.start(JointStateSource, ns, mode="campaign", campaign=str(tmp_path / "planned.yaml"), dwell=0.25, loop=True,
@@ -626,6 +627,9 @@ def test_the_accuracy_loop_closes_on_the_graph(graph, ns, tmp_path):
     assert wait_for(lambda: any(json.loads(a.data).get("status") == "done" for a in answers), 120)
     done = next(json.loads(a.data) for a in answers if json.loads(a.data).get("status") == "done")
     assert done["success"], done
+    parts = done["budget"]            # the identified parts judged against the budget in force (issue 47)
+    assert parts["rule"] == "guarded:2" and len(parts["groups"]) > 10 and not parts["out_of_tolerance"]
+    assert {g["decision"] for g in parts["groups"]} <= {"within", "undecided", "free"}
     assert wait_for(lambda: report().get("calibration") and report()["counts"]["paired"] > 0
                     and report()["summary"]["measurements"] >= 40, 60)
     rep = report()
