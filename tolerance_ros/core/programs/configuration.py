@@ -180,7 +180,6 @@ class ArmGeometry:
         """(seeds (m, 6), owner (m,) target index) for pose targets ``T_flange`` (n, 4, 4) in the wanted signs
         ``want`` (n, 3) (0: either)."""
         T_flange = np.asarray(T_flange, float)
-        n = len(T_flange)
         wc = T_flange[:, :3, 3] + np.einsum("nij,j->ni", T_flange[:, :3, :3], self.wc_flange)
         r, h, az = self._cylinder(wc)
         rows, owner = [], []

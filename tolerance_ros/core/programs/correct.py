@@ -75,7 +75,7 @@ def correct(model: Mechanism, calibrated: Mechanism, req: Requests, envelope: En
             geometry: ArmGeometry | None = None) -> Corrections:
     """Correct every target of ``req`` (see the module docstring); ``calibrated`` is the calibrated chain with the
     model's tool frame (the flange), ``geometry`` the model's ``ArmGeometry`` (needed for Cartesian targets)."""
-    n, dof = len(req.pose), model.dof
+    n = len(req.pose)
     q_nom = np.where(req.pose[:, None], np.nan, req.q)
     q_cal = q_nom.copy()
     T_new = np.full((n, 4, 4), np.nan)

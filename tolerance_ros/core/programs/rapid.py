@@ -53,7 +53,7 @@ _TOKEN = re.compile(r"\s*(?:([\[\],])|(" + NUMBER + r")(?![\w.])|([A-Za-z_]\w*)|
 def _aggregate(text, code, start, where):
     """(nested lists of leaves, end) of the aggregate ``[...]`` at ``start`` of ``code`` (comments blanked, strings
     kept): a leaf is a ``Number`` or the raw text of a name, a boolean or a string."""
-    stack, i, expect_value = [[]], start, True
+    stack, i = [[]], start
     if code[start] != "[":
         raise ProgramError(f"{where}: expected an aggregate '[...]'")
     i += 1
