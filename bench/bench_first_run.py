@@ -200,9 +200,15 @@ def wait_filled(setup, busy=(), timeout=600):
 JACOBIAN = ["jacobian", "--robot", "gao2023_7dof", "--joints", "0rad,0.1rad,0.2rad,0.3rad,0.4rad,0.5rad,0.6rad"]
 
 
+CHILD_CODE = (b"warmup.main(sys.argv", b"run_module('tolerance_ros.core.models.warmup'",
+              b"-m tolerance_ros.core.models.warmup")
+"""What a compiling child's command line holds: ``warmup._CHILD``'s call (and the revisions' before it), or the
+module run on its own."""
+
+
 def compilers(setup) -> set:
     """The pids of the processes compiling into ``setup``'s cache: the installed package's compiling child
-    (its python is the clone's venv's, its code the warmup module's), read from /proc."""
+    (its python is the clone's venv's, its code the warmup module's: ``CHILD_CODE``), read from /proc."""
     prefix = str(setup.clone).encode()
     pids = set()
     for entry in Path("/proc").iterdir():
@@ -212,8 +218,7 @@ def compilers(setup) -> set:
             argv = (entry / "cmdline").read_bytes().split(b"\0")
         except OSError:
             continue
-        if argv[0].startswith(prefix) and any(b"tolerance_ros.core.models.warmup" in a or b"import warmup" in a
-                                              for a in argv[1:3]):
+        if argv[0].startswith(prefix) and any(a in b" ".join(argv[1:3]) for a in CHILD_CODE):
             pids.add(int(entry.name))
     return pids
 
