@@ -206,6 +206,18 @@ CHILD_CODE = (b"warmup.main(sys.argv", b"run_module('tolerance_ros.core.models.w
 module run on its own."""
 
 
+def describe(pid) -> str:
+    """A process in a few words: its pid, its parent's pid and command line, its age."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        ppid, start = int(stat[1]), int(stat[19]) / os.sysconf("SC_CLK_TCK")
+        parent = Path(f"/proc/{ppid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")[:100]
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        return f"{pid} (parent {ppid}: {parent or '?'}; started {uptime - start:.1f} s ago)"
+    except (OSError, ValueError, IndexError):
+        return f"{pid} (gone)"
+
+
 def compilers(setup) -> set:
     """The pids of the processes compiling into ``setup``'s cache: the installed package's compiling child
     (its python is the clone's venv's, its code the warmup module's: ``CHILD_CODE``), read from /proc."""
@@ -243,6 +255,8 @@ def rhythm(setup, repeat):
             def watch():
                 while not stop.is_set():
                     now = compilers(setup)
+                    if len(now) > 1 and len(now) > alive[0]:
+                        print("  compilers at once: " + "; ".join(describe(pid) for pid in sorted(now)), flush=True)
                     seen.update(now)
                     alive[0] = max(alive[0], len(now))
                     time.sleep(0.05)

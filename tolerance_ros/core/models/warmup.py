@@ -485,8 +485,8 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None) -> i
     a loaded machine, for the numpy path meanwhile costs more CPU); after the ``first`` families, at the lowest
     priority; without ``nice`` (a one-shot command, which waits for its own families only) its autogroup's
     too, so that the rest, for the next run, never slows the command down, except while another process
-    waits for one of the families left (its ``WANT`` note): those come next, at the first families'
-    priority. The cache's lock is held throughout (``lock_fd``: handed over by the parent; else taken here).
+    waits for one of the families left (its ``WANT`` note): those come next (before the ``first`` ones too
+    once the parent has ended: nothing waits for them then), at the first families' priority. The cache's lock is held throughout (``lock_fd``: handed over by the parent; else taken here).
     A family already in the cache is not compiled again. Ends at once, with 0 and nothing said, when the
     package's kernel modules have gone or changed on disk; 0 on success."""
     global _held
@@ -497,6 +497,7 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None) -> i
     order = list(order) + [f for f in kernels.FAMILIES if f not in order]
     path = cache_dir()
     group = None if nice else _own_autogroup()
+    parent = os.getppid()
     progress = {"left": list(order), "low": False, "group": group}
 
     def prioritise():
@@ -514,7 +515,8 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None) -> i
         threading.Thread(target=watch, name="tolerance_ros-wants", daemon=True).start()
     listening = True
     while progress["left"]:
-        firsts = [f for f in order[:first] if f in progress["left"]] if first is not None else []
+        firsts = [f for f in order[:first] if f in progress["left"]] if first is not None and \
+            os.getppid() == parent else []  # a command that has ended waits for nothing
         if first is not None and not firsts and not progress["low"]:
             _lower_priority(19, group=not nice)
             progress.update(low=True, group=19 if group is not None else None)
