@@ -231,6 +231,52 @@ def test_a_running_compiler_takes_next_the_families_another_process_waits_for_at
     assert Path(path, f"{warmup.WANT}.{os.getpid()}").exists()  # a live process's note is its own to remove
 
 
+def test_the_families_nobody_waits_for_wait_for_a_running_command_to_end(tmp_path, monkeypatch):
+    """While a one-shot command runs that needs none of the families left (its WANT note: it runs on what is
+    compiled), the compiling child leaves them until the command has ended; a node's note (not one-shot)
+    does not hold them back."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    path = warmup.cache_dir()
+    command = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(2)"])
+    node = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        for pid, one_shot in ((command.pid, True), (node.pid, False)):
+            Path(path, f"{warmup.WANT}.{pid}").write_text(json.dumps({"families": ["dh"], "one_shot": one_shot}))
+        code = ("import time; from tolerance_ros.core.models import kernels, warmup; "
+                "kernels.warm_up = lambda which: print(*which, time.time(), flush=True); "
+                "warmup.fill_cache(['dh', 'zonotope', 'urdf', 'pups'], False, 1)")
+        child = subprocess.Popen([sys.executable, "-c", code], env=_env(tmp_path), stdout=subprocess.PIPE, text=True)
+        command.wait()
+        ended = time.time()
+        out = child.communicate(timeout=60)[0]
+    finally:
+        node.kill()
+        node.wait()
+    compiled = {line.split()[0]: float(line.split()[1]) for line in out.splitlines() if not line.startswith("ready")}
+    assert list(compiled) == ["dh", "zonotope", "urdf", "pups"]
+    assert compiled["dh"] < ended <= compiled["zonotope"], (compiled, ended)
+
+
+def test_the_families_a_command_does_not_use_wait_for_it_to_end(tmp_path):
+    """A one-shot command's child (``ahead``: the command uses the first two families) compiles those, then
+    leaves the others until the command has ended: beside it they would only slow it down."""
+    code = ("import time; from tolerance_ros.core.models import kernels, warmup; "
+            "kernels.warm_up = lambda which: print(*which, time.time(), flush=True); "
+            "warmup.fill_cache(['zonotope', 'dh', 'urdf', 'pups'], False, 1, None, 2)")
+    log = tmp_path / "compiled.txt"
+    command = (f"import subprocess, sys, time; child = subprocess.Popen([sys.executable, '-c', {code!r}], "
+               f"stdout=open({str(log)!r}, 'w')); time.sleep(2); print(time.time())")
+    ended = float(subprocess.run([sys.executable, "-c", command], env=_env(tmp_path / "cache"), capture_output=True,
+                                 text=True, check=True, timeout=60).stdout)
+    deadline = time.monotonic() + 60
+    while log.read_text().count("ready") < 4 and time.monotonic() < deadline:
+        time.sleep(0.1)
+    compiled = {line.split()[0]: float(line.split()[1]) for line in log.read_text().splitlines()
+                if not line.startswith("ready")}
+    assert list(compiled) == ["zonotope", "dh", "urdf", "pups"]
+    assert compiled["dh"] < ended <= compiled["urdf"], (compiled, ended)
+
+
 def test_the_command_line_answers_at_once_on_a_cold_cache_and_says_it_compiles(tmp_path):
     """The one-shot command answers from the numpy path and leaves the cache to its child, which this test
     stops (nothing of it outlives the test)."""
@@ -305,7 +351,7 @@ def test_a_process_waiting_for_another_to_fill_the_cache_loads_each_family_as_it
     waiter.start()
     time.sleep(0.5)
     assert loaded == [] and waiter.is_alive()
-    assert json.loads(note.read_text()) == {"families": ["zonotope"]}
+    assert json.loads(note.read_text()) == {"families": ["zonotope"], "one_shot": False}
     assert warmup._wanted(["dh", "zonotope", "urdf"]) == ["zonotope"]
     warmup.write_marker(warmup.cache_dir(), warmup.family_marker("dh"))
     deadline = time.monotonic() + 10
@@ -327,7 +373,8 @@ def test_the_families_a_command_waits_for_compile_first_then_the_next_then_the_r
     monkeypatch.setattr(warmup, "status", dict(warmup.status, state="idle"))
     monkeypatch.setattr(warmup, "cached", lambda family=None: False)
     monkeypatch.setattr(warmup, "_take_lock", lambda: (None, None))
-    monkeypatch.setattr(warmup, "_prepare", lambda warm, order, log, nice, first, lock, held: seen.append((order, first)))
+    monkeypatch.setattr(warmup, "_prepare", lambda warm, order, log, nice, first, lock, held, ahead:
+                        seen.append((order, first, ahead)))
     try:
         assert warmup.start(background=True, needs=("zonotope",), then=("urdf", "zonotope"), nice=False) == "compiling"
     finally:
@@ -335,7 +382,7 @@ def test_the_families_a_command_waits_for_compile_first_then_the_next_then_the_r
     deadline = time.monotonic() + 10
     while not seen and time.monotonic() < deadline:  # _prepare runs in the background thread start() made
         time.sleep(0.01)
-    assert seen == [(["zonotope", "urdf", "dh", "pups"], 1)]
+    assert seen == [(["zonotope", "urdf", "dh", "pups"], 1, 2)]
 
 
 LAUNCHER = r"""

@@ -18,7 +18,8 @@ exclusive ``flock`` beside the cache) for its whole life, handed to it by the pr
 that the lock outlives a one-shot command that ends before its child. A process that finds the lock held
 starts no child: it serves from the numpy path, loads each family as soon as the running child has it in
 the cache, and leaves a note (``WANT``) of the families it waits for, which the child compiles next, at
-its first families' priority. A child whose package has gone or changed under it (uninstalled,
+its first families' priority; while such a one-shot command runs and needs none of the families left, the
+child leaves them until it has ended. A child whose package has gone or changed under it (uninstalled,
 reinstalled) ends quietly, with success: the package now installed compiles its own kernels when it runs.
 """
 from __future__ import annotations
@@ -176,7 +177,8 @@ def start(background: bool = True, log=None, needs=(), nice: bool = True, then=(
         status.update(state="compiling" if compiling else "loading", message="", seconds=None, compiler=compiler)
         kernels.set_pending(True)
     threading.Thread(target=_prepare, args=(warm, order, log or (lambda text: None), nice, len(needs) or None,
-                                            lock, held), name="tolerance_ros-kernels", daemon=True).start()
+                                            lock, held), kwargs={"ahead": len(ahead) if not nice else None},
+                     name="tolerance_ros-kernels", daemon=True).start()
     return status["state"]
 
 
@@ -185,14 +187,15 @@ def _load(family):
     kernels.warm_up((family,))
 
 
-def _prepare(warm: bool, order, log, nice=True, first=None, lock=None, held=None):
+def _prepare(warm: bool, order, log, nice=True, first=None, lock=None, held=None, ahead=None):
     """Background thread of ``start``: with a cold cache, fill it in a child process (``_fill``), each family
     loaded here and put in force as soon as it is in the cache (in ``order``); a warm cache loads family by
-    family. ``lock``: the cache's lock file (None without one), ``held`` whether this process holds it."""
+    family. ``lock``: the cache's lock file (None without one), ``held`` whether this process holds it;
+    ``ahead``: how many families of ``order`` a one-shot command uses (``fill_cache``)."""
     t0 = time.perf_counter()
     try:
         if not warm:
-            failed = _fill(order, nice, first, lock, held)
+            failed = _fill(order, nice, first, lock, held, ahead)
             if failed:
                 _give_up(f"compiling the kernels failed ({failed}); the numpy path serves", log)
                 return
@@ -219,19 +222,19 @@ def _prepare(warm: bool, order, log, nice=True, first=None, lock=None, held=None
     log(status["message"])
 
 
-def _fill(order, nice, first, lock, held):
+def _fill(order, nice, first, lock, held, ahead=None):
     """Fill a cold cache: by a child of this process, which ``lock`` goes to (held here, or taken once the
     running compiler of another process has ended), unless the cache is complete by then; meanwhile each
     family that other compiler finishes is loaded here. None on success, else the reason."""
     if lock is None:  # no lock to be had here (no cache directory, no flock): a child of this process
         status["filled"] = True
-        return _fill_in_child(order, nice, first)
+        return _fill_in_child(order, nice, first, ahead=ahead)
     if not held:
-        _wait_for_compiler(lock, order, first)
+        _wait_for_compiler(lock, order, first, one_shot=not nice)
     if cached():
         return None
     status.update(filled=True, compiler="this process")
-    return _fill_in_child(order, nice, first, lock)
+    return _fill_in_child(order, nice, first, lock, ahead)
 
 
 def _take_lock():
@@ -265,14 +268,16 @@ def _try_lock(f):
         return None
 
 
-def _wait_for_compiler(lock, order=(), first=None):
+def _wait_for_compiler(lock, order=(), first=None, one_shot=False):
     """While another process's child holds ``lock`` (it compiles), load each family of ``order`` as soon as
     it is in the cache (``cached(family)``), and leave a note (``WANT``) of the families waited for (the
-    first ``first``; all without it), which that child compiles next; returns once this process holds the
-    lock (the child has ended)."""
+    first ``first``; all without it), which that child compiles next, and, for a ``one_shot`` command,
+    of the command itself: the child leaves the families nobody waits for until it has ended. Returns once
+    this process holds the lock (the child has ended)."""
     waiting = list(order)
-    note = _write_want(waiting[:first or len(waiting)])
-    kernels.prime([f for f in waiting[:first or len(waiting)] if not cached(f)])
+    needs = waiting[:first or len(waiting)]
+    note = _write_want(needs, one_shot)
+    kernels.prime([f for f in needs if not cached(f)])
     try:
         while True:
             for family in [fam for fam in waiting if cached(fam)]:
@@ -292,24 +297,25 @@ def _wait_for_compiler(lock, order=(), first=None):
                 pass
 
 
-def _write_want(families):
-    """Write this process's ``WANT`` note (the families it waits for) beside the cache; its path, or None."""
+def _write_want(families, one_shot=False):
+    """Write this process's ``WANT`` note beside the cache (the families it waits for, whether it is a
+    one-shot command); its path, or None."""
     path = cache_dir()
-    if path is None or not families:
+    if path is None:
         return None
     name = os.path.join(path, f"{WANT}.{os.getpid()}")
     try:
         with open(f"{name}.tmp", "w", encoding="utf-8") as f:
-            json.dump({"families": list(families)}, f)
+            json.dump({"families": list(families), "one_shot": bool(one_shot)}, f)
         os.replace(f"{name}.tmp", name)
     except OSError:
         return None
     return name
 
 
-def _wanted(remaining, path=None) -> list:
-    """The families of ``remaining`` that live processes wait for (their ``WANT`` notes, oldest first); the
-    notes of processes that have ended are removed."""
+def _notes(path=None) -> list:
+    """[(families, one_shot)] of the ``WANT`` notes of live processes, oldest first; the notes of processes
+    that have ended are removed."""
     path = path or cache_dir()
     if path is None:
         return []
@@ -332,11 +338,17 @@ def _wanted(remaining, path=None) -> list:
             pass
         try:
             with open(full, encoding="utf-8") as f:
-                notes.append((os.stat(full).st_mtime, json.load(f).get("families", [])))
-        except (OSError, ValueError, AttributeError):
+                doc = json.load(f)
+            notes.append((os.stat(full).st_mtime, list(doc.get("families", [])), bool(doc.get("one_shot"))))
+        except (OSError, ValueError, AttributeError, TypeError):
             continue
+    return [(families, one_shot) for _, families, one_shot in sorted(notes, key=lambda n: n[0])]
+
+
+def _wanted(remaining, path=None, notes=None) -> list:
+    """The families of ``remaining`` that live processes wait for (their ``WANT`` notes, oldest first)."""
     out = []
-    for _, families in sorted(notes, key=lambda n: n[0]):
+    for families, _ in _notes(path) if notes is None else notes:
         out += [f for f in families if f in remaining and f not in out]
     return out
 
@@ -359,14 +371,15 @@ def child_command(args) -> list:
     return [sys.executable, "-c", _CHILD, str(_HERE.parents[2])] + list(args)
 
 
-def _fill_in_child(order, nice=True, first=None, lock=None):
+def _fill_in_child(order, nice=True, first=None, lock=None, ahead=None):
     """Run ``fill_cache`` in a child process, ``lock`` (the cache's lock file, held) handed to it: the child
     holds the lock until it ends, whether this process has ended or not. Meanwhile import numba here
     (``kernels.prime``: the families waited for then load in milliseconds, not a second); each family it
     reports ready is loaded here at once. None on success, else the reason."""
     args = child_command((["--nice"] if nice else []) + list(order) + ([f"--first={first}"] if first is not None
                                                                          else [])
-                         + ([f"--lock-fd={lock.fileno()}"] if lock is not None else []))
+                         + ([f"--lock-fd={lock.fileno()}"] if lock is not None else [])
+                         + ([f"--ahead={ahead}"] if ahead is not None else []))
     try:
         child = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                  text=True, start_new_session=True,
@@ -476,9 +489,12 @@ def _hold_lock(fd=None):
 
 
 _held = None  # the child's lock, kept open for its whole life
+GAP = 1.0
+"""Seconds the compiling child still leaves the families nobody waits for after a one-shot command has ended
+(the next command of a user's rhythm starts within it)."""
 
 
-def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None) -> int:
+def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None, ahead=None) -> int:
     """The child process: compile every kernel family into the cache, ``order`` first, saying "ready <family>"
     on stdout after each (and choose the Jacobian writer), at a lower priority with ``nice``
     (``BACKGROUND_NICENESS``, within its session: the families its callers wait for still get their share of
@@ -486,7 +502,11 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None) -> i
     priority; without ``nice`` (a one-shot command, which waits for its own families only) its autogroup's
     too, so that the rest, for the next run, never slows the command down, except while another process
     waits for one of the families left (its ``WANT`` note): those come next (before the ``first`` ones too
-    once the parent has ended: nothing waits for them then), at the first families' priority. The cache's lock is held throughout (``lock_fd``: handed over by the parent; else taken here).
+    once the parent has ended: nothing waits for them then), at the first families' priority; and while a
+    one-shot command that waits for none of them runs (its note; ``GAP`` s more), or, with ``ahead``, while
+    the parent runs (a one-shot command that uses the first ``ahead`` families of ``order``), the families
+    nobody waits for wait for it to end (two processes on a 2-core VM slow each other down, whatever their
+    priorities). The cache's lock is held throughout (``lock_fd``: handed over by the parent; else taken here).
     A family already in the cache is not compiled again. Ends at once, with 0 and nothing said, when the
     package's kernel modules have gone or changed on disk; 0 on success."""
     global _held
@@ -498,7 +518,7 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None) -> i
     path = cache_dir()
     group = None if nice else _own_autogroup()
     parent = os.getppid()
-    progress = {"left": list(order), "low": False, "group": group}
+    progress = {"left": list(order), "low": False, "group": group, "busy": -GAP}
 
     def prioritise():
         """The autogroup back at its first niceness while a process waits for a family left, else 19."""
@@ -515,13 +535,21 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None) -> i
         threading.Thread(target=watch, name="tolerance_ros-wants", daemon=True).start()
     listening = True
     while progress["left"]:
-        firsts = [f for f in order[:first] if f in progress["left"]] if first is not None and \
-            os.getppid() == parent else []  # a command that has ended waits for nothing
+        alive = os.getppid() == parent  # a command that has ended waits for nothing
+        firsts = [f for f in order[:first] if f in progress["left"]] if first is not None and alive else []
         if first is not None and not firsts and not progress["low"]:
             _lower_priority(19, group=not nice)
             progress.update(low=True, group=19 if group is not None else None)
         prioritise()
-        family = (firsts or _wanted(progress["left"], path) or progress["left"])[0]
+        notes = _notes(path) if path is not None else []
+        wanted = _wanted(progress["left"], notes=notes)
+        if any(one_shot for _, one_shot in notes):
+            progress["busy"] = time.monotonic()
+        used = [f for f in order[:ahead] if f in progress["left"]] if ahead is not None and alive else None
+        if not firsts and not wanted and (time.monotonic() - progress["busy"] < GAP or used == []):
+            time.sleep(0.25)  # a command runs that needs none of the families left: they come after it
+            continue
+        family = (firsts or wanted or progress["left"])[0]
         if not _package_intact():
             return 0
         if not cached(family):
@@ -546,14 +574,16 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None) -> i
 
 
 def main(args) -> int:
-    """The child's command line: the families in order, ``--nice``, ``--first=N``, ``--lock-fd=FD``; or
+    """The child's command line: the families in order, ``--nice``, ``--first=N``, ``--lock-fd=FD``,
+    ``--ahead=N``; or
     ``--where`` (which package it imports: ``child_command``'s test)."""
     if "--where" in args:
         print(Path(sys.modules["tolerance_ros"].__file__).resolve().parent)
         return 0
     first = next((int(a.split("=", 1)[1]) for a in args if a.startswith("--first=")), None)
     fd = next((int(a.split("=", 1)[1]) for a in args if a.startswith("--lock-fd=")), None)
-    return fill_cache([a for a in args if a in kernels.FAMILIES], "--nice" in args, first, fd)
+    ahead = next((int(a.split("=", 1)[1]) for a in args if a.startswith("--ahead=")), None)
+    return fill_cache([a for a in args if a in kernels.FAMILIES], "--nice" in args, first, fd, ahead)
 
 
 if __name__ == "__main__":
