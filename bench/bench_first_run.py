@@ -272,6 +272,12 @@ def rhythm(setup, repeat):
             finally:
                 stop.set()
                 watcher.join()
+            left = compilers(setup)
+            if left:  # never two rhythms' compilers at once: the next rhythm empties the cache
+                missed.append(f"rhythm {k + 1}: the compiler had not finished {filled:.0f} s after the last call "
+                              f"({'; '.join(describe(pid) for pid in sorted(left))}); stopped")
+                for pid in left:
+                    os.kill(pid, signal.SIGKILL)
             after = timed(JACOBIAN, setup)
             warm = [timed(JOBS["paper"], setup) for _ in range(2)]
         codes = [r[2] for r in jac + papers + [after] + warm]

@@ -277,6 +277,23 @@ def test_the_families_a_command_does_not_use_wait_for_it_to_end(tmp_path):
     assert compiled["dh"] < ended <= compiled["urdf"], (compiled, ended)
 
 
+def test_a_child_whose_command_ended_before_it_started_compiles_everything(tmp_path):
+    """A quick command ends before its child has even started (the child then has another parent from its
+    first moment): the child knows its command by pid, not as whatever parent it finds, and goes on with
+    the families the command did not use."""
+    code = ("import os, sys, time; time.sleep(0.5); from tolerance_ros.core.models import kernels, warmup; "
+            "kernels.warm_up = lambda which: print(*which, flush=True); "
+            "warmup.fill_cache(['dh', 'zonotope', 'urdf', 'pups'], False, 1, None, 1, int(sys.argv[1]))")
+    log = tmp_path / "compiled.txt"
+    command = (f"import os, subprocess, sys; subprocess.Popen([sys.executable, '-c', {code!r}, str(os.getpid())], "
+               f"stdout=open({str(log)!r}, 'w'))")
+    subprocess.run([sys.executable, "-c", command], env=_env(tmp_path / "cache"), check=True, timeout=60)
+    deadline = time.monotonic() + 30
+    while log.read_text().count("ready") < 4 and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert [line for line in log.read_text().split() if line != "ready"][:8:2] == ["dh", "zonotope", "urdf", "pups"]
+
+
 def test_the_command_line_answers_at_once_on_a_cold_cache_and_says_it_compiles(tmp_path):
     """The one-shot command answers from the numpy path and leaves the cache to its child, which this test
     stops (nothing of it outlives the test)."""

@@ -379,7 +379,7 @@ def _fill_in_child(order, nice=True, first=None, lock=None, ahead=None):
     args = child_command((["--nice"] if nice else []) + list(order) + ([f"--first={first}"] if first is not None
                                                                          else [])
                          + ([f"--lock-fd={lock.fileno()}"] if lock is not None else [])
-                         + ([f"--ahead={ahead}"] if ahead is not None else []))
+                         + ([f"--ahead={ahead}", f"--parent={os.getpid()}"] if ahead is not None else []))
     try:
         child = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                  text=True, start_new_session=True,
@@ -494,7 +494,7 @@ GAP = 1.0
 (the next command of a user's rhythm starts within it)."""
 
 
-def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None, ahead=None) -> int:
+def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None, ahead=None, parent=None) -> int:
     """The child process: compile every kernel family into the cache, ``order`` first, saying "ready <family>"
     on stdout after each (and choose the Jacobian writer), at a lower priority with ``nice``
     (``BACKGROUND_NICENESS``, within its session: the families its callers wait for still get their share of
@@ -507,6 +507,7 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None, ahea
     the parent runs (a one-shot command that uses the first ``ahead`` families of ``order``), the families
     nobody waits for wait for it to end (two processes on a 2-core VM slow each other down, whatever their
     priorities). The cache's lock is held throughout (``lock_fd``: handed over by the parent; else taken here).
+    ``parent``: the pid of the process that started this one (it may have ended before this one asks).
     A family already in the cache is not compiled again. Ends at once, with 0 and nothing said, when the
     package's kernel modules have gone or changed on disk; 0 on success."""
     global _held
@@ -517,7 +518,7 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None, ahea
     order = list(order) + [f for f in kernels.FAMILIES if f not in order]
     path = cache_dir()
     group = None if nice else _own_autogroup()
-    parent = os.getppid()
+    parent = os.getppid() if parent is None else parent  # may have ended already: then never the parent again
     progress = {"left": list(order), "low": False, "group": group, "busy": -GAP}
 
     def prioritise():
@@ -575,7 +576,7 @@ def fill_cache(order=kernels.FAMILIES, nice=True, first=None, lock_fd=None, ahea
 
 def main(args) -> int:
     """The child's command line: the families in order, ``--nice``, ``--first=N``, ``--lock-fd=FD``,
-    ``--ahead=N``; or
+    ``--ahead=N``, ``--parent=PID``; or
     ``--where`` (which package it imports: ``child_command``'s test)."""
     if "--where" in args:
         print(Path(sys.modules["tolerance_ros"].__file__).resolve().parent)
@@ -583,7 +584,8 @@ def main(args) -> int:
     first = next((int(a.split("=", 1)[1]) for a in args if a.startswith("--first=")), None)
     fd = next((int(a.split("=", 1)[1]) for a in args if a.startswith("--lock-fd=")), None)
     ahead = next((int(a.split("=", 1)[1]) for a in args if a.startswith("--ahead=")), None)
-    return fill_cache([a for a in args if a in kernels.FAMILIES], "--nice" in args, first, fd, ahead)
+    parent = next((int(a.split("=", 1)[1]) for a in args if a.startswith("--parent=")), None)
+    return fill_cache([a for a in args if a in kernels.FAMILIES], "--nice" in args, first, fd, ahead, parent)
 
 
 if __name__ == "__main__":
