@@ -222,17 +222,19 @@ def compilers(setup) -> set:
     """The pids of the processes compiling into ``setup``'s cache: the installed package's compiling child
     (its python is the clone's venv's, its code the warmup module's: ``CHILD_CODE``), read from /proc."""
     prefix = str(setup.clone).encode()
-    pids = set()
+    found = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
         try:
             argv = (entry / "cmdline").read_bytes().split(b"\0")
-        except OSError:
+            ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
             continue
         if argv[0].startswith(prefix) and any(a in b" ".join(argv[1:3]) for a in CHILD_CODE):
-            pids.add(int(entry.name))
-    return pids
+            found[int(entry.name)] = ppid
+    return {pid for pid, ppid in found.items() if ppid not in found}  # not a compiler's fork before it runs a
+    # program (numba's library look-ups): it has the compiler's command line until then
 
 
 def timed(argv, setup):

@@ -102,19 +102,22 @@ def test_a_stale_marker_is_not_trusted(tmp_path, monkeypatch):
 
 
 def _children_compiling_into(cache) -> list:
-    """The pids of the processes that fill the kernel cache ``cache`` (``warmup``'s child), from /proc."""
-    pids = []
+    """The pids of the processes that fill the kernel cache ``cache`` (``warmup``'s child), from /proc; not a
+    fork of one of them (numba's library look-ups run a program: its fork has the child's command line until
+    it runs it)."""
+    found = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
         try:
             cmd = (entry / "cmdline").read_bytes()
             env = (entry / "environ").read_bytes()
-        except OSError:
+            ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
             continue
         if warmup._CHILD.encode() in cmd and f"NUMBA_CACHE_DIR={cache}\0".encode() in env:
-            pids.append(int(entry.name))
-    return pids
+            found[int(entry.name)] = ppid
+    return [pid for pid, ppid in found.items() if ppid not in found]
 
 
 @contextlib.contextmanager
