@@ -20,7 +20,17 @@ when a job misses either. ``--busy N`` runs N busy loops beside the jobs, each a
 machine, reproducibly); ``--repeat N`` measures each job N times, each from an empty cache, and prints the
 medians (a VM's speed drifts by 10-20 % between runs).
 
+``--rhythm``: a user's rhythm on the README's path (implies ``--readme``): on an empty cache, six quick
+``jacobian`` calls one after another, then ``paper gao2023`` twice; the processes compiling into the
+installed package's cache are counted all along (every 50 ms: the most alive at once, and how many in all),
+and once none is left and the cache is complete, one more ``jacobian`` must say nothing of compiling and
+``paper gao2023`` runs twice more, warm. Printed: the compilers, the seconds of each call, the first
+(cold) paper run against the mean of the warm ones. Target: one compiler in all, the cold run within 1.3x
+of the warm, and no word of compiling once the compiler has finished. ``--rev REV`` installs that
+revision of the clone instead of HEAD (the same rhythm before a change).
+
     python bench/bench_first_run.py [--readme] [--jobs paper,allocate,rong2018] [--busy 1] [--repeat 3]
+    python bench/bench_first_run.py --rhythm [--repeat 3] [--rev REV]
 """
 import argparse
 import contextlib
@@ -93,10 +103,12 @@ class Readme:
 
     INSTALL = "python3 -m venv --system-site-packages .venv && .venv/bin/pip install -q ."
 
-    def __init__(self, where):
+    def __init__(self, where, rev=None):
         self.outside = Path(where)        # a folder without a checkout, to ask the installed package from
         self.clone = self.outside / "tolerance_ros"
         subprocess.run(["git", "clone", "-q", str(ROOT), str(self.clone)], check=True)
+        if rev:
+            subprocess.run(["git", "checkout", "-q", rev], cwd=self.clone, check=True)
         print(f"installing as the README does in a fresh clone of {ROOT}: {self.INSTALL}", flush=True)
         subprocess.run(["bash", "-c", self.INSTALL], cwd=self.clone, check=True)
         self.bin = self.clone / ".venv" / "bin"
@@ -185,6 +197,123 @@ def wait_filled(setup, busy=(), timeout=600):
         return False
 
 
+JACOBIAN = ["jacobian", "--robot", "gao2023_7dof", "--joints", "0rad,0.1rad,0.2rad,0.3rad,0.4rad,0.5rad,0.6rad"]
+
+
+CHILD_CODE = (b"warmup.main(sys.argv", b"run_module('tolerance_ros.core.models.warmup'",
+              b"-m tolerance_ros.core.models.warmup")
+"""What a compiling child's command line holds: ``warmup._CHILD``'s call (and the revisions' before it), or the
+module run on its own."""
+
+
+def describe(pid) -> str:
+    """A process in a few words: its pid, its parent's pid and command line, its age."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        ppid, start = int(stat[1]), int(stat[19]) / os.sysconf("SC_CLK_TCK")
+        parent = Path(f"/proc/{ppid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")[:100]
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        return f"{pid} (parent {ppid}: {parent or '?'}; started {uptime - start:.1f} s ago)"
+    except (OSError, ValueError, IndexError):
+        return f"{pid} (gone)"
+
+
+def compilers(setup) -> set:
+    """The pids of the processes compiling into ``setup``'s cache: the installed package's compiling child
+    (its python is the clone's venv's, its code the warmup module's: ``CHILD_CODE``), read from /proc."""
+    prefix = str(setup.clone).encode()
+    found = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            argv = (entry / "cmdline").read_bytes().split(b"\0")
+            ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        if argv[0].startswith(prefix) and any(a in b" ".join(argv[1:3]) for a in CHILD_CODE):
+            found[int(entry.name)] = ppid
+    return {pid for pid, ppid in found.items() if ppid not in found}  # not a compiler's fork before it runs a
+    # program (numba's library look-ups): it has the compiler's command line until then
+
+
+def timed(argv, setup):
+    """(seconds, stderr, exit code) of one command in a fresh process."""
+    t0 = time.perf_counter()
+    out = subprocess.run(setup.command(argv), env=setup.env(), cwd=setup.cwd, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.PIPE, text=True)
+    return time.perf_counter() - t0, out.stderr, out.returncode
+
+
+def rhythm(setup, repeat):
+    """The user's rhythm (module docstring), ``repeat`` times from an empty cache; prints each and returns
+    the targets missed."""
+    code = "from tolerance_ros.core.models import warmup; import sys; sys.exit(0 if warmup.cached() else 1)"
+    missed, ratios, most, total = [], [], 0, 0
+    for k in range(repeat):
+        with setup.empty_cache():
+            seen, alive, stop = set(), [0], threading.Event()
+
+            def watch():
+                while not stop.is_set():
+                    now = compilers(setup)
+                    if len(now) > 1 and len(now) > alive[0]:
+                        print("  compilers at once: " + "; ".join(describe(pid) for pid in sorted(now)), flush=True)
+                    seen.update(now)
+                    alive[0] = max(alive[0], len(now))
+                    time.sleep(0.05)
+            watcher = threading.Thread(target=watch)
+            watcher.start()
+            try:
+                jac = [timed(JACOBIAN, setup) for _ in range(6)]
+                papers = [timed(JOBS["paper"], setup) for _ in range(2)]
+                t0 = time.perf_counter()
+                while (compilers(setup) or setup.python(code) != 0) and time.perf_counter() - t0 < 900:
+                    time.sleep(1.0)
+                filled = time.perf_counter() - t0
+            finally:
+                stop.set()
+                watcher.join()
+            left = compilers(setup)
+            if left:  # never two rhythms' compilers at once: the next rhythm empties the cache
+                missed.append(f"rhythm {k + 1}: the compiler had not finished {filled:.0f} s after the last call "
+                              f"({'; '.join(describe(pid) for pid in sorted(left))}); stopped")
+                for pid in left:
+                    os.kill(pid, signal.SIGKILL)
+            after = timed(JACOBIAN, setup)
+            warm = [timed(JOBS["paper"], setup) for _ in range(2)]
+        codes = [r[2] for r in jac + papers + [after] + warm]
+        said = [r[1] for r in jac + papers]
+        cold, second = papers[0][0], papers[1][0]
+        reference = float(np.mean([w[0] for w in warm]))
+        ratio = cold / reference
+        ratios.append(ratio)
+        most, total = max(most, alive[0]), max(total, len(seen))
+        print(f"  rhythm {k + 1}: jacobian x6 {', '.join(f'{r[0]:.1f}' for r in jac)} s; paper gao2023 cold "
+              f"{cold:.1f} s, then {second:.1f} s; the cache complete {filled:.0f} s after; warm "
+              f"{', '.join(f'{w[0]:.1f}' for w in warm)} s; cold / warm {ratio:.2f}; compilers: {alive[0]} at once, "
+              f"{len(seen)} in all; {sum('compil' in text for text in said)} of the 8 calls spoke of compiling",
+              flush=True)
+        if "compil" in after[1]:
+            missed.append(f"rhythm {k + 1}: a command spoke of compiling once the compiler had finished: "
+                          f"{after[1].strip().splitlines()[0]}")
+        if any(codes):
+            missed.append(f"rhythm {k + 1}: exit codes {codes}")
+        wrong = setup.check()
+        if wrong:
+            missed.append(f"rhythm {k + 1}: {wrong}")
+    median = float(np.median(ratios))
+    print(f"\n| rhythm (six `jacobian`, two `paper gao2023`) | compilers at once (most) | compilers in all (most) | "
+          f"paper cold / warm (median; the runs) |")
+    print("|---|---|---|---|")
+    print(f"| {repeat} run(s) | {most} | {total} | **{median:.2f}** ({', '.join(f'{r:.2f}' for r in ratios)}) |")
+    if total > 1:
+        missed.append(f"{total} compilers in one rhythm (target: one)")
+    if median > RATIO:
+        missed.append(f"the cold paper run {median:.2f}x the warm one (target {RATIO}x)")
+    return missed
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--jobs", default=",".join(DEFAULT_JOBS), help=f"comma-separated, of {list(JOBS)}")
@@ -192,7 +321,11 @@ def main():
     ap.add_argument("--repeat", type=int, default=1, help="runs of each job (each from an empty cache); medians")
     ap.add_argument("--readme", action="store_true",
                     help="the README's path: a fresh clone, pip install . (not editable), run from its root")
+    ap.add_argument("--rhythm", action="store_true",
+                    help="a user's rhythm on the README's path: six jacobian calls, then paper gao2023 twice")
+    ap.add_argument("--rev", help="with --readme or --rhythm: install this revision of the clone (default HEAD)")
     args = ap.parse_args()
+    args.readme = args.readme or args.rhythm
     names = args.jobs.split(",")
     unknown = [n for n in names if n not in JOBS]
     if unknown:
@@ -200,8 +333,19 @@ def main():
     if args.busy < 0 or args.repeat < 1:
         ap.error("--busy: expected 0 or more; --repeat: expected 1 or more")
     print(f"machine: {machine()}, {load_average()}, {args.busy} busy loop(s) beside")
+    if args.rhythm:
+        with tempfile.TemporaryDirectory() as where:
+            setup = Readme(where, args.rev)
+            print(f"setup: the README's (a fresh clone at {args.rev or 'HEAD'}, pip install ., run from its root)",
+                  flush=True)
+            missed = rhythm(setup, args.repeat)
+        print(f"\nafter: {load_average()}")
+        for m in missed:
+            print(f"MISSED: {m}")
+        print("verdict: " + ("MISSED" if missed else "ok"))
+        return 1 if missed else 0
     with tempfile.TemporaryDirectory() as where:
-        setup = Readme(where) if args.readme else Checkout()
+        setup = Readme(where, args.rev) if args.readme else Checkout()
         print("setup: " + ("the README's (a fresh clone, pip install ., run from its root)" if args.readme else
                            "this checkout, NUMBA_CACHE_DIR a new folder for each empty cache"), flush=True)
         busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"], start_new_session=True)

@@ -132,12 +132,17 @@ def kernel_needs(argv) -> tuple:
 def entry() -> int:
     """The ``tolerance-ros`` process: ``main`` on the command line's arguments; on a cold kernel cache the
     kernels compile in a background child (said on stderr) while this call answers from the numpy path, the
-    families the command needs first, each put in force as soon as it is ready."""
+    families the command needs first, each put in force as soon as it is ready. Where another process's
+    child compiles them already, this call starts none (``warmup``: one compiler per cache) and says so; it
+    says nothing where the families it needs are in the cache."""
     from ..core.models import warmup
     needs, then = kernel_needs(sys.argv[1:])
     if not warmup.cached() and warmup.start(background=True, needs=needs, then=then, nice=False) == "compiling":
-        print("tolerance-ros: compiling the kernels in the background (the first run after an install); this "
-              "call answers from the numpy path meanwhile and switches to them as they are ready", file=sys.stderr)
+        who = ("compiling the kernels in the background (the first run after an install)"
+               if warmup.status["compiler"] == "this process" else
+               "the kernels are being compiled by an earlier command (the first runs after an install)")
+        print(f"tolerance-ros: {who}; this call answers from the numpy path meanwhile and switches to them as "
+              "they are ready", file=sys.stderr)
     return main()
 
 

@@ -9,6 +9,8 @@ position rows in m per unit, or the orientation rows in rad per unit) and tolera
 - ``worst_case_bound``: the exact worst case over every sign combination, ``max_s |J (s * delta)|``, the
   maximum-norm point of the zonotope spanned by the generators ``g_j = J_j delta_j``.
 - ``per_axis_bound``: ``sqrt(sum_k (sum_j |J_kj| delta_j)^2)``, a cheap upper bound of the worst case.
+- ``direction_bounds``: a lower and an upper bound of the worst case within a few per cent of each other,
+  from the zonotope's support function in ``DIRECTIONS`` directions (a pruning aid of the exact one).
 - ``rss_bound``: the statistical root-sum-square ``(k/3) sqrt(sum_j |J_j|^2 delta_j^2)`` (Gao et al.
   eq. 10 for the default ``k = 3``, ``delta_j = 3 sigma_j``). For independent normal errors with
   ``sigma_j = delta_j / 3`` it is a guaranteed quantile: ``P(|dP| <= bound) >= 2 Phi(k) - 1`` for any
@@ -62,6 +64,47 @@ def per_axis_bound(J, delta) -> np.ndarray:
     J, delta = _check(J, delta)
     s = np.abs(J) @ delta
     return np.sqrt(np.einsum("nk,nk->n", s, s))
+
+
+DIRECTIONS = 64
+"""Directions (a hemisphere's; with their opposites the whole sphere) of ``direction_bounds``."""
+
+
+def _directions(count=DIRECTIONS):
+    """(count, 3) unit vectors over a hemisphere (a Fibonacci lattice) and the cosine of their covering angle:
+    every unit vector lies within that angle of one of them or of its opposite. The angle is the largest
+    circumradius of the spherical Delaunay triangles of the vectors and their opposites, read off the
+    facets of their convex hull (each facet's plane lies at that cosine from the centre); computed once."""
+    cached = _DIRECTIONS.get(count)
+    if cached is None:
+        from scipy.spatial import ConvexHull
+        k = np.arange(count) + 0.5
+        z = k / count
+        r = np.sqrt(1.0 - z * z)
+        phi = np.pi * (1.0 + 5.0 ** 0.5) * k
+        U = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+        cos_cover = float((-ConvexHull(np.vstack([U, -U])).equations[:, 3]).min())
+        cached = _DIRECTIONS[count] = (U, cos_cover)
+    return cached
+
+
+_DIRECTIONS = {}
+
+
+def direction_bounds(J, delta, count=DIRECTIONS):
+    """((n,) lower, (n,) upper) bounds of ``worst_case_bound`` for 3 rows. The worst case is the largest norm
+    of the zonotope, i.e. the largest of its support function ``h(u) = sum_j |u . J_j| delta_j`` over unit
+    vectors u. ``max h`` over ``count`` directions is a lower bound (the vertex of signs ``sign(u . J_j)``
+    reaches it), and that maximum divided by the cosine of the directions' covering angle an upper bound
+    (the largest vertex lies within that angle of a direction u, so ``h(u)`` is at least its norm times the
+    cosine): about 3 % apart with the default 64 directions, for O(count p) work a pose against the exact
+    O(p^3)."""
+    J, delta = _check(J, delta)
+    if J.shape[1] != 3:
+        raise ValueError("direction_bounds: expected 3 rows (position or orientation rows)")
+    U, cos_cover = _directions(count)
+    lower = np.abs(np.matmul(U, J * delta)).sum(axis=2).max(axis=1)
+    return lower, lower / cos_cover
 
 
 def rss_bound(J, delta, k_sigma: float = 3.0) -> np.ndarray:

@@ -1,9 +1,12 @@
 """The compiled kernels prepared in the background: a cold start serves at once from the numpy path and
-switches to the compiled kernels without a pause (in child processes with an empty NUMBA_CACHE_DIR)."""
+switches to the compiled kernels without a pause (in child processes with an empty NUMBA_CACHE_DIR); one
+compiler per cache, whatever the processes and commands."""
+import contextlib
 import json
 import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -70,9 +73,11 @@ def test_a_cold_start_serves_at_once_and_switches_to_the_compiled_kernels_withou
     while the other process waits for it; both load them and switch between two calls; the compiled answer
     equals the numpy one to 1e-12; the next start finds the cache warm and loads. (How long each step takes:
     bench/bench_first_run.py.)"""
-    starts = [subprocess.Popen([sys.executable, "-c", COLD_START, "gao2023_7dof", "{}"], env=_env(tmp_path),
-                               stdout=subprocess.PIPE, text=True) for _ in range(2)]  # two nodes of one launch
-    both = [json.loads(p.communicate(timeout=300)[0].strip().splitlines()[-1]) for p in starts]
+    with _compilers_seen(tmp_path) as seen:
+        starts = [subprocess.Popen([sys.executable, "-c", COLD_START, "gao2023_7dof", "{}"], env=_env(tmp_path),
+                                   stdout=subprocess.PIPE, text=True) for _ in range(2)]  # two nodes of one launch
+        both = [json.loads(p.communicate(timeout=300)[0].strip().splitlines()[-1]) for p in starts]
+    assert len(seen) == 1, f"compiling children {sorted(seen)}: one was expected"
     for cold in both:
         assert cold["state"] == "compiling" and cold["switched"], cold
         assert cold["diff"] < 1e-12 and cold["cached"] and cold["final"]["state"] == "ready", cold
@@ -80,6 +85,9 @@ def test_a_cold_start_serves_at_once_and_switches_to_the_compiled_kernels_withou
     assert sorted(c["final"]["filled"] for c in both) == [False, True], "one of them compiles, the other waits"
     warm = _run(COLD_START, tmp_path, "gao2023_7dof", "{}")
     assert warm["state"] == "loading" and warm["switched"] and not warm["final"]["filled"], warm
+    out = subprocess.run([sys.executable, "-m", "tolerance_ros.cli", "jacobian", "--robot", "gao2023_7dof", "--random",
+                          "2"], env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and "compil" not in out.stderr, out.stderr  # the compiler has finished: no word of it
 
 
 def test_a_stale_marker_is_not_trusted(tmp_path, monkeypatch):
@@ -94,19 +102,199 @@ def test_a_stale_marker_is_not_trusted(tmp_path, monkeypatch):
 
 
 def _children_compiling_into(cache) -> list:
-    """The pids of the processes that fill the kernel cache ``cache`` (``warmup``'s child), from /proc."""
-    pids = []
+    """The pids of the processes that fill the kernel cache ``cache`` (``warmup``'s child), from /proc; not a
+    fork of one of them (numba's library look-ups run a program: its fork has the child's command line until
+    it runs it)."""
+    found = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
             continue
         try:
             cmd = (entry / "cmdline").read_bytes()
             env = (entry / "environ").read_bytes()
-        except OSError:
+            ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
             continue
-        if b"tolerance_ros.core.models.warmup" in cmd and f"NUMBA_CACHE_DIR={cache}".encode() in env:
-            pids.append(int(entry.name))
-    return pids
+        if warmup._CHILD.encode() in cmd and f"NUMBA_CACHE_DIR={cache}\0".encode() in env:
+            found[int(entry.name)] = ppid
+    return [pid for pid, ppid in found.items() if ppid not in found]
+
+
+@contextlib.contextmanager
+def _compilers_seen(cache):
+    """The set of the pids of every process seen compiling into ``cache`` (every 50 ms) while the block runs."""
+    seen, stop = set(), threading.Event()
+
+    def watch():
+        while not stop.is_set():
+            seen.update(_children_compiling_into(cache))
+            time.sleep(0.05)
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    try:
+        yield seen
+    finally:
+        stop.set()
+        watcher.join()
+
+
+def _stop(pids):
+    for pid in pids:
+        try:
+            os.kill(pid, 9)
+        except ProcessLookupError:
+            pass
+    deadline = time.monotonic() + 10
+    while any(Path(f"/proc/{pid}").exists() for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+
+
+JACOBIAN = [sys.executable, "-m", "tolerance_ros.cli", "jacobian", "--robot", "gao2023_7dof", "--joints",
+            "0rad,0.1rad,0.2rad,0.3rad,0.4rad,0.5rad,0.6rad"]
+
+
+def test_commands_one_after_another_on_a_cold_cache_start_one_compiler_which_holds_the_cache_lock(tmp_path,
+                                                                                                  monkeypatch):
+    """A user's rhythm on an empty cache: quick commands one after another, each ending before the kernels
+    are compiled. The first starts the compiling child, and the child, not the command, holds the cache's
+    lock: the next commands find it held after the first has ended, start none, say that an earlier command
+    compiles, and answer. When the child ends (stopped here), the lock goes with it."""
+    import fcntl
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    lock = open(os.path.join(warmup.cache_dir(), warmup.LOCK), "a")
+    with _compilers_seen(tmp_path) as seen:
+        outs = [subprocess.run(JACOBIAN, env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+                for _ in range(3)]
+        alive = _children_compiling_into(tmp_path)
+    try:
+        assert [o.returncode for o in outs] == [0, 0, 0], [o.stderr for o in outs]
+        assert len(seen) == 1 and set(alive) == seen, (seen, alive)
+        with pytest.raises(BlockingIOError):  # the child holds the lock after its command has ended
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert "compiling the kernels in the background" in outs[0].stderr
+        for out in outs[1:]:
+            assert "the kernels are being compiled by an earlier command" in out.stderr, out.stderr
+    finally:
+        _stop(list(seen))
+    fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    lock.close()
+
+
+def test_a_compiling_child_whose_package_has_gone_ends_quietly(tmp_path):
+    """The package uninstalled before its child starts (the folder it was to import from holds none): the
+    child ends with 0 and says nothing. Uninstalled or reinstalled while the child compiles (here by the
+    first compilation itself, in a copy of the package): it ends after that family, with 0, saying nothing,
+    and vouches for nothing in the cache (no marker: the package now installed compiles its own)."""
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    out = subprocess.run([sys.executable, "-S", "-c", warmup._CHILD, str(gone), "dh", "--first=1"], env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert (out.returncode, out.stdout, out.stderr) == (0, "", "")
+    import shutil
+    for change in ("uninstall", "reinstall"):
+        site = tmp_path / change
+        shutil.copytree(ROOT / "tolerance_ros", site / "tolerance_ros", ignore=shutil.ignore_patterns("__pycache__"))
+        driver = (f"import shutil, sys; sys.path.insert(0, {str(site)!r}); from pathlib import Path; "
+                  "from tolerance_ros.core.models import kernels, warmup\n"
+                  "def compile_and_change(which):\n"
+                  "    print('compiled', *which, flush=True)\n"
+                  "    kernel = Path(warmup.__file__).parent / 'zonotope_kernel.py'\n"
+                  f"    if {change!r} == 'uninstall': shutil.rmtree(Path(warmup.__file__).parents[2])\n"
+                  "    else: kernel.write_text(kernel.read_text() + '# a new version')\n"
+                  "kernels.warm_up = compile_and_change\n"
+                  "sys.exit(warmup.fill_cache(['dh', 'zonotope'], False, 1))")
+        cache = tmp_path / f"cache-{change}"
+        out = subprocess.run([sys.executable, "-c", driver], env=dict(env, NUMBA_CACHE_DIR=str(cache)),
+                             capture_output=True, text=True, timeout=60)
+        assert (out.returncode, out.stdout, out.stderr) == (0, "compiled dh\n", ""), (change, out)
+        assert not [f.name for f in cache.rglob("*.json")], change
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/autogroup"), reason="no Linux autogroups on this machine")
+def test_a_running_compiler_takes_next_the_families_another_process_waits_for_at_its_first_priority(tmp_path,
+                                                                                                   monkeypatch):
+    """A command's compiling child, past the families its own command waited for (at the lowest priority),
+    finds a WANT note of a live process waiting for 'pups': it compiles pups next, its autogroup back at its
+    first niceness, then the rest at 19 again. The note of a process that has ended is removed unread."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    path = warmup.cache_dir()
+    ended = subprocess.Popen(["true"])
+    ended.wait()
+    for pid, families in ((os.getpid(), ["pups"]), (ended.pid, ["urdf"])):
+        Path(path, f"{warmup.WANT}.{pid}").write_text(json.dumps({"families": families}))
+    code = ("from tolerance_ros.core.models import kernels, warmup; "
+            "kernels.warm_up = lambda which: print(*which, open('/proc/self/autogroup').read().split()[-1], "
+            "flush=True); warmup.fill_cache(['dh', 'zonotope', 'urdf', 'pups'], False, 1)")
+    out = subprocess.run([sys.executable, "-c", code], env=_env(tmp_path), capture_output=True, text=True,
+                         check=True, start_new_session=True, timeout=60)
+    compiled = [line.split() for line in out.stdout.splitlines() if not line.startswith("ready")]
+    assert compiled == [["dh", "0"], ["pups", "0"], ["zonotope", "19"], ["urdf", "19"]], out.stdout
+    assert not Path(path, f"{warmup.WANT}.{ended.pid}").exists()
+    assert Path(path, f"{warmup.WANT}.{os.getpid()}").exists()  # a live process's note is its own to remove
+
+
+def test_the_families_nobody_waits_for_wait_for_a_running_command_to_end(tmp_path, monkeypatch):
+    """While a one-shot command runs that needs none of the families left (its WANT note: it runs on what is
+    compiled), the compiling child leaves them until the command has ended; a node's note (not one-shot)
+    does not hold them back."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    path = warmup.cache_dir()
+    command = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(2)"])
+    node = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        for pid, one_shot in ((command.pid, True), (node.pid, False)):
+            Path(path, f"{warmup.WANT}.{pid}").write_text(json.dumps({"families": ["dh"], "one_shot": one_shot}))
+        code = ("import time; from tolerance_ros.core.models import kernels, warmup; "
+                "kernels.warm_up = lambda which: print(*which, time.time(), flush=True); "
+                "warmup.fill_cache(['dh', 'zonotope', 'urdf', 'pups'], False, 1)")
+        child = subprocess.Popen([sys.executable, "-c", code], env=_env(tmp_path), stdout=subprocess.PIPE, text=True)
+        command.wait()
+        ended = time.time()
+        out = child.communicate(timeout=60)[0]
+    finally:
+        node.kill()
+        node.wait()
+    compiled = {line.split()[0]: float(line.split()[1]) for line in out.splitlines() if not line.startswith("ready")}
+    assert list(compiled) == ["dh", "zonotope", "urdf", "pups"]
+    assert compiled["dh"] < ended <= compiled["zonotope"], (compiled, ended)
+
+
+def test_the_families_a_command_does_not_use_wait_for_it_to_end(tmp_path):
+    """A one-shot command's child (``ahead``: the command uses the first two families) compiles those, then
+    leaves the others until the command has ended: beside it they would only slow it down."""
+    code = ("import time; from tolerance_ros.core.models import kernels, warmup; "
+            "kernels.warm_up = lambda which: print(*which, time.time(), flush=True); "
+            "warmup.fill_cache(['zonotope', 'dh', 'urdf', 'pups'], False, 1, None, 2)")
+    log = tmp_path / "compiled.txt"
+    command = (f"import subprocess, sys, time; child = subprocess.Popen([sys.executable, '-c', {code!r}], "
+               f"stdout=open({str(log)!r}, 'w')); time.sleep(2); print(time.time())")
+    ended = float(subprocess.run([sys.executable, "-c", command], env=_env(tmp_path / "cache"), capture_output=True,
+                                 text=True, check=True, timeout=60).stdout)
+    deadline = time.monotonic() + 60
+    while log.read_text().count("ready") < 4 and time.monotonic() < deadline:
+        time.sleep(0.1)
+    compiled = {line.split()[0]: float(line.split()[1]) for line in log.read_text().splitlines()
+                if not line.startswith("ready")}
+    assert list(compiled) == ["zonotope", "dh", "urdf", "pups"]
+    assert compiled["dh"] < ended <= compiled["urdf"], (compiled, ended)
+
+
+def test_a_child_whose_command_ended_before_it_started_compiles_everything(tmp_path):
+    """A quick command ends before its child has even started (the child then has another parent from its
+    first moment): the child knows its command by pid, not as whatever parent it finds, and goes on with
+    the families the command did not use."""
+    code = ("import os, sys, time; time.sleep(0.5); from tolerance_ros.core.models import kernels, warmup; "
+            "kernels.warm_up = lambda which: print(*which, flush=True); "
+            "warmup.fill_cache(['dh', 'zonotope', 'urdf', 'pups'], False, 1, None, 1, int(sys.argv[1]))")
+    log = tmp_path / "compiled.txt"
+    command = (f"import os, subprocess, sys; subprocess.Popen([sys.executable, '-c', {code!r}, str(os.getpid())], "
+               f"stdout=open({str(log)!r}, 'w'))")
+    subprocess.run([sys.executable, "-c", command], env=_env(tmp_path / "cache"), check=True, timeout=60)
+    deadline = time.monotonic() + 30
+    while log.read_text().count("ready") < 4 and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert [line for line in log.read_text().split() if line != "ready"][:8:2] == ["dh", "zonotope", "urdf", "pups"]
 
 
 def test_the_command_line_answers_at_once_on_a_cold_cache_and_says_it_compiles(tmp_path):
@@ -147,7 +335,8 @@ def test_the_compiling_child_of_a_command_lowers_its_autogroup_after_the_familie
     (``nice`` False) it then sets its autogroup's niceness to its own, 19, for the rest (the next run's); for
     nodes (``nice``) the rest keeps the share, so that every family comes on a loaded machine too. A process
     in its caller's session leaves that session's autogroup alone, the init session's too (which is no
-    autogroup: its file reads empty, as in a CI container whose processes never left PID 1's session)."""
+    autogroup: its file reads empty, as in a CI container whose processes never left PID 1's session). (Each run
+    compiles into a cache of its own: a family in the cache is not compiled again.)"""
     code = ("import os, sys; from tolerance_ros.core.models import kernels, warmup; "
             "kernels.warm_up = lambda *a, **k: print((open('/proc/self/autogroup').read().split() or ['-'])[-1], "
             f"os.nice(0)); warmup.fill_cache(['dh', 'zonotope'], {nice}, 1)")
@@ -157,7 +346,7 @@ def test_the_compiling_child_of_a_command_lowers_its_autogroup_after_the_familie
     own = min(19, os.nice(0) + warmup.BACKGROUND_NICENESS) if nice else os.nice(0)
     assert lines[0] == [0, own] and lines[1] == [0 if nice else 19, 19], lines  # a session's autogroup starts at 0
     before = open("/proc/self/autogroup").read()
-    out = subprocess.run([sys.executable, "-c", code], env=_env(tmp_path), capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-c", code], env=_env(tmp_path / "again"), capture_output=True, text=True,
                          check=True)
     assert open("/proc/self/autogroup").read() == before
     nices = [int(line.split()[-1]) for line in out.stdout.splitlines() if not line.startswith("ready")]
@@ -166,7 +355,8 @@ def test_the_compiling_child_of_a_command_lowers_its_autogroup_after_the_familie
 
 def test_a_process_waiting_for_another_to_fill_the_cache_loads_each_family_as_it_comes(tmp_path, monkeypatch):
     """While another process holds the cache's lock (its child compiling), a family whose marker the child has
-    written is loaded at once; the lock is taken when the other process lets it go."""
+    written is loaded at once, and the families waited for are in a WANT note of this process; the lock is
+    taken when the other process lets it go, and the note removed."""
     import fcntl
     import threading
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
@@ -174,20 +364,25 @@ def test_a_process_waiting_for_another_to_fill_the_cache_loads_each_family_as_it
     monkeypatch.setattr(warmup, "_load", loaded.append)
     holder = open(os.path.join(warmup.cache_dir(), warmup.LOCK), "a")
     fcntl.flock(holder, fcntl.LOCK_EX)
-    got = []
-    waiter = threading.Thread(target=lambda: got.append(warmup._lock_cache(["zonotope", "dh"])))
+    lock, held = warmup._take_lock()
+    assert held is False
+    note = Path(warmup.cache_dir(), f"{warmup.WANT}.{os.getpid()}")
+    waiter = threading.Thread(target=warmup._wait_for_compiler, args=(lock, ["zonotope", "dh"], 1))
     waiter.start()
     time.sleep(0.5)
-    assert loaded == [] and not got
+    assert loaded == [] and waiter.is_alive()
+    assert json.loads(note.read_text()) == {"families": ["zonotope"], "one_shot": False}
+    assert warmup._wanted(["dh", "zonotope", "urdf"]) == ["zonotope"]
     warmup.write_marker(warmup.cache_dir(), warmup.family_marker("dh"))
     deadline = time.monotonic() + 10
     while not loaded and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert loaded == ["dh"] and not got and waiter.is_alive()
-    holder.close()  # the filling process ends
+    assert loaded == ["dh"] and waiter.is_alive()
+    holder.close()  # the compiling child ends
     waiter.join(10)
-    assert got and got[0] is not None and loaded == ["dh"]
-    got[0].close()
+    assert not waiter.is_alive() and loaded == ["dh"] and not note.exists()
+    assert warmup._try_lock(lock)  # held by this process now
+    lock.close()
 
 
 def test_the_families_a_command_waits_for_compile_first_then_the_next_then_the_rest(monkeypatch):
@@ -196,8 +391,10 @@ def test_the_families_a_command_waits_for_compile_first_then_the_next_then_the_r
     from tolerance_ros.core.models import kernels
     seen = []
     monkeypatch.setattr(warmup, "status", dict(warmup.status, state="idle"))
-    monkeypatch.setattr(warmup, "cached", lambda: False)
-    monkeypatch.setattr(warmup, "_prepare", lambda warm, order, log, nice, first: seen.append((order, first)))
+    monkeypatch.setattr(warmup, "cached", lambda family=None: False)
+    monkeypatch.setattr(warmup, "_take_lock", lambda: (None, None))
+    monkeypatch.setattr(warmup, "_prepare", lambda warm, order, log, nice, first, lock, held, ahead:
+                        seen.append((order, first, ahead)))
     try:
         assert warmup.start(background=True, needs=("zonotope",), then=("urdf", "zonotope"), nice=False) == "compiling"
     finally:
@@ -205,7 +402,7 @@ def test_the_families_a_command_waits_for_compile_first_then_the_next_then_the_r
     deadline = time.monotonic() + 10
     while not seen and time.monotonic() < deadline:  # _prepare runs in the background thread start() made
         time.sleep(0.01)
-    assert seen == [(["zonotope", "urdf", "dh", "pups"], 1)]
+    assert seen == [(["zonotope", "urdf", "dh", "pups"], 1, 2)]
 
 
 LAUNCHER = r"""

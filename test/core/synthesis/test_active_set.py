@@ -1,5 +1,7 @@
 """The exact solver: feasibility over a dense grid of the whole joint space, and optimality against a
 relaxation (the same program over the grid subsample, which can only be cheaper)."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.optimize import minimize
@@ -103,3 +105,68 @@ def test_progress_moves_through_the_feasibility_search_the_iterations_and_the_ve
     assert len([f for f in solve if f <= 0.2 * SOLVE_SHARE]) >= 5                  # the feasibility search
     assert len(set(solve)) >= iterations + 5
     assert len({f for f in calls if SOLVE_SHARE < f < 1.0}) >= 5                  # the verification's searches
+
+
+IRB4600 = Path(__file__).resolve().parents[2] / "data" / "abb_irb4600" / "abb_irb4600_60_205.urdf"
+
+
+@pytest.mark.parametrize("top", [1, 12, 40])
+def test_the_pruned_worst_cases_hold_the_exact_largest_ones(top):
+    """_values(top=k) computes the exact worst case only where it can rank among the k largest: its k
+    largest entries are those of the full exact evaluation (the same poses, the same values), every other
+    entry is a lower bound, and so is below them; most poses are left out."""
+    from tolerance_ros.core.errors import worst_case_bound
+    from tolerance_ros.core.models import load_robot
+    from tolerance_ros.core.synthesis.active_set import _values
+    robot = load_robot(str(IRB4600))
+    p = build_problem(robot, 8e-3, samples=2000)
+    rng = np.random.default_rng(5)
+    J = robot.error_jacobian(robot.sample_joints(6000, rng)).position[:, :, p.active]
+    for _ in range(3):
+        delta = p.floors[p.active] * rng.uniform(1.0, 8.0, p.active.sum())
+        exact = worst_case_bound(J, delta)
+        calls = []
+        pruned = _values(p, J, delta, top=top, tick=lambda: calls.append(1))
+        order = np.argsort(-exact, kind="stable")[:top]
+        assert np.array_equal(np.argsort(-pruned, kind="stable")[:top], order)
+        assert np.allclose(pruned[order], exact[order], rtol=1e-8, atol=0)  # a pose's candidate signs are
+        assert np.all(pruned <= exact * (1 + 1e-8))  # chosen on its own perturbation: exact within 2e-9
+        assert 0 < len(calls) * 256 < len(J) / 4  # the exact kernel ran on a small share of the poses
+
+
+def test_a_38_parameter_worst_case_allocation_is_the_optimum_of_an_independent_solver():
+    """The ABB IRB 4600 (38 active parameters), worst case, 8 mm: the active-set answer is feasible over the
+    joint space (a fresh multi-start search finds nothing above the limit) and costs no more than the
+    optimum of the relaxation on the poses where it is active (their worst-case signs at the answer), solved
+    independently by scipy's trust-constr (an interior-point method, not SLSQP): the relaxation can only be
+    cheaper than the true optimum, so the answer is that optimum to 1e-6."""
+    from scipy.optimize import Bounds, NonlinearConstraint
+    from tolerance_ros.core.errors import worst_case_bound
+    from tolerance_ros.core.models import load_robot
+    from tolerance_ros.core.synthesis.search import maximize
+    robot, limit = load_robot(str(IRB4600)), 8e-3
+    p = build_problem(robot, limit)
+    a = p.active
+    assert a.sum() == 38
+    res = solve_active_set(p, "min-cost")
+    d = res["delta"]
+    assert res["status"] == "converged"
+    found = maximize(robot, lambda q: p.values(robot.error_jacobian(q).position, d), n_samples=20000, n_starts=30,
+                     seed=11)
+    assert found.value <= limit * (1 + 1e-9)
+    poses = found.maxima_q[found.maxima > limit * (1 - 1e-4)]
+    assert len(poses) >= 3
+    J = robot.error_jacobian(poses).position[:, :, a]
+    _, signs = worst_case_bound(J, d[a], return_signs=True)
+    tau = p.floors[a]
+    A = J * signs[:, None, :] * tau
+    M = np.einsum("nkp,nkq->npq", A, A) / limit ** 2
+    unit = np.where(np.array(robot.param_kinds)[a] == "length", 1e3, 1.0)
+    K = p.K[a] / (tau * unit)
+    relaxed = minimize(lambda x: np.sum(K / x), np.ones(a.sum()), jac=lambda x: -K / x ** 2, method="trust-constr",
+                       bounds=Bounds(np.ones(a.sum()), p.ceilings[a] / tau),
+                       constraints=[NonlinearConstraint(lambda x: np.einsum("p,npq,q->n", x, M, x), -np.inf, 1.0,
+                                                        jac=lambda x: 2 * np.einsum("npq,q->np", M, x))],
+                       options={"gtol": 1e-12, "xtol": 1e-14, "maxiter": 5000})
+    assert relaxed.status in (1, 2) and relaxed.constr_violation < 1e-9, relaxed.message
+    assert relaxed.fun * (1 - 1e-6) <= p.cost(d) <= relaxed.fun * (1 + 1e-6)

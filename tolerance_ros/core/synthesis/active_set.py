@@ -18,7 +18,7 @@ import numpy as np
 
 from .. import interrupt
 from ..budget import Budget
-from ..errors import paper_bound, per_axis_bound, rss_bound, worst_case_bound
+from ..errors import direction_bounds, paper_bound, per_axis_bound, rss_bound, worst_case_bound
 from .problem import COST_UNIT, MODELS, InfeasibleError, SynthesisError, SynthesisProblem
 from .search import maximize
 
@@ -91,9 +91,10 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
         delta_a = x * tau
         added = 0
         worst_ratio = 0.0
+        values = {}
         for rows, lim in problem.rows:
             J = J_check[rows]
-            v = _values(problem, J, delta_a, prune=True, tick=report.nudge)
+            v = values[rows] = _values(problem, J, delta_a, top=max(add_per_iter, n_starts), tick=report.nudge)
             ratio = float(v.max() / lim)
             worst_ratio = max(worst_ratio, ratio)
             bad = np.flatnonzero(v > lim * (1.0 - MARGIN) * (1.0 + 1e-9))
@@ -108,7 +109,7 @@ def solve_active_set(problem: SynthesisProblem, objective="min-cost", seed=0, n_
             for rows, lim in problem.rows:
                 res = maximize(model, lambda qq, rows=rows: _values(
                     problem, model.error_jacobian(qq).select(rows)[:, :, a], delta_a), n_samples=0, n_starts=0,
-                    q_extra=_worst(problem, J_check[rows], delta_a, q_check, n_starts, report.nudge), seed=rng,
+                    q_extra=q_check[np.argsort(-values[rows])[:n_starts]], seed=rng,
                     tick=report.search)
                 over = res.maxima > lim * (1.0 - MARGIN) * (1.0 + 1e-9)
                 if over.any():
@@ -185,36 +186,66 @@ def _record_best(problem, delta_active, verified_by):
     interrupt.record_best({"budget": budget.to_dict(), "cost_index": problem.cost(delta), "verified_by": verified_by})
 
 
-def _worst(problem, J, delta_a, q, n, tick=None):
-    v = _values(problem, J, delta_a, prune=True, tick=tick)
-    return q[np.argsort(-v)[:n]]
-
-
-def _values(problem, J, delta_a, prune=False, tick=None):
-    """Criterion values with J restricted to the active columns; ``prune`` computes the exact worst case
-    only where its per-axis upper bound can reach the largest value (elsewhere a lower bound), calling
-    ``tick()`` after each block."""
+def _values(problem, J, delta_a, top=0, tick=None):
+    """Criterion values with J restricted to the active columns. With ``top`` (for the worst case) only the
+    values that can rank among the ``top`` largest are computed exactly, the others bounded from below:
+    the ``top`` largest of the result are the exact ``top`` largest, whatever the bounds (``_top_exact``)."""
     c = problem.criterion
     if c == "paper":
         return paper_bound(J, delta_a)
     if c == "rss":
         return rss_bound(J, delta_a, problem.k_sigma)
-    if not prune:
+    if not top:
         return worst_case_bound(J, delta_a)
-    # Exact values only where the cheap upper bound can exceed the largest exact value seen so far.
-    ub = per_axis_bound(J, delta_a)
-    out = rss_bound(J, delta_a)  # a valid lower bound where the exact value is not needed
-    order = np.argsort(-ub)
-    best = -np.inf
-    for start in range(0, len(order), 512):
-        blk = order[start:start + 512]
-        if ub[blk[0]] < best * 0.999:
+    return _top_exact(J, delta_a, top, tick)
+
+
+BLOCK = 512  # poses a step of ``_top_exact``
+
+
+def _top_exact(J, delta_a, top, tick=None):
+    """(n,) worst cases, exact where they can rank among the ``top`` largest, lower bounds elsewhere.
+
+    In decreasing order of the per-axis upper bound, block by block: the direction bounds of the block
+    (``errors.direction_bounds``, about 3 % apart), until the per-axis bound falls below the ``top``-th
+    largest lower bound so far; then the exact worst case of the poses whose upper bound still reaches the
+    ``top``-th largest value (in decreasing order of that bound, the threshold rising as exact values come
+    in). Every value is at most the exact one, so a pose left out lies below the ``top`` exact ones: they
+    are the largest of the result, and a pose above a limit is among them or below them. ``tick()``
+    after each block."""
+    n = len(J)
+    upper = per_axis_bound(J, delta_a)
+    out = rss_bound(J, delta_a)  # a lower bound where nothing better is computed
+    order = np.argsort(-upper, kind="stable")
+    top = min(top, n)
+
+    def kth(values):
+        return np.partition(values, -top)[-top] if len(values) >= top else -np.inf
+
+    seen = 0
+    while seen < n:
+        blk = order[seen:seen + BLOCK]
+        if upper[blk[0]] * (1.0 + SLACK) < kth(out[order[:seen]]):
+            break
+        lo, hi = direction_bounds(J[blk], delta_a)
+        out[blk] = np.maximum(out[blk], lo)
+        upper[blk] = np.minimum(upper[blk], hi)
+        seen += len(blk)
+    threshold = kth(out[order[:seen]])
+    cand = order[:seen][upper[order[:seen]] * (1.0 + SLACK) >= threshold]
+    cand = cand[np.argsort(-upper[cand], kind="stable")]
+    for start in range(0, len(cand), 256):
+        blk = cand[start:start + 256]
+        if upper[blk[0]] * (1.0 + SLACK) < threshold:
             break
         out[blk] = worst_case_bound(J[blk], delta_a)
-        best = max(best, float(out[blk].max()))
+        threshold = kth(out[order[:seen]])
         if tick:
             tick()
     return out
+
+
+SLACK = 1e-6  # relative: the bounds are compared with a margin above rounding (and the exact value's 2e-9)
 
 
 def _objective(x, objective, K, alpha, tau, unit, w, scale):
