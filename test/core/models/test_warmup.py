@@ -300,11 +300,10 @@ def test_a_child_whose_command_ended_before_it_started_compiles_everything(tmp_p
 def test_the_command_line_answers_at_once_on_a_cold_cache_and_says_it_compiles(tmp_path):
     """The one-shot command answers from the numpy path and leaves the cache to its child, which this test
     stops (nothing of it outlives the test)."""
-    t0 = time.perf_counter()
     out = subprocess.run([sys.executable, "-m", "tolerance_ros.cli", "jacobian", "--robot", "gao2023_7dof",
                           "--random", "5", "--json"], env=_env(tmp_path), capture_output=True, text=True, timeout=60)
-    seconds = time.perf_counter() - t0
-    for pid in _children_compiling_into(tmp_path):
+    still = _children_compiling_into(tmp_path)       # the answer came while its child still compiled
+    for pid in still:
         os.kill(pid, 9)
     deadline = time.monotonic() + 10
     while _children_compiling_into(tmp_path) and time.monotonic() < deadline:
@@ -314,7 +313,7 @@ def test_the_command_line_answers_at_once_on_a_cold_cache_and_says_it_compiles(t
     assert "compiling the kernels in the background" in out.stderr
     doc = json.loads(out.stdout)
     assert doc["ok"] and np.asarray(doc["jacobian"]).shape[0] == 5
-    assert seconds < 3.0, f"{seconds:.2f} s"
+    assert still, "the command waited for the compilation"
 
 
 def test_the_compiling_child_runs_at_a_lower_priority(tmp_path):
