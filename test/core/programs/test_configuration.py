@@ -31,7 +31,8 @@ def _reference_signs(model, q):
         pin.forwardKinematics(pm, data, model.pinocchio_configuration(row))
         ids = [pm.getJointId(n) for n in model.joint_names]
         pts = [data.oMi[i].translation.copy() for i in ids]
-        dirs = [data.oMi[i].rotation @ _axis(pm, i) for i in ids]
+        pin.computeJointJacobians(pm, data, model.pinocchio_configuration(row))
+        dirs = [_axis(pm, data, i) for i in ids]
         p4, d4, p5, d5 = pts[3], dirs[3], pts[4], dirs[4]
         # the point of joint 5's axis nearest joint 4's
         w0 = p5 - p4
@@ -50,11 +51,11 @@ def _reference_signs(model, q):
     return np.array(out, int)
 
 
-def _axis(pm, i):
-    name = pm.joints[i].shortname()
-    if name.endswith("RevoluteUnaligned"):
-        return np.asarray(pm.joints[i].extract().axis, float)
-    return {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([0, 0, 1.0])}[name[-1]]
+def _axis(pm, data, i):
+    """(3,) joint i's axis in the world frame: the angular part of its column of the joint Jacobian (every
+    pinocchio version from the floor up gives it; the joint model's own axis is not exposed the same way)."""
+    J = pin.getJointJacobian(pm, data, i, pin.ReferenceFrame.WORLD)
+    return np.asarray(J[3:, pm.joints[i].idx_v], float)
 
 
 def test_signs_are_the_arms_geometry(fanuc, geometry):
