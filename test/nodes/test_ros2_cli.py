@@ -47,6 +47,21 @@ def launched(workspace, launch_file, *arguments):
     assert "Traceback" not in out, out
 
 
+def _ask_error_model(workspace, request: str) -> str:
+    """What ``ros2 topic echo`` prints of the error model's answer to ``request`` (JSON) sent with ``ros2 topic
+    pub``."""
+    echo = subprocess.Popen(["bash", "-c", "source $WS/install/setup.bash && exec ros2 topic echo --once "
+                             "/tolerance/compute_error_jacobian/response std_msgs/msg/String"],
+                            env=workspace, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    time.sleep(3)
+    pub = subprocess.run(["bash", "-c", 'source $WS/install/setup.bash && exec ros2 topic pub --once -w 1 '
+                          '/tolerance/compute_error_jacobian/request std_msgs/msg/String "$0"',
+                          "{data: '" + request + "'}"], env=workspace, capture_output=True, text=True, timeout=60)
+    assert pub.returncode == 0, pub.stderr
+    return echo.communicate(timeout=30)[0]
+
+
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
     ws = tmp_path_factory.mktemp("ws")
@@ -88,18 +103,8 @@ def test_launch_pub_echo_and_params(workspace, tmp_path):
             if "/tolerance_error_model" in nodes and "/tolerance_simulated_tracker" in nodes:
                 break
             time.sleep(1)
-        echo = subprocess.Popen(["bash", "-c", "source $WS/install/setup.bash && exec ros2 topic echo --once "
-                                 "/tolerance/compute_error_jacobian/response std_msgs/msg/String"],
-                                env=workspace, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                start_new_session=True)
-        time.sleep(3)
-        req = ('{data: \'{"id": "cli-1", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6], "outputs": "position", '
-               '"include_jacobian": false}\'}')
-        pub = subprocess.run(["bash", "-c", 'source $WS/install/setup.bash && exec ros2 topic pub --once -w 1 '
-                              '/tolerance/compute_error_jacobian/request std_msgs/msg/String "$0"', req],
-                             env=workspace, capture_output=True, text=True, timeout=60)
-        assert pub.returncode == 0, pub.stderr
-        out, _ = echo.communicate(timeout=30)
+        out = _ask_error_model(workspace, '{"id": "cli-1", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6], '
+                                          '"outputs": "position", "include_jacobian": false}')
         assert '"id":"cli-1","ok":true' in out
         time.sleep(3)
         diag = sh("source $WS/install/setup.bash && timeout 8 ros2 topic echo /diagnostics "
@@ -310,18 +315,8 @@ def test_an_integrators_own_urdf_in_one_launch_argument(workspace):
             if "/tolerance_error_model" in nodes and "/tolerance_accuracy_monitor" in nodes:
                 break
             time.sleep(1)
-        echo = subprocess.Popen(["bash", "-c", "source $WS/install/setup.bash && exec ros2 topic echo --once "
-                                 "/tolerance/compute_error_jacobian/response std_msgs/msg/String"],
-                                env=workspace, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                start_new_session=True)
-        time.sleep(3)
-        req = ('{data: \'{"id": "fanuc-1", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5], "outputs": "position", '
-               '"include_jacobian": true}\'}')
-        pub = subprocess.run(["bash", "-c", 'source $WS/install/setup.bash && exec ros2 topic pub --once -w 1 '
-                              '/tolerance/compute_error_jacobian/request std_msgs/msg/String "$0"', req],
-                             env=workspace, capture_output=True, text=True, timeout=60)
-        assert pub.returncode == 0, pub.stderr
-        out, _ = echo.communicate(timeout=30)
+        out = _ask_error_model(workspace, '{"id": "fanuc-1", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5], '
+                                          '"outputs": "position", "include_jacobian": true}')
         assert '"id":"fanuc-1","ok":true,"robot":"fanuc_r2000ic_165f"' in out, out[:2000]
     bad = subprocess.run(["bash", "-c", "source $WS/install/setup.bash && exec timeout 60 ros2 launch tolerance_ros "
                           "accuracy_suite.launch.py robot:=/nowhere/robot.urdf"], env=workspace,

@@ -186,6 +186,31 @@ def check_outputs(args):
             raise CLIError(f"{option} {value}: cannot write into {existing} (permission denied)")
 
 
+def envelope_options(p, moved: str):
+    """``--max-joint-correction`` and ``--max-tool-correction``, the correction envelope of the nodes; ``moved``
+    says what the tool option bounds."""
+    p.add_argument("--max-joint-correction", default="20mrad",
+                   help="the correction envelope, as the nodes': the largest change of a revolute joint the calibration "
+                        "may make (default 20mrad)")
+    p.add_argument("--max-tool-correction", default="5mm",
+                   help=f"the largest {moved}, and change of a prismatic joint (default 5mm)")
+
+
+def enveloped_calibration(args, model):
+    """(Calibration, Envelope) of ``--calibration`` for ``model`` within ``--max-joint-correction`` and
+    ``--max-tool-correction``; CLIError when its correction leaves that envelope (a calibration a node refuses)."""
+    from ..core.calibration.calibration_file import load_calibration
+    from ..core.calibration.envelope import Envelope
+    cal = load_calibration(args.calibration, model)
+    envelope = Envelope(quantity(args.max_joint_correction, "angle", "--max-joint-correction"),
+                        quantity(args.max_tool_correction, "length", "--max-tool-correction"))
+    check = envelope.check(cal, model)
+    if not check["ok"]:
+        raise CLIError(f"{args.calibration}: refused, its correction is outside the envelope: {check['reason']} "
+                       f"(--max-joint-correction and --max-tool-correction widen it, for a calibration you trust)")
+    return cal, envelope
+
+
 def refuse_overwrite(out_dir, names, args, options):
     """CLIError when a file the command would write into ``out_dir`` (its ``names``) is one of its inputs (the
     values of ``options``, dests of ``args``; each a path or a list of them): nothing a user measured is written

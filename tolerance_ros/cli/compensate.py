@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..render.text import table
-from .common import CLIError, load_model, missed, quantity
+from .common import CLIError, enveloped_calibration, envelope_options, load_model, missed
 
 NAME = "compensate"
 HELP = "joints that put the calibrated robot's tool at each of a program's poses"
@@ -26,11 +26,7 @@ def add_arguments(p):
                                     "pose targets are tool poses there)")
     p.add_argument("--out", metavar="FILE", help="write the compensated joints as a campaign file (a flagged "
                                                   "pose with its nominal joints, named in the file's notes)")
-    p.add_argument("--max-joint-correction", default="20mrad",
-                   help="the correction envelope, as the nodes': the largest change of a revolute joint the calibration "
-                        "may make (default 20mrad)")
-    p.add_argument("--max-tool-correction", default="5mm",
-                   help="the largest displacement of the tool point, and change of a prismatic joint (default 5mm)")
+    envelope_options(p, "displacement of the tool point")
     p.add_argument("--accept-flagged", action="store_true",
                    help="write the compensated joints of flagged poses too (out of reach, near a singularity, out "
                         "of limits)")
@@ -79,17 +75,9 @@ def compensate_poses(model, targets, calibrated, nominal, envelope, match="pose"
 
 
 def run(args):
-    from ..core.calibration.envelope import Envelope
-    from ..core.calibration.calibration_file import load_calibration
     from ..core.campaign import load_campaign
     model = load_model(args)
-    cal = load_calibration(args.calibration, model)
-    envelope = Envelope(quantity(args.max_joint_correction, "angle", "--max-joint-correction"),
-                        quantity(args.max_tool_correction, "length", "--max-tool-correction"))
-    check = envelope.check(cal, model)
-    if not check["ok"]:
-        raise CLIError(f"{args.calibration}: refused, its correction is outside the envelope: {check['reason']} "
-                       f"(--max-joint-correction and --max-tool-correction widen it, for a calibration you trust)")
+    cal, envelope = enveloped_calibration(args, model)
     try:
         calibrated, nominal = cal.mechanism(model, args.target), cal.nominal_at_tool_point(model, args.target)
     except ValueError as exc:

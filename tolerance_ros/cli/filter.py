@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..render.text import table
-from .common import CLIError, load_model, missed, quantity
+from .common import CLIError, enveloped_calibration, envelope_options, load_model, missed, quantity
 
 NAME = "filter"
 HELP = "correct a robot program (ABB RAPID, KUKA KRL, FANUC .ls, URScript) through a calibration, in its own format"
@@ -43,11 +43,7 @@ def add_arguments(p):
     p.add_argument("--fanuc-j3", choices=["absolute", "relative"], default="absolute",
                    help="FANUC joint positions: J3 from the horizontal, as FANUC writes it (default), or relative to "
                         "the upper arm as the model's joint 3")
-    p.add_argument("--max-joint-correction", default="20mrad",
-                   help="the envelope, as the trajectory compensator's: the largest change of a revolute joint "
-                        "(default 20mrad)")
-    p.add_argument("--max-tool-correction", default="5mm",
-                   help="the largest move of a Cartesian target and change of a prismatic joint (default 5mm)")
+    envelope_options(p, "move of a Cartesian target")
 
 
 def pose_option(text, option) -> np.ndarray:
@@ -111,8 +107,6 @@ def _outputs(args, paths) -> dict:
 
 
 def run(args):
-    from ..core.calibration.calibration_file import load_calibration
-    from ..core.calibration.envelope import Envelope
     from ..core.programs.filtering import MARK, Setup, check_programs, dialect_for, filter_program
     from ..core.programs.text import to_bytes
     paths = [Path(p) for p in args.programs]
@@ -120,13 +114,7 @@ def run(args):
         if not p.is_file():
             raise CLIError(f"{p}: no such file")
     model = load_model(args)
-    cal = load_calibration(args.calibration, model)
-    envelope = Envelope(quantity(args.max_joint_correction, "angle", "--max-joint-correction"),
-                        quantity(args.max_tool_correction, "length", "--max-tool-correction"))
-    check = envelope.check(cal, model)
-    if not check["ok"]:
-        raise CLIError(f"{args.calibration}: refused, its correction is outside the envelope: {check['reason']} "
-                       f"(--max-joint-correction and --max-tool-correction widen it, for a calibration you trust)")
+    cal, envelope = enveloped_calibration(args, model)
     tools, default_tool = _named(args.tool, "--tool", True)
     frames, _ = _named(args.frame, "--frame", False)
     base = pose_option(args.base, "--base") if args.base else np.eye(4)
