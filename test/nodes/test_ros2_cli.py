@@ -47,6 +47,18 @@ def launched(workspace, launch_file, *arguments):
     assert "Traceback" not in out, out
 
 
+def _wait_for_nodes(workspace, names, timeout: float) -> str:
+    """``ros2 node list`` once every node of ``names`` is in it, or when ``timeout`` s have passed."""
+    deadline = time.monotonic() + timeout
+    nodes = ""
+    while time.monotonic() < deadline:
+        nodes = sh("source $WS/install/setup.bash && ros2 node list", workspace, check=False).stdout
+        if all(name in nodes.split() for name in names):
+            break
+        time.sleep(1)
+    return nodes
+
+
 def _ask_error_model(workspace, request: str) -> str:
     """What ``ros2 topic echo`` prints of the error model's answer to ``request`` (JSON) sent with ``ros2 topic
     pub``."""
@@ -97,12 +109,7 @@ def test_colcon_install_layout(workspace):
 
 def test_launch_pub_echo_and_params(workspace, tmp_path):
     with launched(workspace, "accuracy_suite.launch.py"):
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
-            nodes = sh("source $WS/install/setup.bash && ros2 node list", workspace, check=False).stdout
-            if "/tolerance_error_model" in nodes and "/tolerance_simulated_tracker" in nodes:
-                break
-            time.sleep(1)
+        _wait_for_nodes(workspace, ["/tolerance_error_model", "/tolerance_simulated_tracker"], 30)
         out = _ask_error_model(workspace, '{"id": "cli-1", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6], '
                                           '"outputs": "position", "include_jacobian": false}')
         assert '"id":"cli-1","ok":true' in out
@@ -120,13 +127,7 @@ def test_two_arms_in_one_graph(workspace):
     expected = [f"/{arm}/{name}" for arm in ("arm_left", "arm_right")
                 for name in ("tolerance_error_model", "tolerance_allocator", "tolerance_accuracy_monitor")]
     with launched(workspace, "two_arms.launch.py"):
-        deadline = time.monotonic() + 60
-        nodes = ""
-        while time.monotonic() < deadline:     # every node named (a count broke early on a loaded machine once)
-            nodes = sh("source $WS/install/setup.bash && ros2 node list", workspace, check=False).stdout
-            if all(name in nodes.split() for name in expected):
-                break
-            time.sleep(1)
+        nodes = _wait_for_nodes(workspace, expected, 60)   # every node named (a count broke early once)
         for name in expected:
             assert name in nodes.split(), nodes
         budgets = {arm: sh(f"source $WS/install/setup.bash && ros2 param get /{arm}/tolerance_accuracy_monitor budget",
@@ -309,12 +310,7 @@ def test_an_integrators_own_urdf_in_one_launch_argument(workspace):
     the argument, no traceback."""
     urdf = ROOT / "test" / "data" / "fanuc_r2000ic" / "fanuc_r2000ic_165f.urdf"
     with launched(workspace, "accuracy_suite.launch.py", f"robot:={urdf}", "tip_link:=flange"):
-        deadline = time.monotonic() + 40
-        while time.monotonic() < deadline:
-            nodes = sh("source $WS/install/setup.bash && ros2 node list", workspace, check=False).stdout
-            if "/tolerance_error_model" in nodes and "/tolerance_accuracy_monitor" in nodes:
-                break
-            time.sleep(1)
+        _wait_for_nodes(workspace, ["/tolerance_error_model", "/tolerance_accuracy_monitor"], 40)
         out = _ask_error_model(workspace, '{"id": "fanuc-1", "joints": [0, 0.1, 0.2, 0.3, 0.4, 0.5], '
                                           '"outputs": "position", "include_jacobian": true}')
         assert '"id":"fanuc-1","ok":true,"robot":"fanuc_r2000ic_165f"' in out, out[:2000]
