@@ -389,3 +389,14 @@ def test_orientations_in_degrees_labelled_radians_are_refused_where_the_tool_har
         assert code == 2 and "degrees labelled radians" in err and "after the registration" in err, (command, err)
         assert run(capsys, command, "--robot", ROBOT, "--campaign", tmp_path / "cube.yaml", "--measurements",
                    tmp_path / "m.csv", "--quiet")[0] == 0
+
+
+def test_a_reflector_off_the_flange_gives_the_report_of_its_test_poses(capsys, tmp_path, campaign):
+    """A named target (a reflector 30, -20, 80 mm off the flange) on an approached campaign: the characteristics
+    keyed by test pose (the report had died of a KeyError on the approaches' keys, name@target)."""
+    cli(capsys, "simulate", "--robot", ROBOT, "--campaign", campaign, "--tolerances", TOL, "--target-offset",
+        "R=30mm,-20mm,80mm", "--out", tmp_path / "r.csv")
+    doc = json.loads(cli(capsys, "iso9283", "--robot", ROBOT, "--campaign", campaign, "--measurements",
+                         tmp_path / "r.csv", "--registration-from", tmp_path / "r.truth.yaml", "--json"))
+    assert {"P1", "P5", "P1+x"} <= set(doc["pose"]) and doc["multidirectional"]["P3"]["vAP_p"] >= 0
+    assert doc["distance"]["between"] == ["P2", "P4"]

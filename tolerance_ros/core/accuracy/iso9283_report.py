@@ -123,7 +123,15 @@ def _pose_data(model, meas, campaign, registration) -> tuple:
     rows = res["rows"]
     names = np.array([str(p) for p in rows["pose"]], dtype=object)
     cyc = rows["visit_cycle"] if rows["visit_cycle"] is not None else np.full(len(names), -1)
-    return res, rows["attained"], names, np.asarray(rows["stamp"], float), np.asarray(cyc), rows["commanded"]
+    # the one target's keys (``name@target`` where it is named: a reflector's) by test pose name
+    suffix = f"@{meas.target_names[0]}" if meas.target_names and meas.target_names[0] else ""
+    res["per_pose"] = {_pose_of(k, suffix): v for k, v in res.get("per_pose", {}).items()}
+    commanded = {_pose_of(k, suffix): v for k, v in rows["commanded"].items()}
+    return res, rows["attained"], names, np.asarray(rows["stamp"], float), np.asarray(cyc), commanded
+
+
+def _pose_of(key: str, suffix: str) -> str:
+    return key[:-len(suffix)] if suffix and key.endswith(suffix) else key
 
 
 def _pairs(names, cycles, a, b) -> tuple:
