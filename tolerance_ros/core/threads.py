@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 
 ENV_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
             "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -21,11 +22,19 @@ def cap_environment(threads: int = 1) -> None:
         os.environ.setdefault(name, str(int(threads)))
 
 
+# Held while a thread loads shared libraries (imports of numba and scipy, compiled kernels) beside others: the
+# scan of the loaded libraries by threadpoolctl (glibc's dl_iterate_phdr, calling back into Python) must not run
+# meanwhile, or it waits for the interpreter that the loading thread holds while that thread waits for the
+# loader's lock the scan holds (seen as a command hung for good, Python 3.12 with threadpoolctl 3.1).
+LOADING = threading.Lock()
+
+
 def limited(threads: int = 1):
     """Context manager capping the BLAS/OpenMP pools to ``threads`` (threadpoolctl), or doing nothing
-    when threadpoolctl is not installed."""
+    when threadpoolctl is not installed. The libraries are scanned under ``LOADING``."""
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
         return contextlib.nullcontext()
-    return threadpool_limits(limits=int(threads))
+    with LOADING:
+        return threadpool_limits(limits=int(threads))

@@ -36,6 +36,7 @@ import threading
 import time
 from pathlib import Path
 
+from ..threads import LOADING
 from . import kernels
 
 MARKER = "tolerance_ros-kernels.json"
@@ -183,8 +184,15 @@ def start(background: bool = True, log=None, needs=(), nice: bool = True, then=(
 
 
 def _load(family):
-    """Load a compiled family in this process (from the cache) and put it in force."""
-    kernels.warm_up((family,))
+    """Load a compiled family in this process (from the cache) and put it in force (under ``threads.LOADING``)."""
+    with LOADING:
+        kernels.warm_up((family,))
+
+
+def _prime(families):
+    """``kernels.prime`` (numba and the families' modules imported) under ``threads.LOADING``."""
+    with LOADING:
+        kernels.prime(families)
 
 
 def _prepare(warm: bool, order, log, nice=True, first=None, lock=None, held=None, ahead=None):
@@ -277,7 +285,7 @@ def _wait_for_compiler(lock, order=(), first=None, one_shot=False):
     waiting = list(order)
     needs = waiting[:first or len(waiting)]
     note = _write_want(needs, one_shot)
-    kernels.prime([f for f in needs if not cached(f)])
+    _prime([f for f in needs if not cached(f)])
     try:
         while True:
             for family in [fam for fam in waiting if cached(fam)]:
@@ -389,7 +397,7 @@ def _fill_in_child(order, nice=True, first=None, lock=None, ahead=None):
     finally:
         if lock is not None:
             lock.close()  # the child holds it now
-    kernels.prime(order[:first or len(order)])
+    _prime(order[:first or len(order)])
     for line in child.stdout:
         word, _, family = line.strip().partition(" ")
         if word == "ready" and family in kernels.FAMILIES:
