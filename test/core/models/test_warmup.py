@@ -158,7 +158,7 @@ def test_commands_one_after_another_on_a_cold_cache_start_one_compiler_which_hol
     """A user's rhythm on an empty cache: quick commands one after another, each ending before the kernels
     are compiled. The first starts the compiling child, and the child, not the command, holds the cache's
     lock: the next commands find it held after the first has ended, start none, say that an earlier command
-    compiles, and answer. When the child ends (stopped here), the lock goes with it."""
+    compiles (nothing, where it has compiled what they use by then), and answer. When the child ends (stopped here), the lock goes with it."""
     import fcntl
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     lock = open(os.path.join(warmup.cache_dir(), warmup.LOCK), "a")
@@ -172,8 +172,9 @@ def test_commands_one_after_another_on_a_cold_cache_start_one_compiler_which_hol
         with pytest.raises(BlockingIOError):  # the child holds the lock after its command has ended
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         assert "compiling the kernels in the background" in outs[0].stderr
-        for out in outs[1:]:
-            assert "the kernels are being compiled by an earlier command" in out.stderr, out.stderr
+        for out in outs[1:]:   # an earlier command's child compiles, or has compiled what this one uses by now
+            assert ("the kernels are being compiled by an earlier command" in out.stderr
+                    or "compil" not in out.stderr), out.stderr
     finally:
         _stop(list(seen))
     fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
