@@ -100,8 +100,8 @@ def parameter_groups(names, kinds, dx, std, held, aliases, delta, rule: Decision
     it counts); ``kinds`` (p,) 'length' or 'angle' gives each group the unit of its first member ('m' or 'rad').
 
     ``undetermined`` {name: why}: estimated parameters the data cannot tell (a near-copy of another, or set by a
-    prior; ``Identification.undetermined``): their estimate is arbitrary, so their group is ``undecided`` whatever it reads, ``note``
-    saying why.
+    prior; ``Identification.undetermined``): their estimate is arbitrary, so their group is ``undecided`` whatever
+    it reads, ``note`` saying why.
 
     Returns [{parameters, coefficients {name: c} (every member), error, std, tolerance, ratio, unit, decision,
     note}], the decisions by ``rule``; out first, then undecided, within and free, each by ratio, largest first.
@@ -129,13 +129,15 @@ def parameter_groups(names, kinds, dx, std, held, aliases, delta, rule: Decision
 
 
 def implausible(names, kinds, dx, reach: float) -> dict:
-    """{name: why} of the estimates beyond any build error (``PLAUSIBLE_LENGTH`` of the robot's ``reach`` m,
-    ``PLAUSIBLE_ANGLE``): where a fit took them, the data do not determine them."""
+    """{name: why} of the identified errors beyond any build error (``PLAUSIBLE_LENGTH`` of the robot's ``reach``
+    m, ``PLAUSIBLE_ANGLE``): what makes a calibration refused, and an estimate the data do not determine."""
     out = {}
     for n, k, v in zip(names, kinds, dx):
-        if abs(v) > (PLAUSIBLE_LENGTH * reach if k == "length" else PLAUSIBLE_ANGLE):
-            out[n] = (f"estimated at {v * 1e3:+.4g} {'mm' if k == 'length' else 'mrad'}, beyond any build error: the "
-                      f"fit, not the data, put it there")
+        if k == "length" and abs(v) > PLAUSIBLE_LENGTH * reach:
+            out[n] = (f"identified error {v * 1e3:+.4g} mm is more than {PLAUSIBLE_LENGTH * 100:g} % of the robot's "
+                      f"reach ({reach:.3g} m)")
+        elif k == "angle" and abs(v) > PLAUSIBLE_ANGLE:
+            out[n] = f"identified error {v:+.4g} rad is more than {PLAUSIBLE_ANGLE:g} rad"
     return out
 
 
@@ -145,7 +147,8 @@ def judged(names, kinds, dx, std, held, aliases, delta, rule: DecisionRule = DEF
     out_of_tolerance (the groups decided out)}; with the robot's ``reach`` (m), an implausible estimate
     (``implausible``) is undetermined too."""
     if reach is not None:
-        undetermined = {**implausible(names, kinds, dx, reach), **(undetermined or {})}
+        undetermined = {**{n: f"{why}, beyond any build error: the fit, not the data, put it there"
+                           for n, why in implausible(names, kinds, dx, reach).items()}, **(undetermined or {})}
     groups = parameter_groups(names, kinds, dx, std, held, aliases, delta, rule, undetermined)
     return {"groups": groups, "rule": str(rule), "rule_words": rule.words(),
             "counts": counts(g["decision"] for g in groups),

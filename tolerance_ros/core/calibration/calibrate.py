@@ -37,7 +37,7 @@ from .crossval import Folds, kept_figures, score, validate
 from .elastic import Load
 from .mechanism import calibrated_mechanism, corrected_origins
 from .result import Calibration, nominal_fingerprint
-from ..conformity import PLAUSIBLE_ANGLE, PLAUSIBLE_LENGTH
+from ..conformity import implausible
 from ..identification import PRIOR, REGISTRATIONS, FitOptions
 from .robust import MODELS, FitData, estimate_sets, fit, prior_vector
 
@@ -271,15 +271,8 @@ def _units_problems(model, q, T_tracker) -> list:
 def _plausibility_problems(model, cal) -> list:
     """Reasons the identified model cannot be right: errors beyond a fraction of the robot's reach or a
     plausible angle, elastic deflections beyond it, a held-out error that does not fall."""
-    out = []
     reach = model.reach()
-    limit = PLAUSIBLE_LENGTH * reach
-    for n, k, v in zip(cal.names, cal.kinds, cal.dx):
-        if k == "length" and abs(v) > limit:
-            out.append(f"{n}: identified error {v * 1e3:+.4g} mm is more than {PLAUSIBLE_LENGTH * 100:g} % of the "
-                       f"robot's reach ({reach:.3g} m)")
-        elif k == "angle" and abs(v) > PLAUSIBLE_ANGLE:
-            out.append(f"{n}: identified error {v:+.4g} rad is more than {PLAUSIBLE_ANGLE:g} rad")
+    out = [f"{n}: {why}" for n, why in implausible(cal.names, cal.kinds, cal.dx, reach).items()]
     far = np.linalg.norm(cal.targets.offsets, axis=1)
     for name, d in zip(cal.targets.names, far):
         if d > max(reach, 1.0):

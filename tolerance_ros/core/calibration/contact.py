@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..conformity import PLAUSIBLE_ANGLE, PLAUSIBLE_LENGTH
 from ..targets import shift_jacobian
 from ..models.base import Mechanism
 from ..accuracy.folds import folds_of, pose_groups
@@ -42,9 +43,6 @@ TAIL = 1e-4                # a row whose distance is this improbable under the r
 MAX_REJECTED = 0.25        # at most this share of the rows left out
 ROUNDS = 5                 # rejection rounds of a robust fit
 MODELS = ("rig", "joint-offsets", "full")
-PLAUSIBLE_LENGTH = 0.05    # the search stays where length errors and target moves are below this share of the reach
-PLAUSIBLE_ANGLE = 0.2      # rad, and angle errors below this: beyond, a calibration is refused anyway, and a
-                           # plane-contact fit free to go there can fold the robot until its contacts meet in a point
 AUTO, FIT = "auto", "fit"
 TARGET_MODES = (AUTO, FIT)  # the targets fitted where the contacts determine them well, or wherever they can be
 TARGET_SHARE = 0.001       # ... well: a target coordinate's std at the rows' noise under this share of its lever arm
@@ -431,7 +429,7 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
     if tikhonov is not None and fixed is None:
         ridge[:p] = float(tikhonov)
     natural = np.full(layout.n, SCALE_WITHOUT_BUDGET)
-    reach = model.reach()
+    reach = model.reach()   # the search stays within the build errors: free, a plane-contact fit can fold the robot
     bound = np.r_[np.where(np.array(model.param_kinds) == "length", PLAUSIBLE_LENGTH * reach, PLAUSIBLE_ANGLE),
                   np.full(3 * layout.K, PLAUSIBLE_LENGTH * reach)]
     n = len(data)

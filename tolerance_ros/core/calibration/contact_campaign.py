@@ -9,8 +9,9 @@ import numpy as np
 from ..accuracy.checks import LIMIT_MARGIN, CheckError
 from ..targets import Targets
 from ..models.base import Mechanism
-from .contact import (AUTO, PLANE, PLAUSIBLE_ANGLE, PLAUSIBLE_LENGTH, ContactData, calibrate_contacts, initial_rig,
-                      not_converged_words, target_points, validate_contacts)
+from ..conformity import PLAUSIBLE_LENGTH, implausible
+from .contact import (AUTO, PLANE, ContactData, calibrate_contacts, initial_rig, not_converged_words, target_points,
+                      validate_contacts)
 from .result import Calibration, nominal_fingerprint
 
 UNIT_SLIP_SHARE = 0.5      # beyond this share of rows outside the joint limits, the unit is wrong, not the rows
@@ -216,14 +217,8 @@ def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=Non
                                 f"did not converge: {not_converged_words(f.convergence)}")
     cal.convergence["held_judged_at"] = f.held_judged_at
     cal.training = {"joint_ranges": np.c_[data.q.min(axis=0), data.q.max(axis=0)].tolist()}
-    problems = []
     reach = model.reach()
-    for n, k, v in zip(cal.names, cal.kinds, cal.dx):
-        if k == "length" and abs(v) > PLAUSIBLE_LENGTH * reach:
-            problems.append(f"{n}: identified error {v * 1e3:+.4g} mm is more than {PLAUSIBLE_LENGTH * 100:g} % of the "
-                            f"robot's reach ({reach:.3g} m)")
-        elif k == "angle" and abs(v) > PLAUSIBLE_ANGLE:
-            problems.append(f"{n}: identified error {v:+.4g} rad is more than {PLAUSIBLE_ANGLE:g} rad")
+    problems = [f"{n}: {why}" for n, why in implausible(cal.names, cal.kinds, cal.dx, reach).items()]
     moved = np.linalg.norm(rig.offsets - nominal, axis=1)
     for name, m in zip(data.target_names, moved):
         if m > PLAUSIBLE_LENGTH * reach:
