@@ -187,7 +187,7 @@ def against_budget(args, model, cal, report):
     if not args.budget:
         return None
     from ..core.budget import load_budget
-    from ..core.conformity import DecisionRule, judged
+    from ..core.conformity import DecisionRule, judged, out_words
     from ..render.accuracy_report import budget_lines
     try:
         rule = DecisionRule.parse(args.decision_rule)
@@ -203,20 +203,15 @@ def against_budget(args, model, cal, report):
     with report.open("a") as fh:
         fh.write("\n".join(["", f"## Against the budget {res['budget']}", ""] + budget_lines(res)
                            + (["", f"Note: {res['note']}."] if "note" in res else [])) + "\n")
-    out = [g["parameters"][0] for g in res["out_of_tolerance"]]
-    if out:
-        missed(args, f"{len(out)} part(s) decided out of tolerance by the decision rule {rule}: {', '.join(out)}")
+    if out_words(res):
+        missed(args, out_words(res))
     return res
 
 
 def print_budget(res):
     """The parts judged against the budget, as ``report`` prints them (out and undecided listed)."""
-    from ..render.accuracy_report import decision_counts, group_rows
-    print(f"\nagainst the budget {res['budget']}, {len(res['groups'])} identified parts: "
-          f"{decision_counts(res['counts'])}; {res['rule_words']}")
-    shown = [r for r, g in zip(group_rows(res["groups"]), res["groups"]) if g["decision"] in ("out", "undecided")]
-    if shown:
-        print(table(["group", "unit", "error", "u", "tolerance", "|error|/tol", "decision"], shown))
+    from ..render.accuracy_report import decisions_text
+    print("\n" + decisions_text(res, f"against the budget {res['budget']}, {len(res['groups'])} identified parts"))
     if "note" in res:
         print(f"NOTE: {res['note']}")
 

@@ -117,13 +117,10 @@ def run(args):
         print(table(["pose", "n"] + [heads[k] for k in keys], rows))
     ident = res.get("identification")
     if ident and ident.get("groups") is not None:
-        from ..render.accuracy_report import decision_counts, group_rows
+        from ..render.accuracy_report import decisions_text
         grp = ident["groups"]
-        print(f"identification against the budget, {len(grp['groups'])} groups (an estimated parameter and the held "
-              f"ones it absorbs): {decision_counts(grp['counts'])}; {grp['rule_words']}")
-        shown = [r for r, g in zip(group_rows(grp["groups"]), grp["groups"]) if g["decision"] in ("out", "undecided")]
-        if shown:
-            print(table(["group", "unit", "error", "u", "tolerance", "|error|/tol", "decision"], shown))
+        print(decisions_text(grp, f"identification against the budget, {len(grp['groups'])} groups (an estimated "
+                                  f"parameter and the held ones it absorbs)"))
         if grp["absorbed_by_registration"]:
             print(f"absorbed by the registration (no campaign sees them): {', '.join(grp['absorbed_by_registration'])}")
         if grp["not_seen"]:
@@ -147,9 +144,13 @@ def _proven_out(args, ident):
     """Exit 3 when the identification proves a part out of its tolerance (by the decision rule), naming them."""
     if not ident:
         return
+    from ..core.conformity import out_words
     grp = ident.get("groups")
-    out = [("+".join(g["parameters"]) if len(g["parameters"]) > 1 else g["parameters"][0]) for g in grp["groups"]
-           if g["decision"] == "out"] if grp else [o["name"] for o in ident.get("out_of_tolerance", [])]
-    if out:
-        rule = grp["rule"] if grp else ident.get("decision_rule")
-        missed(args, f"{len(out)} part(s) decided out of tolerance by the decision rule {rule}: {', '.join(out)}")
+    if grp:
+        words = out_words(grp)
+    else:   # the linearised identification of a stream: parameters, no groups
+        out = [o["name"] for o in ident.get("out_of_tolerance", [])]
+        words = (f"{len(out)} part(s) decided out of tolerance by the decision rule {ident.get('decision_rule')}: "
+                 f"{', '.join(out)}" if out else None)
+    if words:
+        missed(args, words)

@@ -141,6 +141,14 @@ def implausible(names, kinds, dx, reach: float) -> dict:
     return out
 
 
+def out_words(grp) -> str | None:
+    """'2 part(s) decided out of tolerance by the decision rule guarded:2: a3, d6+alpha6' of ``judged``'s result,
+    or None when no part is decided out."""
+    out = ["+".join(g["parameters"]) for g in grp["groups"] if g["decision"] == "out"]
+    return (f"{len(out)} part(s) decided out of tolerance by the decision rule {grp['rule']}: {', '.join(out)}"
+            if out else None)
+
+
 def judged(names, kinds, dx, std, held, aliases, delta, rule: DecisionRule = DEFAULT_RULE,
            undetermined=None, reach: float | None = None) -> dict:
     """``parameter_groups`` with the rule said: {groups, rule, rule_words, counts {decision: n},

@@ -191,6 +191,17 @@ def budget_lines(grp) -> list:
         + [f"- {group_text(g)}: {g['note']}" for g in grp["groups"] if g.get("note")]
 
 
+def decisions_text(grp, what: str) -> str:
+    """``what`` (e.g. 'identification against the budget'), the counts of the decisions and the rule in one line,
+    then the table of the parts decided out or undecided (mm, mrad), for a terminal."""
+    from .text import table
+    lines = [f"{what}: {decision_counts(grp['counts'])}; {grp['rule_words']}"]
+    shown = [r for r, g in zip(group_rows(grp["groups"]), grp["groups"]) if g["decision"] in ("out", "undecided")]
+    if shown:
+        lines.append(table(["group", "unit", "error", "u", "tolerance", "|error|/tol", "decision"], shown))
+    return "\n".join(lines)
+
+
 def decision_counts(counts: dict) -> str:
     """'1 out, 2 undecided, 17 within, 2 free' (the decisions that occur)."""
     return ", ".join(f"{n} {k}" for k, n in counts.items() if n) or "none"
