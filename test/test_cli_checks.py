@@ -27,7 +27,7 @@ def xarm_campaign(tmp_path_factory):
 def test_simulate_writes_the_measurements_and_the_truth_in_the_calibration_format(capsys, xarm_campaign):
     urdf, tmp = xarm_campaign
     truth = yaml.safe_load((tmp / "m.truth.yaml").read_text())
-    assert truth["format"] == "tolerance_ros.calibration/2" and truth["model"]["parameters"] == "truth"
+    assert truth["format"] == "tolerance_ros.calibration/3" and truth["model"]["parameters"] == "truth"
     assert truth["sources"]["joint_names"] == [f"joint{i}" for i in range(1, 8)]   # a list, not its text
     assert truth["sources"]["measurements"] == "m.csv" and truth["sources"]["campaign"] == "plan.yaml"  # beside it
     errors = [p["error"] for p in truth["parameters"].values()]

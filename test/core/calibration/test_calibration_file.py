@@ -48,7 +48,7 @@ def test_calibration_file_errors_name_the_field(gao, gao_calibration, tmp_path):
 @pytest.mark.parametrize("edit, message", [
     (lambda t: t.replace("units: {length: mm, angle: mrad}", "units: [mm, mrad]"),
      r": units: expected a mapping, got list"),
-    (lambda t: t.replace("format: tolerance_ros.calibration/2", "format: tolerance_ros.calibration/2\nfit: 3"),
+    (lambda t: t.replace("format: tolerance_ros.calibration/3", "format: tolerance_ros.calibration/3\nfit: 3"),
      r", line \d+: key 'fit' given twice in one mapping"),
     (lambda t: t + "junk: " + "[" * 5000 + "]" * 5000 + "\n", r", line \d+: nested deeper than 32 levels"),
     (lambda t: t.replace("rank: ", "rank: x, other: "), r": fit.rank: expected a number, got str"),

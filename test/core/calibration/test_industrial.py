@@ -135,8 +135,8 @@ def test_the_options_object_refuses_unknown_options_and_bad_values():
     assert FitOptions().updated(folds=4).folds == 4
 
 
-def test_a_point_mass_loads_the_joints_with_m_g_dz_dq(fanuc):
-    """The lumped load's torques against central differences of the tool point's height (m g dz/dq); an offset
+def test_a_point_mass_loads_the_joints_with_minus_m_g_dz_dq(fanuc):
+    """The lumped load's torques against central differences of the tool point's height (-m g dz/dq); an offset
     point is carried by the tool frame; the default of a URDF without inertials is 1 kg at the tool origin."""
     q = fanuc.sample_joints(6, 2)
     point = np.array([0.1, -0.05, 0.2])
@@ -147,7 +147,7 @@ def test_a_point_mass_loads_the_joints_with_m_g_dz_dq(fanuc):
         dq = np.zeros(fanuc.dof)
         dq[j] = h
         z = [(fanuc.fk(q + s * dq)[:, :3, :3] @ point + fanuc.fk(q + s * dq)[:, :3, 3])[:, 2] for s in (1, -1)]
-        fd[:, j] = (z[0] - z[1]) / (2 * h) * 7.0 * 9.81
+        fd[:, j] = -(z[0] - z[1]) / (2 * h) * 7.0 * 9.81
     np.testing.assert_allclose(load.torques(fanuc, q), fd, atol=1e-6)
     assert Load.for_model(fanuc) == Load("point-mass", 1.0, (0.0, 0.0, 0.0)) and Load.for_model(fanuc).lumped
     assert Load.for_model(fanuc, (165.0, (0.0, 0.0, 0.2))).mass == 165.0

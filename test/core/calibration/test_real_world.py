@@ -102,7 +102,7 @@ def test_the_elastic_term_is_kept_where_the_arm_bends_and_recovers_the_complianc
     assert isinstance(chain, DeflectedChain)
 
 
-def test_gravity_loads_are_the_gradient_of_the_potential_energy(ur5):
+def test_gravity_loads_are_the_force_of_gravity_minus_the_gradient_of_the_potential_energy(ur5):
     import pinocchio as pin
     q = ur5.sample_joints(3, 1)
     g = gravity_loads(ur5, q)
@@ -114,7 +114,7 @@ def test_gravity_loads_are_the_gradient_of_the_potential_energy(ur5):
             up[j] += h
             down[j] -= h
             U = [pin.computePotentialEnergy(ur5.pin_model, data, ur5.pinocchio_configuration(x)) for x in (up, down)]
-            assert (U[0] - U[1]) / (2 * h) == pytest.approx(g[i, j], abs=1e-5)
+            assert -(U[0] - U[1]) / (2 * h) == pytest.approx(g[i, j], abs=1e-5)
 
 
 def test_targets_and_compliance_survive_the_calibration_file(ur5, tmp_path):
@@ -132,3 +132,30 @@ def test_targets_and_compliance_survive_the_calibration_file(ur5, tmp_path):
     idx = np.array([0, 1, 0, 1, 0])
     assert np.allclose(back.fk(ur5, q, idx), cal.fk(ur5, q, idx), atol=1e-12)
     assert back.model["parameters"] == "full+elastic" and back.training["joint_ranges"] == cal.training["joint_ranges"]
+    assert back.compliance[1] > 0     # the shoulder yields to its load
+
+
+def test_a_format_2_file_is_read_with_its_compliances_turned(ur5, tmp_path):
+    """Format 2 signed the compliances against the potential energy's gradient (a joint that yields had a negative
+    one); its files are read in today's sign, so that they deflect the robot as they did."""
+    c = np.zeros(ur5.dof)
+    c[1] = 2e-4
+    meas = _campaign(ur5, None, None, 3, poses=30, deflection=lambda q: gravity_loads(ur5, q) * c)
+    cal = calibrate_measurements(ur5, meas, sigma_position=NOISE, parameters="full+elastic")
+    path = save_calibration(cal, tmp_path / "calibration.yaml")
+    text = path.read_text().replace("format: tolerance_ros.calibration/3", "format: tolerance_ros.calibration/2")
+    lines = [line for line in text.splitlines() if "content_sha256" not in line]
+    in_block = False
+    for i, line in enumerate(lines):
+        if line.startswith("compliance:"):
+            in_block = True
+        elif in_block and line.startswith("  ") and "value: " in line:
+            name, rest = line.split(": {value: ")
+            value, tail = rest.split(",", 1)
+            lines[i] = f"{name}: {{value: {-float(value)!r},{tail}"
+        elif in_block:
+            in_block = False
+    old = tmp_path / "old.yaml"
+    old.write_text("\n".join(lines) + "\n")
+    back = load_calibration(old, ur5)
+    assert np.allclose(back.compliance, cal.compliance, rtol=1e-12) and back.compliance[1] > 0

@@ -163,8 +163,8 @@ class PinocchioArm:
         return out
 
     def point_mass_torques(self, q, mass, h=1e-6) -> np.ndarray:
-        """(n, dof) gravity torque of a point mass (kg) at the tip frame's origin, N m: m g dz/dq by central
-        differences (gravity 9.81 m/s^2 along -z)."""
+        """(n, dof) the generalized force of gravity on a point mass (kg) at the tip frame's origin, N m: -m g dz/dq
+        by central differences (gravity 9.81 m/s^2 along -z; a joint of compliance c > 0 yields by c times it)."""
         q = np.asarray(q, float)
         out = np.empty_like(q)
         z0 = np.zeros((1, 3))
@@ -172,7 +172,7 @@ class PinocchioArm:
             dq = np.zeros(q.shape[1])
             dq[j] = h
             out[:, j] = (self.points(q + dq, z0)[:, 0, 2] - self.points(q - dq, z0)[:, 0, 2]) / (2 * h)
-        return out * mass * 9.81
+        return -out * mass * 9.81
 
 
 class PathStreams:

@@ -58,7 +58,10 @@ same hash. Files without ``provenance`` (made before it existed) are read; their
 edited by hand no longer matches its hash and is refused: delete its ``content_sha256`` line (its ``signature``
 too, which the edit has made false) and the readers compute the hash of the edited content.
 
-``tolerance_ros.calibration/1`` files (one tool offset, no targets, no elastic term) are read too.
+``tolerance_ros.calibration/1`` files (one tool offset, no targets, no elastic term) are read too, and
+``tolerance_ros.calibration/2`` files, whose compliances were signed against the potential energy's gradient
+(a joint that yields had a negative one): they are read with their sign turned (format 3: ``c > 0`` yields,
+``elastic``).
 """
 from __future__ import annotations
 
@@ -79,8 +82,9 @@ from .elastic import Load
 from .provenance import ProvenanceError, check_blocks, signature, stamped, verified_provenance
 from .result import NOMINAL_TOLERANCE, Calibration
 
-FORMAT = "tolerance_ros.calibration/2"
-FORMATS = ("tolerance_ros.calibration/1", FORMAT)
+FORMAT = "tolerance_ros.calibration/3"
+FORMATS = ("tolerance_ros.calibration/1", "tolerance_ros.calibration/2", FORMAT)
+GRADIENT_SIGNED = ("tolerance_ros.calibration/2",)   # formats whose compliances multiply +dV/dq
 UNITS = {"length": "mm", "angle": "mrad"}
 
 
@@ -395,6 +399,8 @@ def _calibration_from_dict(doc, path, model):
         compliance = np.array([parse_number(comp[j].get("value"), f"compliance.{j}.value") for j in model.joint_names])
         compliance_std = np.array([parse_number(comp[j].get("std", 0), f"compliance.{j}.std")
                                    for j in model.joint_names])
+        if doc.get("format") in GRADIENT_SIGNED:
+            compliance = -compliance
     nominal = None
     nr = doc.get("nominal_registration")
     if nr is not None:

@@ -4,10 +4,11 @@
 gravity, every joint outside the chain at its neutral value), a point mass in the tool frame (a
 ``payload``), or both. Industrial URDFs rarely carry inertials; without them the default load is a point
 mass of 1 kg at the tool frame's origin, a lumped model whose compliances then carry the unknown mass
-(rad/(N m) per kg of the real load). ``Load.torques`` gives the generalized gravity force of each chain
-joint (N m for a revolute joint, N for a prismatic one; gravity 9.81 m/s^2 along -z of the chain's base
-frame). The deflected robot reaches ``q + c * g(q)`` when its joints read ``q``; ``DeflectedChain`` is
-that robot as a Mechanism (its error model is the inner chain's at the deflected joints, the load's own
+(rad/(N m) per kg of the real load). ``Load.torques`` gives the generalized force of gravity on each chain
+joint, ``g(q) = -dV/dq`` with V the potential energy (N m for a revolute joint, N for a prismatic one; gravity
+9.81 m/s^2 along -z of the chain's base frame): the way the joint yields. The deflected robot reaches
+``q + c * g(q)`` when its joints read ``q``, a joint that yields to its load having a compliance ``c > 0``;
+``DeflectedChain`` is that robot as a Mechanism (its error model is the inner chain's at the deflected joints, the load's own
 change with the parameter errors neglected). SI throughout.
 """
 from __future__ import annotations
@@ -102,14 +103,15 @@ class Load:
         return cls(str(doc["model"]), float(doc.get("mass_kg")), tuple(float(v) for v in doc.get("point_m")))
 
     def torques(self, model: Mechanism, q) -> np.ndarray:
-        """(n, dof) gravity load of each chain joint at joints q (n, dof): N m (revolute), N (prismatic)."""
+        """(n, dof) the generalized force of gravity on each chain joint at joints q (n, dof), ``-dV/dq``: N m
+        (revolute), N (prismatic)."""
         q = model.check_joints(q)
         out = np.zeros((len(q), model.dof))
         if self.kind in ("inertials", "inertials+payload"):
             out += _inertial_torques(model, q)
         if self.kind in ("point-mass", "inertials+payload"):
             out += _point_mass_torques(model, q, self.mass, np.asarray(self.point, float))
-        return out
+        return -out
 
 
 def _inertial_torques(model: Mechanism, q) -> np.ndarray:
@@ -136,7 +138,7 @@ def _point_mass_torques(model: Mechanism, q, mass, point) -> np.ndarray:
 
 
 def gravity_loads(model: Mechanism, q, load: Load | None = None) -> np.ndarray:
-    """(n, dof) gravity load of each chain joint at joints q (n, dof) under ``load`` (default: the model's own,
+    """(n, dof) the generalized force of gravity (``-dV/dq``) on each chain joint at joints q (n, dof) under ``load`` (default: the model's own,
     ``Load.for_model``): N m (revolute), N (prismatic)."""
     load = load or Load.for_model(model)
     if load is None:
