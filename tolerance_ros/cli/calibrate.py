@@ -10,7 +10,7 @@ from .common import CLIError, load_model, missed, point_option, quantity, relati
 NAME = "calibrate"
 HELP = "calibrated robot file from measured poses, validated on held-out poses"
 ROBOT = True
-PARAMETERS = ("auto", "registration", "joint-offsets", "full", "full+elastic")
+PARAMETERS = ("auto", "registration", "joint-offsets", "full", "full+elastic", "joint-offsets+elastic")
 
 
 def add_arguments(p):
@@ -27,7 +27,9 @@ def add_arguments(p):
                    help="what to identify: auto (default: the candidate that predicts held-out poses best), the "
                         "registration alone, the joint offsets, every parameter, or every parameter and a joint "
                         "compliance times its gravity load (URDF robots: their inertials, --payload, or a lumped "
-                        "point mass at the tool frame)")
+                        "point mass at the tool frame). Contact campaigns: auto, joint-offsets, full, or "
+                        "joint-offsets+elastic (the joint offsets and every joint's compliance under the whole robot's "
+                        "weight: a URDF with inertials, its chain from a fixed base or from the sole it stands on)")
     p.add_argument("--prior", default="5mm,5mrad",
                    help="prior std of the origin errors of the regularised fits, LENGTH,ANGLE (default 5mm,5mrad), "
                         "or none")
@@ -123,6 +125,9 @@ def run(args):
         raise CLIError("--target, --target-prior, --fit-targets: for contact campaigns (a CSV with a contact column, or "
                        "a campaign log with contact events); a tracker's targets are fitted with --registration "
                        "base+tool")
+    if args.parameters == "joint-offsets+elastic":
+        raise CLIError("--parameters joint-offsets+elastic: for contact campaigns; with a tracker the compliances are "
+                       "fitted with every parameter (--parameters full+elastic)")
     campaign = load_campaign(args.campaign, model) if args.campaign else None
     meas = read_measurements(args.measurements, joint_names=model.joint_names, skip_bad=args.skip_bad)
     log_sha256 = file_sha256(args.measurements)
@@ -225,8 +230,9 @@ def run_contacts(args, model, opts, key):
     if args.campaign or args.registration not in ("auto", "base") or args.orientation_noise or args.payload:
         raise CLIError("contact campaigns: --campaign, --registration, --orientation-noise and --payload do not apply "
                        "(the rig is fitted with the parameters; contacts have no orientation)")
-    if args.parameters not in ("auto", "joint-offsets", "full"):
-        raise CLIError(f"--parameters {args.parameters}: contact campaigns identify auto, joint-offsets or full")
+    if args.parameters not in ("auto", "joint-offsets", "full", "joint-offsets+elastic"):
+        raise CLIError(f"--parameters {args.parameters}: contact campaigns identify auto, joint-offsets, full or "
+                       f"joint-offsets+elastic")
     if args.target_prior and args.fit_targets:
         raise CLIError("--target-prior, --fit-targets: give one (a prior on the targets' places, or none)")
     target_prior = quantity(args.target_prior, "length", "--target-prior")

@@ -74,6 +74,23 @@ def target_lines(cal) -> list:
     return [f"targets {words.get(key, key[1])}: {', '.join(names)}" for key, names in groups.items()]
 
 
+def elastic_lines(cal) -> list:
+    """The joints' compliances of an elastic candidate: what loads them, and each joint's deflection at its largest
+    load in the rows (mrad, mm for a prismatic joint), largest first."""
+    e = cal.model.get("elastic")
+    if not e:
+        return []
+    posture = (f"its {len(e['posture_from'])} other joints as recorded" if e.get("posture_from") else
+               "its other joints at their neutral values (the rows have no columns for them)")
+    out = [f"elastic joints, loaded by {e['load']} ({posture}); deflection at the largest load of the rows "
+           f"(prior std {e['deflection_prior_rad'] * 1e3:g} mrad):"]
+    joints = sorted(e["joints"], key=lambda j: -abs(j["deflection_rad"]))
+    out.append("  " + ", ".join(f"{j['joint']} {j['deflection_rad'] * 1e3:+.3g} +- {j['deflection_std_rad'] * 1e3:.2g}"
+                                f" at {j['largest_load']:.4g}" for j in joints)
+               + " (mrad at N m; mm at N for a prismatic joint)")
+    return out
+
+
 def summary_lines(cal) -> list:
     """The figures as a person reads them: what was identified and how it was chosen, the noise, what was held and
     why, the targets, before and after."""
@@ -99,6 +116,7 @@ def summary_lines(cal) -> list:
         out.append(f"held, combinations of other parameters: {', '.join(other)}")
     if cal.model.get("undetermined_rig"):
         out.append(f"not determined by the contacts: {', '.join(cal.model['undetermined_rig'])}")
+    out += elastic_lines(cal)
     out += target_lines(cal)
     rig = cal.model.get("rig") or {}
     for t in rig.get("targets", []):
@@ -138,6 +156,8 @@ def write_contact_report(cal, out_dir, files=None) -> dict:
     for n, k, v, s in zip(cal.names, cal.kinds, cal.dx, cal.std):
         if n not in cal.held:
             lines.append(f"| {n} | {'mm' if k == 'length' else 'mrad'} | {v * 1e3:+.4f} | {s * 1e3:.4f} |")
+    for j in (cal.model.get("elastic") or {}).get("joints", []):
+        lines.append(f"| {j['joint']}.compliance | mrad/(N m) | {j['compliance'] * 1e3:+.4g} | {j['std'] * 1e3:.4g} |")
     if files:
         lines += ["", "## Files", ""] + [f"- {k}: `{Path(f).name}`" for k, f in files.items()]
     (out / "calibration.md").write_text("\n".join(lines) + "\n")

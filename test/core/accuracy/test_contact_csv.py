@@ -33,6 +33,20 @@ def test_columns_of_joints_outside_the_chain_are_ignored_and_listed(tmp_path):
     assert c.ignored == ["gripper"] and c.joints.shape == (1, 2)
 
 
+def test_the_readings_of_joints_outside_the_chain_are_kept_in_si(tmp_path):
+    """The rest of a standing robot's posture loads its joints: columns outside the chain with an angle or length
+    unit are read (SI) beside the chain's; one without a unit is only listed; a bad number there is named."""
+    p = write(tmp_path, HEADER + ",joint:knee[deg],joint:gripper[mm],joint:note[x]", "0,P,s,A,plane:t,1,2,90,40,7",
+              "1,Q,s,A,plane:t,1,2,-45,20,8")
+    c = read_contacts(p, JOINTS)
+    assert c.ignored == ["gripper", "knee", "note"] and c.other_names == ("gripper", "knee")
+    assert np.allclose(c.others, [[0.04, np.pi / 2], [0.02, -np.pi / 4]])
+    assert np.allclose(c.select([1]).others, [[0.02, -np.pi / 4]])
+    bad = write(tmp_path, HEADER + ",joint:knee[deg]", "0,P,s,A,plane:t,1,2,x", name="bad.csv")
+    with pytest.raises(MeasurementError, match="line 2: joint:knee: not a number"):
+        read_contacts(bad, JOINTS)
+
+
 @pytest.mark.parametrize("lines, words", [
     (["stamp[s],pose,target,contact,joint:j1[deg],joint:j2[rad]"], "needs the column(s) ['session']"),
     (["stamp[s],session,target,contact,joint:j1[deg]"], "no column for joint(s) ['j2']"),

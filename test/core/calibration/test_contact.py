@@ -245,3 +245,77 @@ def test_the_candidates_state_their_regularisation():
     assert labels[:2] == ["rig", "joint-offsets"] and TIKHONOV[0] == 1e-3       # FIGAROH's weight on TALOS first
     assert "joint-offsets, Tikhonov 0.001" in labels and "full, prior 5 mm / 5 mrad" in labels
     assert [c.label for c in candidates(None)].count("full, prior 5 mm / 5 mrad") == 0
+
+
+@pytest.fixture(scope="module")
+def standing():
+    """A humanoid standing on its left sole, the left fingertips flush on a table: its hip roll and knee yield under
+    the weight they carry (2e-4, 1e-4 rad/(N m): 30-45 mrad), the right leg and arm recorded beside the chain."""
+    from tolerance_ros.testing import standing as st
+    model = st.chain()
+    rng = np.random.default_rng(3)
+    dx = np.zeros(model.n_params)
+    dx[model.joint_columns()] = rng.normal(0, 5e-3, model.dof)
+    c = np.zeros(model.dof)
+    c[model.joint_names.index("leg_left_2_joint")], c[model.joint_names.index("leg_left_4_joint")] = 2e-4, 1e-4
+    normal = np.array([0.05, 0.02, 1.0]) / np.linalg.norm([0.05, 0.02, 1.0])
+    q, names, others = st.campaign(model, dx, c, (normal, 0.72), 30, seed=4, encoder=2e-4)
+    n = len(q)
+    data = ContactData(np.repeat(q, 3, axis=0), np.tile([0, 1, 2], n), np.zeros(3 * n, int),
+                       [("s1", "plane", "table")], ("F1", "F2", "F3"), np.repeat([f"P{i}" for i in range(n)], 3),
+                       others=np.repeat(others, 3, axis=0), other_names=names)
+    return model, dx, c, data
+
+
+def test_a_standing_robots_yielding_joints_are_found_by_the_elastic_candidate(standing):
+    """The folds choose the joint offsets with every joint's compliance under the whole weight on the sole (not the
+    root link held, not a geometric candidate); the yielding joints' compliances are found, the others near 0."""
+    from tolerance_ros.core.calibration.contact import ELASTIC
+    from tolerance_ros.testing.standing import TIPS
+    model, dx, c, data = standing
+    cc = calibrate_contacts(model, data, TIPS, folds=5)
+    assert cc.which == ELASTIC and cc.load.kind == "standing" and cc.fit.convergence.converged
+    p = model.n_params
+    found = cc.fit.dx[p:]
+    yielding = c > 0
+    assert found[yielding] == pytest.approx(c[yielding], rel=0.1)
+    assert np.all(np.abs(found[~yielding] * cc.largest_loads[~yielding]) < 3e-3)     # under 3 mrad at their loads
+    assert cc.validation["after"]["contact_rms_m"] < 0.1 * cc.validation["before"]["contact_rms_m"]
+    geometric = min(s["cv_contact_rms_m"] for s in cc.scores if s["parameters"] in ("joint-offsets", "full"))
+    assert cc.validation["after"]["contact_rms_m"] < 0.2 * geometric
+
+
+def test_the_rest_of_the_posture_loads_the_joints(standing):
+    """The right leg and arm move the centre of mass: without their readings the elastic fit predicts worse."""
+    from tolerance_ros.core.calibration.contact import DEFLECTIONS, ELASTIC, ELASTIC_TIKHONOV, Candidate, cross_validate
+    from tolerance_ros.testing.standing import TIPS
+    model, _, _, data = standing
+    blind = ContactData(data.q, data.target, data.constraint, data.constraints, data.target_names, data.labels)
+    cand = Candidate(ELASTIC, tikhonov=ELASTIC_TIKHONOV, deflection=DEFLECTIONS[0], load="standing")
+    seen, unseen = (cross_validate(model, d, cand, folds=5, offsets=TIPS)["after"]["contact_rms_m"] for d in (data, blind))
+    assert seen < 0.5 * unseen
+
+
+def test_an_elastic_calibration_predicts_another_table_from_the_command_line(capsys, standing, tmp_path):
+    """calibrate reads the other joints' columns of the CSV, the calibration file keeps the compliances and their
+    load, and validate on another table (its plane alone refitted) applies them at that session's postures."""
+    import json
+    from helpers import run_cli as run
+    from tolerance_ros.testing import standing as st
+    model, dx, c, _ = standing
+    a = st.write_campaign(tmp_path / "a.csv", *st.campaign(model, dx, c, (np.array([0.0, 0.0, 1.0]), 0.72), 30, seed=4,
+                                                           encoder=2e-4), "A")
+    normal = np.array([-0.04, 0.06, 1.0]) / np.linalg.norm([-0.04, 0.06, 1.0])
+    b = st.write_campaign(tmp_path / "b.csv", *st.campaign(model, dx, c, (normal, 0.78), 20, seed=9, encoder=2e-4), "B")
+    code, out, err = run(capsys, "calibrate", *st.robot_args(), "--measurements", a, *st.target_args(), "--folds", "5",
+                         "--out", tmp_path / "cal", "--json", "--quiet")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["model"]["parameters"] == "joint-offsets+elastic"
+    assert sorted(doc["model"]["elastic"]["posture_from"]) == sorted(st.OTHERS)
+    assert not any("ignored" in w for w in doc["warnings"])
+    code, out, err = run(capsys, "validate", "--calibration", tmp_path / "cal" / "calibration.yaml", "--measurements",
+                         b, "--json")
+    assert code == 0, err
+    v = json.loads(out)
+    assert v["after"]["contact_rms_m"] < 0.1 * v["before"]["contact_rms_m"] and v["after"]["contact_rms_m"] < 1e-3

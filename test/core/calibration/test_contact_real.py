@@ -28,6 +28,15 @@ def sessions(tmp_path_factory):
     return out
 
 
+def _free(model, data, f) -> np.ndarray:
+    """The unknowns fit ``f`` left free: neither a held parameter nor a target held at its nominal place."""
+    held = np.zeros(f.layout.n, bool)
+    held[model.param_index(f.held)] = True
+    names = f.layout.names(model, data)
+    held[[names.index(f"target {k}") for k, w in f.targets_why.items() if not w["fitted"]]] = True
+    return np.flatnonzero(~held)
+
+
 @pytest.mark.parametrize("side", list(tc.SESSIONS))
 @pytest.mark.parametrize("candidate", [("joint-offsets", None), ("joint-offsets", 1e-2), ("joint-offsets", 1e-1),
                                        ("full", 1e-3)])
@@ -41,12 +50,7 @@ def test_the_fit_reaches_the_optimum_scipy_finds_with_the_same_unknowns_held(ses
     which, weight = candidate
     f = fit_contacts(model, data, nominal, which, tikhonov=weight, analysis=False)
     assert f.convergence.converged, f.convergence
-    lay = f.layout
-    held = np.zeros(lay.n, bool)
-    held[model.param_index(f.held)] = True
-    names = lay.names(model, data)
-    held[[names.index(f"target {k}") for k, w in f.targets_why.items() if not w["fitted"]]] = True
-    free = np.flatnonzero(~held)
+    lay, free = f.layout, _free(model, data, f)
     ridge = np.where(free < model.n_params, weight or 0.0, 0.0)
     keep = np.sqrt((~f.rejected).astype(float))
 
@@ -76,3 +80,36 @@ def test_what_contact_cannot_see_on_the_training_sessions_is_held_and_said(sessi
     assert not f.noise_given and 0.1e-3 < f.noise_robust < f.noise_rig < 0.05
     rig = f.rig
     assert rig.d_std[0] > 0 and np.all(rig.normals_std[0] > 0)      # the session's plane, fitted
+
+
+@pytest.mark.parametrize("side", list(tc.SESSIONS))
+def test_the_elastic_fit_reaches_the_optimum_scipy_finds_with_the_same_unknowns_held(sessions, side):
+    """The joint offsets with every joint's compliance (the root link held, as the defaults choose on these sessions):
+    the cost with its Tikhonov term on the offsets and the compliances' prior, weighed at the fit's noise, within
+    1e-6 of scipy's minimum over the same free unknowns."""
+    from scipy.optimize import least_squares
+    from tolerance_ros.core.calibration.contact import (DEFLECTIONS, ELASTIC, ELASTIC_TIKHONOV, _largest_loads, _stack,
+                                                        fit_contacts, model_for)
+    from tolerance_ros.core.calibration.elastic import HELD
+    plain, data, nominal = sessions[side]
+    model = model_for(plain, ELASTIC, data, HELD)
+    f = fit_contacts(model, data, nominal, ELASTIC, tikhonov=ELASTIC_TIKHONOV, deflection=DEFLECTIONS[0],
+                     analysis=False)
+    assert f.convergence.converged, f.convergence
+    lay, free = f.layout, _free(model, data, f)
+    weight = np.zeros(lay.n)
+    weight[:plain.n_params] = ELASTIC_TIKHONOV
+    comp = model.compliance_columns()
+    weight[comp] = (f.prior_weight * _largest_loads(model, data.q)[comp] / DEFLECTIONS[0]) ** 2
+    keep = np.sqrt((~f.rejected).astype(float))
+
+    def residuals(z):
+        x = np.zeros(lay.n)
+        x[free] = z
+        return np.r_[_stack(model, data, x, f.reference, lay, keep)[1], np.sqrt(weight[free]) * z]
+    scale = np.full(lay.n, 1e-3)
+    scale[comp] = DEFLECTIONS[0] / _largest_loads(model, data.q)[comp]
+    ref = least_squares(residuals, np.zeros(len(free)), method="trf", xtol=1e-15, ftol=1e-15, gtol=1e-15,
+                        x_scale=scale[free])
+    ours, theirs = float(np.sum(residuals(f.x[free]) ** 2)), float(np.sum(ref.fun ** 2))
+    assert abs(ours - theirs) <= 1e-6 * theirs, (ours, theirs)

@@ -33,6 +33,7 @@ from ..models.base import Mechanism
 from ..accuracy.folds import folds_of, pose_groups
 from ..identification import (PRIOR, SCALE_WITHOUT_BUDGET, Convergence, _minimise, _preference, _Layout,
                              column_scale, dependent_columns)
+from .elastic import COMPLIANCE, HELD, STANDING, ElasticJoints, Load
 from .robust import prior_vector
 
 PLANE, POINT = "plane", "point"
@@ -42,7 +43,8 @@ TOL_RANK = 1e-5            # singular values below this share of the largest lea
 TAIL = 1e-4                # a row whose distance is this improbable under the robust noise is an outlier
 MAX_REJECTED = 0.25        # at most this share of the rows left out
 ROUNDS = 5                 # rejection rounds of a robust fit
-MODELS = ("rig", "joint-offsets", "full")
+ELASTIC = "joint-offsets+elastic"
+MODELS = ("rig", "joint-offsets", "full", ELASTIC)
 AUTO, FIT = "auto", "fit"
 TARGET_MODES = (AUTO, FIT)  # the targets fitted where the contacts determine them well, or wherever they can be
 TARGET_SHARE = 0.001       # ... well: a target coordinate's std at the rows' noise under this share of its lever arm
@@ -55,6 +57,9 @@ ALIAS = 0.03               # an unregularised parameter whose column keeps less 
                            # is nearly a motion of the rig, and held
 TIKHONOV = (1e-3, 1e-2, 1e-1)   # weights of the regularised candidates, cost |r|^2 + lambda |dx|^2 (m, rad);
                                 # 1e-3 is FIGAROH's on TALOS
+DEFLECTIONS = (0.02, 0.05)      # rad: prior std of a joint's elastic deflection at its largest load in the rows, of
+                                # the elastic candidates
+ELASTIC_TIKHONOV = 1e-2         # their Tikhonov weight on the joint offsets (a yaw of the hip beside the torso's)
 
 
 def _reject_levels():
@@ -67,7 +72,8 @@ def _reject_levels():
 class ContactData:
     """Contact rows. q (n, dof) joints (SI); target (n,) index into ``target_names``; constraint (n,) index into
     ``constraints``, each ``(session, kind, id)``; labels (n,) test-pose names or None; where (n,) where each row
-    comes from ('line 23'); stamps (n,) s or None."""
+    comes from ('line 23'); stamps (n,) s or None; others (n, m) the readings (SI) of the robot's joints outside the
+    chain ``other_names`` (the rest of a standing robot's posture, which loads its joints), or None."""
 
     q: np.ndarray
     target: np.ndarray
@@ -77,6 +83,8 @@ class ContactData:
     labels: np.ndarray | None = None
     where: list | None = None
     stamps: np.ndarray | None = None
+    others: np.ndarray | None = None
+    other_names: tuple = ()
 
     def __post_init__(self):
         self.q = np.asarray(self.q, float)
@@ -104,8 +112,17 @@ class ContactData:
         labels = None if self.labels is None else np.asarray(self.labels, dtype=object)[rows]
         where = None if self.where is None else list(np.asarray(self.where, dtype=object)[rows])
         stamps = None if self.stamps is None else np.asarray(self.stamps, float)[rows]
+        others = None if self.others is None else np.asarray(self.others, float)[rows]
         return ContactData(self.q[rows], self.target[rows], self.constraint[rows], self.constraints,
-                           self.target_names, labels, where, stamps)
+                           self.target_names, labels, where, stamps, others, self.other_names)
+
+    @property
+    def posture(self) -> tuple | None:
+        """(q (n, dof), other joint names, their readings (n, m)) of the rows, or None without other joints: what
+        ``elastic.ElasticJoints`` loads the joints with."""
+        if self.others is None or not len(self.other_names):
+            return None
+        return self.q, tuple(self.other_names), np.asarray(self.others, float)
 
     def constraint_name(self, c) -> str:
         s, kind, i = self.constraints[c]
@@ -367,15 +384,31 @@ def not_converged_words(c: Convergence) -> str:
 
 
 def _estimate_mask(model, which) -> np.ndarray:
-    """(p,) parameters a candidate estimates."""
+    """(p,) parameters a candidate estimates (the compliances among them only for ``ELASTIC``, on a model with
+    compliance columns: ``elastic.ElasticJoints``)."""
     if which not in MODELS:
         raise ValueError(f"parameters: expected one of {MODELS}, got {which!r}")
+    compliance = np.array(model.param_kinds) == COMPLIANCE
     m = np.zeros(model.n_params, bool)
-    if which == "joint-offsets":
+    if which in ("joint-offsets", ELASTIC):
         m[model.joint_columns()] = True
     elif which == "full":
-        m[:] = True
+        m[~compliance] = True
+    if which == ELASTIC:
+        if not compliance.any():
+            raise ValueError(f"parameters: {ELASTIC!r} needs the joints' gravity load (a URDF with inertials, its chain "
+                             f"from a fixed base or from the link the robot stands on)")
+        m[compliance] = True
     return m
+
+
+def _largest_loads(model, q) -> np.ndarray:
+    """(p,) the largest gravity load (N m, N) over the rows' joints q of each compliance column's joint (1 for the
+    other columns)."""
+    out = np.ones(model.n_params)
+    if isinstance(model, ElasticJoints):
+        out[model.compliance_columns()] = np.maximum(np.abs(model.loads(q)).max(axis=0), 1e-9)
+    return out
 
 
 def _row_count(data, weights):
@@ -385,7 +418,7 @@ def _row_count(data, weights):
 
 def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", prior=None, sigma=None, robust=True,
                  iterations=200, fixed=None, analysis=True, start=None, targets=AUTO, target_prior=None,
-                 tikhonov=None) -> ContactFit:
+                 tikhonov=None, deflection=None) -> ContactFit:
     """The robust least-squares fit of candidate ``which`` (``MODELS``) with its rig, from the targets' nominal
     offsets (K, 3) m; ``prior`` (m, rad) on the origin errors (``robust.prior_vector``: none on joint offsets) or
     None. ``fixed``: (dx (p,), target offsets (K, 3)) of a calibrated model whose parameters and targets are held
@@ -398,8 +431,9 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
     only where the contacts determine it well (``_target_holds``), 'fit' fits every one the rig does not make a
     copy of; ``target_prior`` (m): a Gaussian prior of that std on each target's offset from its nominal place
     (the targets then fitted as with 'fit'). ``tikhonov``: a weight lambda on the parameter errors estimated, the
-    cost ``|r|^2 + lambda |dx|^2`` (m^2; dx in m and rad), whatever the noise. Every plane and point touched is always
-    fitted."""
+    cost ``|r|^2 + lambda |dx|^2`` (m^2; dx in m and rad), whatever the noise. ``deflection`` (rad or m): on a model
+    with compliance columns (``elastic.ElasticJoints``), the Gaussian prior std of each joint's elastic deflection at
+    its largest load in the rows, weighed against the noise. Every plane and point touched is always fitted."""
     if targets not in TARGET_MODES:
         raise ValueError(f"targets: expected one of {TARGET_MODES}, got {targets!r}")
     p = model.n_params
@@ -428,9 +462,17 @@ def fit_contacts(model: Mechanism, data: ContactData, offsets, which="full", pri
     ridge = np.zeros(layout.n)
     if tikhonov is not None and fixed is None:
         ridge[:p] = float(tikhonov)
+    kinds = np.array(model.param_kinds)
+    compliance = kinds == COMPLIANCE
+    loads = _largest_loads(model, data.q)
+    if deflection is not None and fixed is None and compliance.any():
+        prior_std[:p][compliance] = float(deflection) / loads[compliance]
+        scale[:p][compliance] = prior_std[:p][compliance]
+        ridge[:p][compliance] = 0.0
     natural = np.full(layout.n, SCALE_WITHOUT_BUDGET)
+    natural[:p][compliance] = SCALE_WITHOUT_BUDGET / loads[compliance]
     reach = model.reach()   # the search stays within the build errors: free, a plane-contact fit can fold the robot
-    bound = np.r_[np.where(np.array(model.param_kinds) == "length", PLAUSIBLE_LENGTH * reach, PLAUSIBLE_ANGLE),
+    bound = np.r_[np.where(kinds == "length", PLAUSIBLE_LENGTH * reach, PLAUSIBLE_ANGLE / loads),
                   np.full(3 * layout.K, PLAUSIBLE_LENGTH * reach)]
     n = len(data)
     rot = np.zeros((0, 3), int)
@@ -769,14 +811,21 @@ class Candidate:
     """What a contact fit identifies: the parameters ``which`` (``MODELS``), regularised by a Gaussian ``prior``
     (length m, angle rad) on the origin errors weighed against the rows' noise (none on the joint offsets), or by a
     ``tikhonov`` weight lambda on every parameter estimated (cost ``|r|^2 + lambda |dx|^2``, m and rad), or
-    neither."""
+    neither; ``ELASTIC`` with the prior std ``deflection`` (rad) of each joint's elastic deflection at its largest
+    load, the joints loaded as ``load`` says (an ``elastic.Load`` kind; None: the model's own)."""
 
     which: str
     prior: tuple | None = None
     tikhonov: float | None = None
+    deflection: float | None = None
+    load: str | None = None
 
     @property
     def label(self) -> str:
+        if self.deflection is not None:
+            weight = "" if self.tikhonov is None else f", Tikhonov {self.tikhonov:g}"
+            held = " (root link held)" if self.load == HELD else ""
+            return f"{self.which}{held}, deflection prior {self.deflection * 1e3:g} mrad{weight}"
         if self.prior is not None:
             return f"{self.which}, prior {self.prior[0] * 1e3:g} mm / {self.prior[1] * 1e3:g} mrad"
         if self.tikhonov is not None:
@@ -785,19 +834,40 @@ class Candidate:
 
     def to_dict(self) -> dict:
         return {"label": self.label, "parameters": self.which,
-                "prior": None if self.prior is None else list(self.prior), "tikhonov": self.tikhonov}
+                "prior": None if self.prior is None else list(self.prior), "tikhonov": self.tikhonov,
+                "deflection": self.deflection, "load": self.load}
 
 
-def candidates(prior=PRIOR, tikhonov=TIKHONOV) -> list:
+def candidates(prior=PRIOR, tikhonov=TIKHONOV, elastic=False) -> list:
     """The ``Candidate`` list ``calibrate_contacts`` cross-validates: the rig alone, the joint offsets (alone and
-    with each ``tikhonov`` weight), every parameter (alone, with the ``prior`` (m, rad) if any, with each weight)."""
+    with each ``tikhonov`` weight), every parameter (alone, with the ``prior`` (m, rad) if any, with each weight),
+    and where the joints' gravity load is known (``elastic``: the ``elastic.Load`` kind of the model) the joint
+    offsets with every joint's compliance (each ``DEFLECTIONS`` prior, ``ELASTIC_TIKHONOV`` on the offsets); a robot
+    standing on the chain's base carries its whole weight, or its root link is held (a harness, a gantry)."""
     out = [Candidate("rig"), Candidate("joint-offsets")]
     out += [Candidate("joint-offsets", tikhonov=w) for w in tikhonov]
     out.append(Candidate("full"))
     if prior is not None:
         out.append(Candidate("full", prior=tuple(prior)))
     out += [Candidate("full", tikhonov=w) for w in tikhonov]
+    if elastic:
+        loads = (STANDING, HELD) if elastic == STANDING else (None,)
+        out += [Candidate(ELASTIC, tikhonov=ELASTIC_TIKHONOV, deflection=d, load=k) for k in loads for d in DEFLECTIONS]
     return out
+
+
+def model_for(model: Mechanism, which: str, data: ContactData | None = None, load: str | None = None) -> Mechanism:
+    """The model a candidate ``which`` is fitted on: ``model``, or for ``ELASTIC`` the model with its joints'
+    compliances among its parameters (``elastic.ElasticJoints``, loaded as ``load`` (an ``elastic.Load`` kind of a
+    standing robot) or ``elastic.Load.for_model`` says, the robot's other joints as ``data`` recorded them);
+    ValueError where no load is known."""
+    if which != ELASTIC:
+        return model
+    own = Load.for_model(model)
+    if own is None:
+        raise ValueError(f"parameters: {ELASTIC!r} needs the joints' gravity load (a URDF with inertials, its chain "
+                         f"from a fixed base or from the link the robot stands on)")
+    return ElasticJoints(model, own if load is None else Load(load), None if data is None else data.posture)
 
 
 def _score_rows(model, data, fitted: ContactFit, rows, sigma) -> np.ndarray:
@@ -838,13 +908,14 @@ def cross_validate(model, data, candidate: Candidate, sigma=None, folds=10, seed
     fold, k = folds_of(groups, folds, seed)
     dist = np.full(len(data), np.nan)
     bad, edf = [], []
+    model = model_for(model, candidate.which, data, candidate.load)
     for f in range(k):
         test = np.flatnonzero(fold == f)
         train = data.subset(fold != f)
         try:
             fitted = fit_contacts(model, train, offsets, candidate.which, candidate.prior, sigma, robust,
                                   analysis=False, targets=targets, target_prior=target_prior,
-                                  tikhonov=candidate.tikhonov)
+                                  tikhonov=candidate.tikhonov, deflection=candidate.deflection)
         except (ValueError, np.linalg.LinAlgError):
             continue
         if not fitted.convergence.converged:
@@ -902,6 +973,9 @@ class ContactCalibration:
     warnings: list
     how: str = ""
     tikhonov: float | None = None
+    deflection: float | None = None
+    load: Load | None = None
+    largest_loads: np.ndarray | None = None
 
 
 def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters="auto", prior=PRIOR, sigma=None,
@@ -914,8 +988,10 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
     groups, names = pose_groups(data.q, data.labels)
     if len(names) < 2:
         raise ValueError("validation: needs at least 2 distinct test poses (touch from more poses)")
-    todo = candidates(prior) if parameters == "auto" else [
-        Candidate(parameters, tuple(prior) if parameters == "full" and prior else None)]
+    load = Load.for_model(model)
+    todo = candidates(prior, elastic=load.kind if load is not None else False) if parameters == "auto" else [
+        Candidate(parameters, tuple(prior) if parameters == "full" and prior else None,
+                  ELASTIC_TIKHONOV if parameters == ELASTIC else None, DEFLECTIONS[0] if parameters == ELASTIC else None)]
     scores, cvs = [], {}
     kw = {"targets": targets, "target_prior": target_prior}
     for step, cand in enumerate(todo):
@@ -928,7 +1004,8 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
             continue
         cvs[cand.label] = cv
         fold_rms = np.asarray(cv["fold_rms_m"], float)
-        scores.append({**cand.to_dict(), "estimated": int(_estimate_mask(model, cand.which).sum()),
+        scores.append({**cand.to_dict(), "estimated": int(_estimate_mask(model_for(model, cand.which, data, cand.load),
+                                                                         cand.which).sum()),
                        "cv_contact_rms_m": cv["after"]["contact_rms_m"], "cv_contact_max_m": cv["after"]["contact_max_m"],
                        "fold_rms_m": cv["fold_rms_m"], "standard_error_m": cv["standard_error_m"],
                        "fold_scatter_m": float(np.nanstd(fold_rms, ddof=1)) if np.isfinite(fold_rms).sum() > 1 else None,
@@ -945,8 +1022,10 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
     for s in scores:
         s["chosen"] = s is best
     cand = Candidate(best["parameters"], None if best.get("prior") is None else tuple(best["prior"]),
-                     best.get("tikhonov"))
-    final = fit_contacts(model, data, offsets, cand.which, cand.prior, sigma, robust, tikhonov=cand.tikhonov, **kw)
+                     best.get("tikhonov"), best.get("deflection"), best.get("load"))
+    chosen = model_for(model, cand.which, data, cand.load)
+    final = fit_contacts(chosen, data, offsets, cand.which, cand.prior, sigma, robust, tikhonov=cand.tikhonov,
+                         deflection=cand.deflection, **kw)
     nominal = fit_contacts(model, data, offsets, "rig", None, sigma, robust, **kw)
     if progress is not None:
         progress(len(todo) + 1, len(todo) + 1)
@@ -977,15 +1056,17 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
         warnings.append("the contacts do not determine " + ", ".join(final.undetermined_rig)
                         + " (left at their nominal or first estimate)")
     return ContactCalibration(final, nominal, best["label"], cand.which, cand.prior, scores, validation, rejected,
-                              warnings, how, cand.tikhonov)
+                              warnings, how, cand.tikhonov, cand.deflection, getattr(chosen, "load", None),
+                              np.abs(chosen.loads(data.q)).max(axis=0) if isinstance(chosen, ElasticJoints) else None)
 
 
 def validate_contacts(model: Mechanism, data: ContactData, dx, offsets, nominal_offsets, sigma=None,
-                      robust=True) -> dict:
+                      robust=True, chain: Mechanism | None = None) -> dict:
     """Score a calibration (``dx`` (p,), targets at ``offsets`` (K, 3)) on other rows (another session): only
-    their planes and points are fitted, for the calibrated model (``after``) and the nominal one with the nominal
-    targets (``before``). {'before': {...}, 'after': {...}, 'rig': ...}, distances in m."""
-    after = fit_contacts(model, data, offsets, sigma=sigma, robust=robust, fixed=(dx, offsets))
+    their planes and points are fitted, for the calibrated model (``after``: ``chain``, the model with the
+    calibration's elastic term, or ``model``) and the nominal one with the nominal targets (``before``).
+    {'before': {...}, 'after': {...}, 'rig': ...}, distances in m."""
+    after = fit_contacts(chain or model, data, offsets, sigma=sigma, robust=robust, fixed=(dx, offsets))
     before = fit_contacts(model, data, nominal_offsets, sigma=sigma, robust=robust,
                           fixed=(np.zeros(model.n_params), nominal_offsets))
     out = {}

@@ -12,6 +12,7 @@ from ..models.base import Mechanism
 from ..conformity import PLAUSIBLE_LENGTH, implausible
 from .contact import (AUTO, PLANE, ContactData, calibrate_contacts, initial_rig, not_converged_words, target_points,
                       validate_contacts)
+from .elastic import ElasticJoints
 from .result import Calibration, nominal_fingerprint
 
 UNIT_SLIP_SHARE = 0.5      # beyond this share of rows outside the joint limits, the unit is wrong, not the rows
@@ -44,8 +45,10 @@ def contact_data(model: Mechanism, contacts, offsets: dict) -> tuple:
         warnings.append(f"left out before the fit: {contacts.where(i)}: joint {model.joint_names[j]} = {q[i, j]:.6g} "
                         f"lies beyond its limits [{model.joint_limits[j, 0]:.6g}, {model.joint_limits[j, 1]:.6g}] of "
                         f"{model.name!r}")
-    if contacts.ignored:
-        warnings.append(f"joint column(s) of joints outside the chain, ignored: {', '.join(contacts.ignored)}")
+    others, other_names = _other_joints(model, contacts)
+    ignored = [j for j in contacts.ignored if j not in other_names]
+    if ignored:
+        warnings.append(f"joint column(s) of joints outside the chain, ignored: {', '.join(ignored)}")
     keep = ~out
     names = list(dict.fromkeys(str(t) for t in contacts.target[keep]))
     missing = [t for t in names if t not in offsets]
@@ -61,7 +64,8 @@ def contact_data(model: Mechanism, contacts, offsets: dict) -> tuple:
     labels = np.asarray(contacts.pose[keep], dtype=object)
     data = ContactData(q[keep], target, constraint, keys, tuple(names),
                        labels if any(str(v) for v in labels) else None,
-                       [contacts.where(i) for i in np.flatnonzero(keep)], contacts.stamps[keep])
+                       [contacts.where(i) for i in np.flatnonzero(keep)], contacts.stamps[keep],
+                       None if others is None else others[keep], other_names)
     for c, (s, kind, i) in enumerate(keys):
         count = int(np.sum(constraint == c))
         if kind == PLANE and count < 3:
@@ -72,6 +76,19 @@ def contact_data(model: Mechanism, contacts, offsets: dict) -> tuple:
     if renamed:
         raise CheckError(f"{src}: {renamed}")
     return data, nominal, warnings
+
+
+def _other_joints(model: Mechanism, contacts) -> tuple:
+    """((n, m) readings or None, names) of the contact rows' joints outside the chain that the robot's URDF has (the
+    rest of its posture, which loads its joints)."""
+    pm = getattr(model, "pin_model", None)
+    values = getattr(contacts, "others", None)
+    if pm is None or values is None:
+        return None, ()
+    keep = [i for i, n in enumerate(contacts.other_names) if pm.existJointName(str(n))]
+    if not keep:
+        return None, ()
+    return np.asarray(values, float)[:, keep], tuple(contacts.other_names[i] for i in keep)
 
 
 def renamed_constraint(model: Mechanism, data: ContactData, offsets) -> str | None:
@@ -190,23 +207,34 @@ def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=Non
     p = model.n_params
     targets = Targets.from_offsets(list(data.target_names), list(rig.offsets))
     rows = int(np.sum(np.where(data.kind == PLANE, 1, 3)[~f.rejected]))
-    cal = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), f.dx.copy(), f.std.copy(),
-                      np.zeros(6), np.eye(4), None, list(f.held), [], {}, float("nan"), f.condition, f.rank,
-                      int(p - len(f.held)), f.noise, float("nan"), float("nan"), len(data),
+    held = [n for n in f.held if n in set(model.param_names)]
+    cal = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), f.dx[:p].copy(),
+                      f.std[:p].copy(), np.zeros(6), np.eye(4), None, held, [], {}, float("nan"), f.condition, f.rank,
+                      int(p - len(held)), f.noise, float("nan"), float("nan"), len(data),
                       len(set(map(str, data.labels))) if data.labels is not None else len(np.unique(data.q, axis=0)),
                       rows, "contact", sources=dict(sources or {}), targets=targets, targets_std=rig.offsets_std,
                       has_orientation=False)
+    elastic = None
+    if cc.load is not None:
+        cal.compliance, cal.compliance_std, cal.load = f.dx[p:].copy(), f.std[p:].copy(), cc.load.to_dict()
+        elastic = {"load": cc.load.describe(), "base_link": getattr(model, "base_link", None),
+                   "posture_from": list(data.other_names), "deflection_prior_rad": cc.deflection,
+                   "joints": [{"joint": j, "compliance": float(c), "std": float(s), "largest_load": float(g),
+                               "deflection_rad": float(c * g), "deflection_std_rad": float(s * g)}
+                              for j, c, s, g in zip(model.joint_names, cal.compliance, cal.compliance_std,
+                                                    cc.largest_loads)]}
     cal.nominal = nominal_fingerprint(model)
     cal.sources.setdefault("joint_names", list(model.joint_names))
     cal.model = {"parameters": cc.which, "prior": None if cc.prior is None else list(cc.prior), "label": cc.label,
-                 "tikhonov": cc.tikhonov, "how": cc.how, "candidates": cc.scores,
-                 "held_why": dict(f.held_why), "rig": rig.to_dict(), "targets_why": dict(f.targets_why),
+                 "tikhonov": cc.tikhonov, "deflection": cc.deflection, "how": cc.how, "candidates": cc.scores,
+                 "held_why": dict(f.held_why), "held_compliance": [n for n in f.held if n not in set(model.param_names)],
+                 "rig": rig.to_dict(), "targets_why": dict(f.targets_why),
                  "noise": {"rig_only_m": f.noise_rig, "after_parameters_m": f.noise_robust, "residual_m": f.noise,
                            "given": f.noise_given, "prior_weighed_at_m": f.prior_weight},
                  "nominal_targets": {n: list(map(float, o)) for n, o in zip(data.target_names, nominal)},
                  "nominal_fit_targets": {n: list(map(float, o)) for n, o in zip(data.target_names,
                                                                                 cc.nominal.rig.offsets)},
-                 "undetermined_rig": list(f.undetermined_rig), "rig_held": list(f.rig_held)}
+                 "undetermined_rig": list(f.undetermined_rig), "rig_held": list(f.rig_held), "elastic": elastic}
     cal.validation = cc.validation
     cal.rejected = list(cc.rejected)
     cal.warnings = list(cc.warnings)
@@ -269,7 +297,11 @@ def validate_campaign(cal: Calibration, model: Mechanism, contacts, robust=True)
     fitted = np.array([offsets[t] for t in data.target_names])
     nominal = np.array([nominal_doc.get(t, offsets[t]) for t in data.target_names], float)
     _refuse(model, data, nominal, contacts.source)
-    res = validate_contacts(model, data, cal.dx, fitted, nominal, robust=robust)
+    dx, chain = cal.dx, None
+    if cal.compliance is not None and np.any(cal.compliance):
+        chain = ElasticJoints(model, cal.joint_load(model), data.posture)
+        dx = np.r_[cal.dx, cal.compliance]
+    res = validate_contacts(model, data, dx, fitted, nominal, robust=robust, chain=chain)
     res["measurements"] = len(data)
     res["warnings"] = warnings
     return res

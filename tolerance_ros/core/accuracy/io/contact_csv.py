@@ -9,7 +9,8 @@ point ``<id>``); each ``session`` has planes and points of its own (a table move
 the point of the tool in contact (its nominal place in the tool frame comes from the command line); ``pose`` is
 the test pose (optional: without it rows at equal joints form a pose). Joint columns are the joint readings (rad,
 deg or mrad for revolute joints; m or mm for prismatic ones); a column for a joint the robot does not have is
-ignored and listed, a joint of the robot without a column is an error. Numbers as the measurement CSV reads them
+ignored by the chain and listed (with an angle or length unit, its readings are kept: the rest of a standing robot's
+posture, which loads its joints), a joint of the robot without a column is an error. Numbers as the measurement CSV reads them
 (finite; no nan or inf). Every problem is a ``MeasurementError`` naming the file, the line and the column; with
 ``skip_bad`` a bad row is skipped and listed instead.
 """
@@ -38,7 +39,8 @@ MAX_ROWS = 1_000_000
 class Contacts:
     """Rows of a contact campaign (SI): stamps (n,) s; pose, session, target (n,) names; contact (n,)
     'plane:<id>' or 'point:<id>'; joints (n, dof) in the order of ``joint_names``; ``ignored`` the joint columns
-    of joints the robot does not have; ``lines`` (n,) the line of each row; ``skipped`` [{line, reason}]."""
+    of joints the robot does not have; ``lines`` (n,) the line of each row; ``skipped`` [{line, reason}];
+    ``others`` (n, m) the readings (SI) of the ignored columns ``other_names`` that carry an angle or length unit."""
 
     source: str
     stamps: np.ndarray
@@ -51,6 +53,8 @@ class Contacts:
     lines: np.ndarray
     ignored: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
+    others: np.ndarray | None = None
+    other_names: tuple = ()
 
     def __len__(self):
         return len(self.stamps)
@@ -59,7 +63,7 @@ class Contacts:
         keep = np.asarray(keep)
         return Contacts(self.source, self.stamps[keep], self.pose[keep], self.session[keep], self.target[keep],
                         self.contact[keep], self.joints[keep], self.joint_names, self.lines[keep], list(self.ignored),
-                        list(self.skipped))
+                        list(self.skipped), None if self.others is None else self.others[keep], self.other_names)
 
     def where(self, i) -> str:
         return f"line {int(self.lines[i])}"
@@ -198,7 +202,8 @@ def read_contacts(path, joint_names, joint_types=None, skip_bad=False) -> Contac
     out = Contacts(src, stamps, np.array([r[1] for r in rows], dtype=object), np.array([r[2] for r in rows], dtype=object),
                    np.array([r[3] for r in rows], dtype=object), np.array([r[4] for r in rows], dtype=object),
                    np.array([r[5] for r in rows], float).reshape(len(rows), len(joint_names)), joint_names,
-                   np.array([r[6] for r in rows]), spec["ignored"], skipped)
+                   np.array([r[6] for r in rows]), spec["ignored"], skipped,
+                   np.array([r[7] for r in rows], float).reshape(len(rows), len(spec["others"])), tuple(spec["others"]))
     return out
 
 
@@ -234,10 +239,14 @@ def _header(header, src, joint_names, types):
                                    f"unit in brackets ({', '.join(sorted(table))}), got {u!r}")
         scale.append(table[u])
         index.append(i)
+    others = [(j, jcols[j][0], ANGLE_UNITS.get(jcols[j][1], LENGTH_UNITS.get(jcols[j][1])))
+              for j in sorted(set(jcols) - set(joint_names))]
+    others = [o for o in others if o[2] is not None]
     return {"ncols": len(header), "stamp": (cols["stamp"][0], _TIME_UNITS[unit]),
             "pose": cols["pose"][0] if "pose" in cols else None, "session": cols["session"][0],
             "target": cols["target"][0], "contact": cols["contact"][0], "joints": index, "scale": np.array(scale),
             "names": [f"joint:{j}" for j in joint_names], "ignored": sorted(set(jcols) - set(joint_names)),
+            "others": [o[0] for o in others], "other_columns": [(o[1], f"joint:{o[0]}", o[2]) for o in others],
             "source": src}
 
 
@@ -276,7 +285,8 @@ def _row(fields, spec, lineno):
     pose = _name(fields[spec["pose"]], "pose") if spec["pose"] is not None else ""
     session = _name(fields[spec["session"]], "session")
     q = [_number(fields[k], n) * sc for k, n, sc in zip(spec["joints"], spec["names"], spec["scale"])]
-    return stamp, pose, session, target, contact, q, lineno
+    others = [_number(fields[k], n) * sc for k, n, sc in spec["other_columns"]]
+    return stamp, pose, session, target, contact, q, lineno, others
 
 
 def write_contacts(path, stamps, pose, session, target, contact, joints, joint_names, joint_types=None, comments=()):
