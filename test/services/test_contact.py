@@ -57,6 +57,25 @@ def test_a_contact_request_latches_the_newest_joint_state_into_the_log(robots, t
     assert list(contacts.target) == ["A", "B"] and set(contacts.contact) == {"plane:table1"}
     assert np.allclose(contacts.joints, q) and offsets == {"A": TOOL, "B": [0.0, 0.0, 0.1]}
     assert mon.counts["contacts"] == 2
+    assert contacts.other_names == ("gripper",) and np.allclose(contacts.others, 0.02)   # the rest of the posture
+
+
+def test_the_joints_outside_the_chain_are_latched_with_the_state_they_came_in(robots, tmp_path):
+    """A humanoid's other leg and arm load the chain's joints: the contact keeps the readings of the joints outside
+    the chain of the state it latches (finite, printable names only), and the log reads them back."""
+    model = robots.select(None)[1]
+    clock = Clock()
+    mon = monitor(model, tmp_path / "log.jsonl", clock)
+    q = np.array([0.1, -0.2, 0.3, 0.4, -0.5, 0.6])
+    names = list(model.joint_names) + ["knee", "bad\udc80", "hip", "nan_joint"]
+    mon.on_joint_state(1.0, names, list(q) + [0.5, 1.0, -0.25, float("nan")])
+    assert mon.on_contact(json.dumps({"contact": "plane:t", "targets": ["A"], "pose": "P1"}))["ok"]
+    mon.on_joint_state(2.0, names[:6] + ["knee"], list(q) + [0.7])
+    assert mon.on_contact(json.dumps({"contact": "plane:t", "targets": ["A"], "pose": "P2"}))["ok"]
+    mon.close()
+    contacts, _ = read_contact_log(tmp_path / "log.jsonl", model.joint_names)
+    assert contacts.other_names == ("knee",) and np.allclose(contacts.others[:, 0], [0.5, 0.7])
+    assert contacts.ignored == ["hip"]                      # not in every event: listed, not used
 
 
 @pytest.mark.parametrize("text, words", [

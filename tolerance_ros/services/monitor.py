@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import re
 import time
-from collections import deque
+from collections import OrderedDict, deque
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +38,8 @@ MIN_GAP_S = 0.5
 (a node starting beside it) stamps a gap of a few periods though nothing was lost; the static measurements
 this monitor judges lose nothing to it. (The path monitor holds every gap of 5 periods against a motion.)"""
 MAX_FRAME_CHARS = 100  # of a measurement's frame_id in the campaign log
+OTHERS_KEPT = 64       # joint states whose joints outside the chain are kept for the contacts to latch
+MAX_OTHER_JOINTS = 256  # of those joints, a state's first; their names printable, at most 100 characters
 
 
 class MonitorLogic:
@@ -74,6 +76,7 @@ class MonitorLogic:
                        "joint_states_rejected": 0, "not_judged": 0, "contacts": 0}
         self.contacts = 0                         # contact requests latched (the seq of their log events)
         self._state_arrival = -np.inf             # clock() when the newest joint state arrived
+        self._others = OrderedDict()              # stamp: (names, readings) of the joints outside the chain
         self.check = StreamCheck(model)
         topic = "measured_pose" if self.orientation else "measured_point"
         self.streams = ["joint_states"] + [f"{topic}/{n}" if n else topic for n in self.targets.names]
@@ -150,8 +153,23 @@ class MonitorLogic:
         self.counts["joint_states"] += 1
         self.gaps["joint_states"].add(t, received)
         self.states.add(t, q)
+        self._keep_others(t, names, positions)
         self._state_arrival = self.clock()
         return self.resolve()
+
+    def _keep_others(self, t, names, positions):
+        """Keep the finite readings of the joints outside the chain of the state stamped ``t`` (the rest of a
+        standing robot's posture, which loads the chain's joints), for the last ``OTHERS_KEPT`` states."""
+        chain = set(self.model.joint_names)
+        try:
+            pairs = [(str(n), float(v)) for n, v in zip(names, positions) if str(n) not in chain]
+        except (TypeError, ValueError):
+            return
+        pairs = [(n, v) for n, v in pairs if np.isfinite(v) and _printable_name(n)][:MAX_OTHER_JOINTS]
+        if pairs:
+            self._others[t] = ([n for n, _ in pairs], [v for _, v in pairs])
+            while len(self._others) > OTHERS_KEPT:
+                self._others.popitem(last=False)
 
     def on_contact(self, text) -> dict:
         """A ``tolerance/contact`` request (JSON text, ``CONTACT_FIELDS``): the tool's targets touch a plane or a
@@ -182,10 +200,12 @@ class MonitorLogic:
             if off is None and name in self._target_index:
                 X = self.targets.X[self._target_index[name]]
                 offsets[name] = [float(v) for v in X[:3, 3]]
+        other_names, others = self._others.get(stamp, ([], []))
         for name, off in offsets.items():
             self._write({"event": "contact", "seq": self.contacts, "stamp": stamp, "contact": req["contact"],
                          "session": req["session"], "target": name, "offset_m": off, "pose": req.get("pose"),
-                         "joint_names": list(self.model.joint_names), "joints": [float(v) for v in q]})
+                         "joint_names": list(self.model.joint_names), "joints": [float(v) for v in q],
+                         "other_joint_names": other_names, "other_joints": others})
         self.contacts += 1
         self.counts["contacts"] += len(offsets)
         return {"id": rid, "ok": True, "rows": len(offsets), "stamp": stamp, "joints": [float(v) for v in q],
@@ -424,6 +444,16 @@ def monitor_targets(measurement: str, names: str, offsets) -> Targets:
 
 
 CONTACT = re.compile(r"^(plane|point):[A-Za-z0-9_.\-]{1,100}$")
+_PRINTABLE = re.compile(r"^[^\x00-\x1f\x7f]{1,100}$")
+
+
+def _printable_name(name) -> bool:
+    """True for a joint name the campaign log can hold: 1-100 printable characters, valid UTF-8."""
+    try:
+        name.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return bool(_PRINTABLE.match(name))
 MAX_CONTACT_TARGETS = 20
 
 

@@ -92,7 +92,8 @@ def read_contact_campaign(path, joint_names, joint_types=None, skip_bad=False) -
 def read_contact_log(path, joint_names, skip_bad=False) -> tuple:
     """(Contacts, {target: offset (3,) m or None}) of the ``contact`` events of the accuracy monitor's campaign log
     (``services.monitor.MonitorLogic.on_contact``); other events are not read. A malformed contact event is an
-    error naming its line, or with ``skip_bad`` is listed in ``skipped``."""
+    error naming its line, or with ``skip_bad`` is listed in ``skipped``. The readings of the joints outside the
+    chain (``other_joint_names``, ``other_joints``, rad or m) are kept for the joints every event has."""
     import json
     p = Path(path)
     if not p.is_file():
@@ -131,19 +132,28 @@ def read_contact_log(path, joint_names, skip_bad=False) -> tuple:
                 if offsets.get(target) is None:
                     offsets[target] = off
                 stamp = _number(repr(rec.get("stamp")), "stamp")
+                onames, ovals = rec.get("other_joint_names") or [], rec.get("other_joints") or []
+                if not isinstance(onames, list) or not isinstance(ovals, list) or len(onames) != len(ovals):
+                    raise MeasurementError("other_joint_names, other_joints: expected two lists of one length")
+                other = {str(n): _number(repr(v) if isinstance(v, (int, float)) else str(v), f"joint:{n}")
+                         for n, v in zip(onames, ovals) if str(n) not in joint_names}
                 rows.append((stamp, _name(str(rec.get("pose") or ""), "pose"), _name(str(rec.get("session") or ""),
                                                                                      "session"),
-                             target, contact, q, lineno))
+                             target, contact, q, lineno, other))
             except (MeasurementError, ValueError) as exc:
                 if not skip_bad:
                     raise MeasurementError(f"{src}, line {lineno}: {exc}") from None
                 skipped.append({"line": lineno, "reason": str(exc)})
     if not rows:
         raise MeasurementError(f"{src}: no contact events")
+    common = [n for n in rows[0][7] if all(n in r[7] for r in rows)]
+    ignored = sorted({n for r in rows for n in r[7]} - set(common))
     out = Contacts(src, np.array([r[0] for r in rows]), np.array([r[1] for r in rows], dtype=object),
                    np.array([r[2] for r in rows], dtype=object), np.array([r[3] for r in rows], dtype=object),
                    np.array([r[4] for r in rows], dtype=object), np.array([r[5] for r in rows], float), joint_names,
-                   np.array([r[6] for r in rows]), [], skipped)
+                   np.array([r[6] for r in rows]), ignored, skipped,
+                   np.array([[r[7][n] for n in common] for r in rows], float).reshape(len(rows), len(common)),
+                   tuple(common))
     return out, offsets
 
 
