@@ -319,3 +319,14 @@ def test_an_elastic_calibration_predicts_another_table_from_the_command_line(cap
     assert code == 0, err
     v = json.loads(out)
     assert v["after"]["contact_rms_m"] < 0.1 * v["before"]["contact_rms_m"] and v["after"]["contact_rms_m"] < 1e-3
+    assert not v["warnings"]
+    lines = b.read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("stamp"))
+    keep = [k for k, h in enumerate(lines[header].split(",")) if "right" not in h]
+    (tmp_path / "chain_only.csv").write_text("\n".join(",".join(line.split(",")[k] for k in keep) if i >= header else
+                                                        line for i, line in enumerate(lines)) + "\n")
+    code, out, err = run(capsys, "validate", "--calibration", tmp_path / "cal" / "calibration.yaml", "--measurements",
+                         tmp_path / "chain_only.csv", "--json")
+    blind = json.loads(out)
+    assert code == 0 and any("no column for 13 of its joints" in w for w in blind["warnings"])
+    assert blind["after"]["contact_rms_m"] > v["after"]["contact_rms_m"]

@@ -301,6 +301,13 @@ def validate_campaign(cal: Calibration, model: Mechanism, contacts, robust=True)
     if cal.compliance is not None and np.any(cal.compliance):
         chain = ElasticJoints(model, cal.joint_load(model), data.posture)
         dx = np.r_[cal.dx, cal.compliance]
+        fitted_with = ((cal.model or {}).get("elastic") or {}).get("posture_from") or []
+        missing = [j for j in fitted_with if j not in data.other_names]
+        if missing:
+            warnings.append(f"the calibration's compliances were fitted with the rest of the posture recorded; these "
+                            f"rows have no column for {len(missing)} of its joints ({', '.join(missing[:6])}"
+                            f"{', ...' if len(missing) > 6 else ''}): their loads take those joints at their neutral "
+                            f"values (write every joint's column)")
     res = validate_contacts(model, data, dx, fitted, nominal, robust=robust, chain=chain)
     res["measurements"] = len(data)
     res["warnings"] = warnings
