@@ -38,8 +38,10 @@ def target_args() -> list:
 def campaign(model, dx, compliance, table, n, seed, load="standing", encoder=0.0):
     """(joints read (n, dof), other joints' names, their readings (n, m)) of ``n`` postures flush on ``table``
     ((unit normal, offset m) in the sole's frame) of the robot built with errors ``dx``, its joints yielding by
-    ``compliance`` (dof,) rad/(N m) times their load (``elastic.Load`` kind ``load``, the right leg and arm at
-    seeded readings within +-0.6 rad), read with encoder noise of std ``encoder`` rad."""
+    ``compliance`` (dof,) rad/(N m) times their load at the postures they reach (``elastic.Load`` kind ``load``,
+    the right leg and arm at seeded readings within +-0.6 rad), read with encoder noise of std ``encoder`` rad.
+    (The calibration's model takes the load at the joints read: where the load grows with the deflection, as a
+    standing robot's ankle's does, its compliance comes out as ``c / (1 - c dg/dq)``.)"""
     from ..core.accuracy.simulate import touch
     from ..core.calibration.elastic import Load
     rng = np.random.default_rng(seed)
@@ -48,9 +50,7 @@ def campaign(model, dx, compliance, table, n, seed, load="standing", encoder=0.0
     lo = np.array([pm.lowerPositionLimit[pm.idx_qs[pm.getJointId(j)]] for j in OTHERS])
     hi = np.array([pm.upperPositionLimit[pm.idx_qs[pm.getJointId(j)]] for j in OTHERS])
     others = rng.uniform(np.maximum(lo, -0.6), np.minimum(hi, 0.6), (len(q), len(OTHERS)))
-    read = q.copy()
-    for _ in range(6):     # the joints read q - c g(q read): a fixed point, c g small
-        read = q - np.asarray(compliance, float) * Load(load).torques(model, read, (OTHERS, others))
+    read = q - np.asarray(compliance, float) * Load(load).torques(model, q, (OTHERS, others))
     return read + rng.standard_normal(read.shape) * encoder, OTHERS, others
 
 

@@ -279,8 +279,9 @@ def test_a_standing_robots_yielding_joints_are_found_by_the_elastic_candidate(st
     found = cc.fit.dx[p:]
     yielding = c > 0
     assert found[yielding] == pytest.approx(c[yielding], rel=0.1)
-    assert np.all(np.abs(found[~yielding] * cc.largest_loads[~yielding]) < 3e-3)     # under 3 mrad at their loads
-    assert cc.validation["after"]["contact_rms_m"] < 0.1 * cc.validation["before"]["contact_rms_m"]
+    assert np.all(np.abs(found[~yielding] * cc.largest_loads[~yielding]) < 5e-3)     # under 5 mrad at their loads,
+    assert np.all(np.abs(found[yielding] * cc.largest_loads[yielding]) > 25e-3)      # the yielding ones 30-45
+    assert cc.validation["after"]["contact_rms_m"] < 0.15 * cc.validation["before"]["contact_rms_m"]
     geometric = min(s["cv_contact_rms_m"] for s in cc.scores if s["parameters"] in ("joint-offsets", "full"))
     assert cc.validation["after"]["contact_rms_m"] < 0.2 * geometric
 
