@@ -264,7 +264,7 @@ def real(results):
         results.append((after <= target[side], f"real {side}: held-out {after * 1e3:.2f} mm against the issue's "
                                                f"{target[side] * 1e3:.1f} mm (independent joint offsets "
                                                f"{ref * 1e3:.2f} mm on the same folds)"))
-    print(f"\nthe same on other splits into 10 folds (calibrate --seed; the independent fit on each split's folds):")
+    print("\nthe same on other splits into 10 folds (calibrate --seed; the independent fit on each split's folds):")
     print("| session | seed | identified | held-out after mm | +- std error | independent joint offsets mm | ours / "
           "independent |")
     print("|---|---:|---|---:|---:|---:|---:|")

@@ -200,3 +200,22 @@ def test_the_targets_options_for_contacts(capsys, tmp_path):
     assert code == 2 and "give one" in err
     code, _, err = run(capsys, *base, "--target-prior", "2", "--out", tmp_path / "x")
     assert code == 2 and "--target-prior" in err
+
+
+def test_a_figaroh_session_file_becomes_a_contact_csv_with_every_joint(tmp_path):
+    """Another table set-up's FIGAROH file (the training sessions' format; no shared data needed) is written as a
+    contact CSV whose 32 joint columns give the chain and the rest of the posture."""
+    from tolerance_ros.core.accuracy.io.contact_csv import read_contacts
+    from tolerance_ros.testing import talos_contact as tc
+    rng = np.random.default_rng(2)
+    q = rng.uniform(-0.2, 0.2, (4, len(tc.JOINTS)))
+    lines = ["gripper,talos/left_gripper,handle,table/contact_01,joint_states," + ",".join(repr(float(v)) for v in row)
+             for row in q]
+    src = tmp_path / "left_other.csv"
+    src.write_text("header,shifted\n" + "\n".join(lines) + "\n")
+    out = tc.write_campaign("left", tmp_path / "out.csv", source=src)
+    chain = [j for j in tc.JOINTS if j.startswith("leg_left") or j.startswith("torso") or j.startswith("arm_left")]
+    c = read_contacts(out, chain)
+    assert len(c) == 12 and set(c.session) == {"left_other"} and len(c.other_names) == len(tc.JOINTS) - len(chain)
+    k = tc.JOINTS.index(c.other_names[0])
+    assert np.allclose(c.others[::3, 0], q[:, k]) and np.allclose(c.joints[::3, 0], q[:, tc.JOINTS.index(chain[0])])

@@ -72,11 +72,13 @@ def postures(path) -> tuple:
     return np.array(q, float), spots
 
 
-def write_campaign(side, out, session=None, q=None) -> Path:
-    """The contact CSV of ``side``'s training session at ``out`` (``q`` instead of the file's joints when given);
-    the session named ``session`` (default: the file's stem)."""
+def write_campaign(side, out, session=None, q=None, source=None) -> Path:
+    """The contact CSV at ``out`` of ``side``'s training session, or of another FIGAROH session file ``source`` of
+    that side (another table set-up), every one of its 32 joints a column (the rest of the posture loads the
+    chain's joints); ``q`` instead of the file's joints when given; the session named ``session`` (default: the
+    file's stem)."""
     from ..core.accuracy.io.contact_csv import write_contacts
-    src = DATA / SESSIONS[side]
+    src = Path(source) if source is not None else DATA / SESSIONS[side]
     q_file, spots = postures(src)
     q = q_file if q is None else np.asarray(q, float)
     names = list(FINGERTIPS)
