@@ -68,8 +68,9 @@ class Load:
     @classmethod
     def for_model(cls, model: Mechanism, payload=None) -> "Load | None":
         """The load of ``model``: its inertials (plus ``payload`` = (kg, (3,) m in the tool frame) when
-        given), the payload alone, or the default lumped point mass; None for a model that is not a URDF chain, or
-        one whose base link moves with joints (no gravity direction is known for it)."""
+        given), the payload alone, or the default lumped point mass; for a chain whose base link moves with joints,
+        ``STANDING`` where the robot stands on that link (``stands_on``, a URDF with inertials, no payload), else
+        None (no gravity direction is known for it); None for a model that is not a URDF chain."""
         if isinstance(model, URDFChain) and getattr(model, "base_moves", False):
             # a chain from a moving link has no gravity direction of its own, unless the robot stands on it
             return cls(STANDING) if payload is None and has_inertials(model) and stands_on(model) else None
