@@ -76,7 +76,7 @@ class MonitorLogic:
                        "joint_states_rejected": 0, "not_judged": 0, "contacts": 0}
         self.contacts = 0                         # contact requests latched (the seq of their log events)
         self._state_arrival = -np.inf             # clock() when the newest joint state arrived
-        self._others = OrderedDict()              # stamp: (names, readings) of the joints outside the chain
+        self._others = OrderedDict()              # stamp: (names, positions) of the states naming other joints
         self.check = StreamCheck(model)
         topic = "measured_pose" if self.orientation else "measured_point"
         self.streams = ["joint_states"] + [f"{topic}/{n}" if n else topic for n in self.targets.names]
@@ -153,23 +153,24 @@ class MonitorLogic:
         self.counts["joint_states"] += 1
         self.gaps["joint_states"].add(t, received)
         self.states.add(t, q)
-        self._keep_others(t, names, positions)
+        if isinstance(names, (list, tuple)) and len(names) > self.model.dof:   # joints outside the chain too: kept
+            self._others[t] = (tuple(names), tuple(positions))                  # as given, read on contact
+            while len(self._others) > OTHERS_KEPT:
+                self._others.popitem(last=False)
         self._state_arrival = self.clock()
         return self.resolve()
 
-    def _keep_others(self, t, names, positions):
-        """Keep the finite readings of the joints outside the chain of the state stamped ``t`` (the rest of a
-        standing robot's posture, which loads the chain's joints), for the last ``OTHERS_KEPT`` states."""
+    def _other_joints(self, t) -> tuple:
+        """(names, readings) of the finite joints outside the chain of the state stamped ``t`` (the rest of a
+        standing robot's posture, which loads the chain's joints; of the last ``OTHERS_KEPT`` states), or empty."""
+        names, positions = self._others.get(t, ((), ()))
         chain = set(self.model.joint_names)
         try:
             pairs = [(str(n), float(v)) for n, v in zip(names, positions) if str(n) not in chain]
         except (TypeError, ValueError):
-            return
+            return [], []
         pairs = [(n, v) for n, v in pairs if np.isfinite(v) and _printable_name(n)][:MAX_OTHER_JOINTS]
-        if pairs:
-            self._others[t] = ([n for n, _ in pairs], [v for _, v in pairs])
-            while len(self._others) > OTHERS_KEPT:
-                self._others.popitem(last=False)
+        return [n for n, _ in pairs], [v for _, v in pairs]
 
     def on_contact(self, text) -> dict:
         """A ``tolerance/contact`` request (JSON text, ``CONTACT_FIELDS``): the tool's targets touch a plane or a
@@ -200,7 +201,7 @@ class MonitorLogic:
             if off is None and name in self._target_index:
                 X = self.targets.X[self._target_index[name]]
                 offsets[name] = [float(v) for v in X[:3, 3]]
-        other_names, others = self._others.get(stamp, ([], []))
+        other_names, others = self._other_joints(stamp)
         for name, off in offsets.items():
             self._write({"event": "contact", "seq": self.contacts, "stamp": stamp, "contact": req["contact"],
                          "session": req["session"], "target": name, "offset_m": off, "pose": req.get("pose"),
