@@ -60,6 +60,8 @@ TIKHONOV = (1e-3, 1e-2, 1e-1)   # weights of the regularised candidates, cost |r
 DEFLECTIONS = (0.02, 0.05)      # rad: prior std of a joint's elastic deflection at its largest load in the rows, of
                                 # the elastic candidates
 ELASTIC_TIKHONOV = 1e-2         # their Tikhonov weight on the joint offsets (a yaw of the hip beside the torso's)
+NO_LOAD = (f"parameters: {ELASTIC!r} needs the joints' gravity load (a URDF with inertials, its chain from a fixed "
+           f"base or from the link the robot stands on)")
 
 
 def _reject_levels():
@@ -396,8 +398,7 @@ def _estimate_mask(model, which) -> np.ndarray:
         m[~compliance] = True
     if which == ELASTIC:
         if not compliance.any():
-            raise ValueError(f"parameters: {ELASTIC!r} needs the joints' gravity load (a URDF with inertials, its chain "
-                             f"from a fixed base or from the link the robot stands on)")
+            raise ValueError(NO_LOAD)
         m[compliance] = True
     return m
 
@@ -407,7 +408,7 @@ def _largest_loads(model, q) -> np.ndarray:
     other columns)."""
     out = np.ones(model.n_params)
     if isinstance(model, ElasticJoints):
-        out[model.compliance_columns()] = np.maximum(np.abs(model.loads(q)).max(axis=0), 1e-9)
+        out[model.compliance_columns()] = np.maximum(model.largest_loads(q), 1e-9)
     return out
 
 
@@ -865,8 +866,7 @@ def model_for(model: Mechanism, which: str, data: ContactData | None = None, loa
         return model
     own = Load.for_model(model)
     if own is None:
-        raise ValueError(f"parameters: {ELASTIC!r} needs the joints' gravity load (a URDF with inertials, its chain "
-                         f"from a fixed base or from the link the robot stands on)")
+        raise ValueError(NO_LOAD)
     return ElasticJoints(model, own if load is None else Load(load), None if data is None else data.posture)
 
 
@@ -903,7 +903,8 @@ def cross_validate(model, data, candidate: Candidate, sigma=None, folds=10, seed
     """K-fold by test pose: each fold's rows predicted by the fit of the others (``_score_rows``); every row
     scored. {'after': {contact_rms_m, contact_max_m}, 'distances_m', 'rows_scored', 'folds', 'fold_rms_m' (each
     fold's RMS, nan where none of its rows was scored), 'standard_error_m' (the folds' standard deviation over
-    sqrt(k)), 'effective_unknowns' (the folds' mean), 'not_converged'}, distances in m."""
+    sqrt(k)), 'effective_unknowns' (the folds' mean), 'not_converged', 'estimated' (how many parameters the
+    candidate estimates)}, distances in m."""
     groups, _ = pose_groups(data.q, data.labels)
     fold, k = folds_of(groups, folds, seed)
     dist = np.full(len(data), np.nan)
@@ -932,7 +933,7 @@ def cross_validate(model, data, candidate: Candidate, sigma=None, folds=10, seed
                       "contact_max_m": float(d.max()) if d.size else float("nan")},
             "distances_m": dist, "rows_scored": int(scored.sum()), "folds": k, "fold_rms_m": per_fold.tolist(),
             "standard_error_m": se, "effective_unknowns": float(np.mean(edf)) if edf else float("nan"),
-            "not_converged": bad}
+            "not_converged": bad, "estimated": int(_estimate_mask(model, candidate.which).sum())}
 
 
 def one_standard_error(scores) -> tuple:
@@ -1004,8 +1005,7 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
             continue
         cvs[cand.label] = cv
         fold_rms = np.asarray(cv["fold_rms_m"], float)
-        scores.append({**cand.to_dict(), "estimated": int(_estimate_mask(model_for(model, cand.which, data, cand.load),
-                                                                         cand.which).sum()),
+        scores.append({**cand.to_dict(), "estimated": cv["estimated"],
                        "cv_contact_rms_m": cv["after"]["contact_rms_m"], "cv_contact_max_m": cv["after"]["contact_max_m"],
                        "fold_rms_m": cv["fold_rms_m"], "standard_error_m": cv["standard_error_m"],
                        "fold_scatter_m": float(np.nanstd(fold_rms, ddof=1)) if np.isfinite(fold_rms).sum() > 1 else None,
@@ -1057,7 +1057,7 @@ def calibrate_contacts(model: Mechanism, data: ContactData, offsets, parameters=
                         + " (left at their nominal or first estimate)")
     return ContactCalibration(final, nominal, best["label"], cand.which, cand.prior, scores, validation, rejected,
                               warnings, how, cand.tikhonov, cand.deflection, getattr(chosen, "load", None),
-                              np.abs(chosen.loads(data.q)).max(axis=0) if isinstance(chosen, ElasticJoints) else None)
+                              chosen.largest_loads(data.q) if isinstance(chosen, ElasticJoints) else None)
 
 
 def validate_contacts(model: Mechanism, data: ContactData, dx, offsets, nominal_offsets, sigma=None,

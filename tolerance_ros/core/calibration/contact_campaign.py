@@ -207,7 +207,8 @@ def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=Non
     p = model.n_params
     targets = Targets.from_offsets(list(data.target_names), list(rig.offsets))
     rows = int(np.sum(np.where(data.kind == PLANE, 1, 3)[~f.rejected]))
-    held = [n for n in f.held if n in set(model.param_names)]
+    held = [n for n in f.held if n in model.param_names]
+    held_compliance = [n for n in f.held if n not in model.param_names]
     cal = Calibration(model.name, tuple(model.param_names), tuple(model.param_kinds), f.dx[:p].copy(),
                       f.std[:p].copy(), np.zeros(6), np.eye(4), None, held, [], {}, float("nan"), f.condition, f.rank,
                       int(p - len(held)), f.noise, float("nan"), float("nan"), len(data),
@@ -227,7 +228,7 @@ def calibration_of(model: Mechanism, data: ContactData, nominal, cc, sources=Non
     cal.sources.setdefault("joint_names", list(model.joint_names))
     cal.model = {"parameters": cc.which, "prior": None if cc.prior is None else list(cc.prior), "label": cc.label,
                  "tikhonov": cc.tikhonov, "deflection": cc.deflection, "how": cc.how, "candidates": cc.scores,
-                 "held_why": dict(f.held_why), "held_compliance": [n for n in f.held if n not in set(model.param_names)],
+                 "held_why": dict(f.held_why), "held_compliance": held_compliance,
                  "rig": rig.to_dict(), "targets_why": dict(f.targets_why),
                  "noise": {"rig_only_m": f.noise_rig, "after_parameters_m": f.noise_robust, "residual_m": f.noise,
                            "given": f.noise_given, "prior_weighed_at_m": f.prior_weight},
@@ -301,7 +302,7 @@ def validate_campaign(cal: Calibration, model: Mechanism, contacts, robust=True)
     if cal.compliance is not None and np.any(cal.compliance):
         chain = ElasticJoints(model, cal.joint_load(model), data.posture)
         dx = np.r_[cal.dx, cal.compliance]
-        fitted_with = ((cal.model or {}).get("elastic") or {}).get("posture_from") or []
+        fitted_with = (doc.get("elastic") or {}).get("posture_from") or []
         missing = [j for j in fitted_with if j not in data.other_names]
         if missing:
             warnings.append(f"the calibration's compliances were fitted with the rest of the posture recorded; these "

@@ -291,6 +291,10 @@ class ElasticJoints(WrappedMechanism):
             self._loads = (key, self.load.torques(self.inner, q, others))
         return self._loads[1]
 
+    def largest_loads(self, q) -> np.ndarray:
+        """(dof,) each joint's largest load (N m, N) in magnitude over the joints q (n, dof)."""
+        return np.abs(self.loads(q)).max(axis=0)
+
     def reach(self, samples: int = 512) -> float:
         return self.inner.reach(samples)
 
