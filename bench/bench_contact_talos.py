@@ -105,6 +105,16 @@ class HipLoad:
         return out
 
 
+def as_built(model):
+    """(p,) the simulated robot's errors (seeded): every joint offset N(0, ``OFFSETS``), every origin within
+    ``LENGTH`` and ``ANGLE``."""
+    rng = np.random.default_rng(48)
+    dx = np.where(np.array(model.param_kinds) == "length", rng.uniform(-LENGTH, LENGTH, model.n_params),
+                  rng.uniform(-ANGLE, ANGLE, model.n_params))
+    dx[model.joint_columns()] = rng.standard_normal(model.dof) * OFFSETS
+    return dx
+
+
 def simulate(tmp, model, dx, load, hip, encoder, seed):
     """The two set-ups' contact CSVs (the true joints flush on each table, read through the hip's yield and the
     encoders' noise); {session: path}."""
@@ -144,10 +154,7 @@ def simulated(results):
     model = URDFChain(urdf, tip_link=tip, base_link=base)
     within = model.with_joint_limits(RANGES)
     load = HipLoad(model)
-    rng = np.random.default_rng(48)
-    dx = np.where(np.array(model.param_kinds) == "length", rng.uniform(-LENGTH, LENGTH, model.n_params),
-                  rng.uniform(-ANGLE, ANGLE, model.n_params))
-    dx[model.joint_columns()] = rng.standard_normal(model.dof) * OFFSETS
+    dx = as_built(model)
     chain = ["--robot", urdf, "--base-link", base, "--tip-link", tip]
     rows = []
     for label, hip, encoder in (("encoder noise", 0.0, ENCODER), ("encoder noise + hip yield", HIP, ENCODER),
@@ -197,10 +204,7 @@ def yielding(results):
     from tolerance_ros.core.accuracy.io.contact_csv import read_contacts
     from tolerance_ros.testing import standing as st
     model = st.chain()
-    rng = np.random.default_rng(48)
-    dx = np.where(np.array(model.param_kinds) == "length", rng.uniform(-LENGTH, LENGTH, model.n_params),
-                  rng.uniform(-ANGLE, ANGLE, model.n_params))
-    dx[model.joint_columns()] = rng.standard_normal(model.dof) * OFFSETS
+    dx = as_built(model)
     c = np.array([YIELD.get(j, 0.0) for j in model.joint_names])
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)

@@ -35,6 +35,14 @@ def target_args() -> list:
             ("--target", f"F{k + 1}=" + ",".join(f"{v * 1e3:g}mm" for v in t))]
 
 
+def other_readings(model, n, rng) -> np.ndarray:
+    """(n, len(OTHERS)) seeded readings (rad) of the right leg and arm, within +-0.6 rad and the URDF's limits."""
+    pm = model.pin_model
+    lo = np.array([pm.lowerPositionLimit[pm.idx_qs[pm.getJointId(j)]] for j in OTHERS])
+    hi = np.array([pm.upperPositionLimit[pm.idx_qs[pm.getJointId(j)]] for j in OTHERS])
+    return rng.uniform(np.maximum(lo, -0.6), np.minimum(hi, 0.6), (n, len(OTHERS)))
+
+
 def campaign(model, dx, compliance, table, n, seed, load="standing", encoder=0.0):
     """(joints read (n, dof), other joints' names, their readings (n, m)) of ``n`` postures flush on ``table``
     ((unit normal, offset m) in the sole's frame) of the robot built with errors ``dx``, its joints yielding by
@@ -46,10 +54,7 @@ def campaign(model, dx, compliance, table, n, seed, load="standing", encoder=0.0
     from ..core.calibration.elastic import Load
     rng = np.random.default_rng(seed)
     q = touch(model.with_joint_limits(RANGES), dx, TIPS, "plane", table, n, seed=[seed, 1])
-    pm = model.pin_model
-    lo = np.array([pm.lowerPositionLimit[pm.idx_qs[pm.getJointId(j)]] for j in OTHERS])
-    hi = np.array([pm.upperPositionLimit[pm.idx_qs[pm.getJointId(j)]] for j in OTHERS])
-    others = rng.uniform(np.maximum(lo, -0.6), np.minimum(hi, 0.6), (len(q), len(OTHERS)))
+    others = other_readings(model, len(q), rng)
     read = q - np.asarray(compliance, float) * Load(load).torques(model, q, (OTHERS, others))
     return read + rng.standard_normal(read.shape) * encoder, OTHERS, others
 

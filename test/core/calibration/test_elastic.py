@@ -7,22 +7,18 @@ from tolerance_ros.core.calibration.elastic import (COMPLIANCE, ElasticJoints, L
                                                     stands_on)
 from tolerance_ros.core.models.urdf import URDFChain
 from tolerance_ros.testing.example_robots import example_urdf
-
-OTHERS = tuple(f"leg_right_{i}_joint" for i in range(1, 7)) + tuple(f"arm_right_{i}_joint" for i in range(1, 8))
+from tolerance_ros.testing.standing import OTHERS, chain, other_readings
 
 
 @pytest.fixture(scope="module")
 def talos():
     """example-robot-data's whole TALOS, the chain from its left sole to its left gripper."""
-    return URDFChain(example_urdf("talos_full_v2.urdf"), tip_link="gripper_left_base_link", base_link="left_sole_link")
+    return chain()
 
 
 def _others(model, n, seed):
-    """(names, (n, m) readings within ±0.6 rad and the URDF's limits) of the right leg and arm."""
-    pm = model.pin_model
-    lo = np.array([pm.lowerPositionLimit[pm.idx_qs[pm.getJointId(j)]] for j in OTHERS])
-    hi = np.array([pm.upperPositionLimit[pm.idx_qs[pm.getJointId(j)]] for j in OTHERS])
-    return OTHERS, np.random.default_rng(seed).uniform(np.maximum(lo, -0.6), np.minimum(hi, 0.6), (n, len(OTHERS)))
+    """(names, (n, m) seeded readings) of the right leg and arm."""
+    return OTHERS, other_readings(model, n, np.random.default_rng(seed))
 
 
 def _potential(model, q, others, skip_root=False):
